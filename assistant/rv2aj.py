@@ -1,0 +1,442 @@
+"""The built-in Mitsubishi RV-2AJ: 5 revolute axes J1, J2, J3, J5, J6 (there is no J4).
+
+Kinematics from the DH table of the thesis (SPEC §2); joint limits and speeds from the
+datasheet, both overridable. The arm is planar after J1: J2, J3 and J5 turn about parallel
+axes, so the flange position and the approach vector always lie in the vertical plane through
+the J1 axis. That gives a short closed form for FK (written out per element for the batch
+version) and for IK, and it is why an arbitrary 6-DoF orientation is generally unreachable.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from assistant.dh import DHChain, DHRow, batch_chain_frames, chain_frames, flange_frame
+from assistant.robot_model import (
+    BatchPoses,
+    CollisionShape,
+    IKFailure,
+    IKResult,
+    JointLimits,
+    LinkGeometry,
+    Robot,
+    ShapeKind,
+    Tool,
+)
+from assistant.transforms import axis_angle, inv_T, rot_y, rot_z, rotation_angle
+from assistant.urdf_writer import urdf_from_chain
+
+Array = np.ndarray
+
+L1 = 0.300  # base to shoulder (J2 axis) height
+L2 = 0.250  # upper arm
+L3 = 0.160  # forearm
+L6 = 0.072  # wrist (J5 axis) to flange
+
+RV2AJ_DH = DHChain(
+    (
+        DHRow(d=L1, theta_offset=np.pi, a=0.0, alpha=np.pi / 2),
+        DHRow(d=0.0, theta_offset=np.pi / 2, a=L2, alpha=0.0),
+        DHRow(d=0.0, theta_offset=0.0, a=L3, alpha=0.0),
+        DHRow(d=0.0, theta_offset=np.pi / 2, a=0.0, alpha=np.pi / 2),
+        DHRow(d=L6, theta_offset=np.pi / 2, a=0.0, alpha=0.0),
+    )
+)
+
+#: Datasheet ranges (deg) of J1, J2, J3, J5, J6 - configurable per `RV2AJConfig`.
+DATASHEET_LIMITS_DEG = ((-150.0, 150.0), (-60.0, 120.0), (-110.0, 120.0), (-90.0, 90.0),
+                        (-200.0, 200.0))
+#: Datasheet maximum joint speeds (deg/s).
+DATASHEET_SPEEDS_DEG_S = (180.0, 90.0, 135.0, 180.0, 210.0)
+
+JOINT_NAMES = ["J1", "J2", "J3", "J5", "J6"]
+
+# Orientation of the flange at q = 0: R(q) = Rz(q1) Ry(q2 + q3 + q5) R0 Rz(q6).
+_R0 = flange_frame(RV2AJ_DH, np.zeros(5))[:3, :3]
+
+
+@dataclass(frozen=True)
+class RV2AJConfig:
+    """Everything about the RV-2AJ that an integrator may need to change."""
+
+    limits_deg: tuple[tuple[float, float], ...] = DATASHEET_LIMITS_DEG
+    speeds_deg_s: tuple[float, ...] = DATASHEET_SPEEDS_DEG_S
+    tool: Tool = field(default_factory=Tool)
+    #: Tolerance (rad) on the 5-axis constraint: approach vector in the arm plane.
+    plane_tolerance: float = 1e-6
+
+    def to_json(self) -> dict:
+        return {
+            "limits_deg": [list(p) for p in self.limits_deg],
+            "speeds_deg_s": list(self.speeds_deg_s),
+            "tool": {
+                "name": self.tool.name,
+                "T_flange_tool": np.asarray(self.tool.T_flange_tool).tolist(),
+                "has_gripper": self.tool.has_gripper,
+            },
+        }
+
+
+def _link_geometry(tool: Tool) -> list[LinkGeometry]:
+    """Collision capsules/boxes sized to the real arm (datasheet outline drawing, rounded up)."""
+    cap = CollisionShape.capsule_between
+    F = [RV2AJ_DH.fixed_part(i) for i in range(5)]
+    base = LinkGeometry(
+        "base",
+        (CollisionShape(ShapeKind.CYLINDER, (0.095, 0.16), _translate(0, 0, 0.08)),),
+        color=(90, 90, 100),
+    )
+    # Link frames are the base-side joint frames rotated by q_i (see dh.chain_frames).
+    link1 = LinkGeometry(
+        "J1_turret",
+        (cap([0, 0, 0.16], [0, 0, L1], 0.075),),
+        color=(235, 235, 235),
+    )
+    next2 = F[1][:3, 3]  # elbow in link-2 frame
+    link2 = LinkGeometry("J2_upper_arm", (cap([0, 0, 0], next2, 0.055),), color=(235, 235, 235))
+    next3 = F[2][:3, 3]
+    link3 = LinkGeometry("J3_forearm", (cap([0, 0, 0], next3, 0.045),), color=(235, 235, 235))
+    link5 = LinkGeometry(
+        "J5_wrist", (CollisionShape(ShapeKind.SPHERE, (0.042,), np.eye(4)),), color=(200, 200, 200)
+    )
+    flange_in_6 = F[4]
+    shapes6 = [cap([0, 0, 0.0], flange_in_6[:3, 3], 0.032)]
+    shapes6 += [s.transformed(flange_in_6) for s in tool.collision]
+    link6 = LinkGeometry("J6_flange", tuple(shapes6), color=(60, 60, 60))
+    links = [base, link1, link2, link3, link5, link6]
+    return [replace(lk, visual=_visual(lk)) for lk in links]
+
+
+def _visual(link: LinkGeometry):
+    import trimesh
+
+    meshes = [s.to_trimesh() for s in link.collision]
+    return trimesh.util.concatenate(meshes) if meshes else None
+
+
+def _translate(x: float, y: float, z: float) -> Array:
+    T = np.eye(4)
+    T[:3, 3] = (x, y, z)
+    return T
+
+
+class RV2AJ(Robot):
+    """The Mitsubishi RV-2AJ with a configurable tool, limits and speeds."""
+
+    def __init__(self, config: RV2AJConfig | None = None):
+        self.config = config or RV2AJConfig()
+        self.name = "Mitsubishi RV-2AJ"
+        self.joint_names = list(JOINT_NAMES)
+        lim = np.radians(np.array(self.config.limits_deg, dtype=float))
+        self.limits = JointLimits(lim[:, 0].copy(), lim[:, 1].copy(),
+                                  np.radians(np.array(self.config.speeds_deg_s, dtype=float)))
+        self.tool = self.config.tool
+        self.T_flange_tool = np.asarray(self.tool.T_flange_tool, dtype=float)
+        self._T_tool_flange = inv_T(self.T_flange_tool)
+        self.links = _link_geometry(self.tool)
+        self.chain = RV2AJ_DH
+        self._F5 = RV2AJ_DH.fixed_part(4)
+
+    # ----------------------------------------------------------------- forward kinematics
+    def flange(self, q: Array) -> Array:
+        return flange_frame(self.chain, np.asarray(q, dtype=float))
+
+    def fk(self, q: Array) -> Array:
+        return self.flange(q) @ self.T_flange_tool
+
+    def link_poses(self, q: Array) -> Array:
+        return chain_frames(self.chain, np.asarray(q, dtype=float))
+
+    def batch_link_poses(self, Q: Array) -> Array:
+        frames, _ = batch_chain_frames(self.chain, np.asarray(Q, dtype=float))
+        return frames
+
+    def batch_fk(self, Q: Array, dtype: type = np.float64) -> BatchPoses:
+        """Closed form written out per element, ~10x the batched 4x4 chain.
+
+        p_flange = (r cos q1, r sin q1, z) with r, z the planar arm sums; the rotation is
+        Rz(q1) Ry(s) R0 Rz(q6) R_ft with s = q2 + q3 + q5. Results are computed into
+        component-major buffers and returned as (N, 3) / (N, 3, 3) views. `dtype=np.float32`
+        doubles the speed at ~0.1 um error (fine for binning the reachability table).
+        """
+        QT = np.asarray(Q, dtype=dtype).T
+        n = QT.shape[1]
+        q1, q2, q3, q5, q6 = QT
+        c1, s1 = np.cos(q1), np.sin(q1)
+        a23 = q2 + q3
+        s = a23 + q5
+        cs, ss = np.cos(s), np.sin(s)
+        c6, s6 = np.cos(q6), np.sin(q6)
+        r = L2 * np.sin(q2)
+        r += L3 * np.sin(a23)
+        r += L6 * ss
+        z = L2 * np.cos(q2)
+        z += L3 * np.cos(a23)
+        z += L6 * cs
+        z += L1
+        BP, BM, BK, p_ft = self._batch_consts
+        # B = R0 Rz(q6) R_ft, each entry linear in (c6, s6); then C = Ry(s) B; R = Rz(q1) C.
+        B = [[c6 * BP[i, j] + s6 * BM[i, j] + BK[i, j] for j in range(3)] for i in range(3)]
+        out = np.empty((4, 3, n), dtype=dtype)  # rows 0-2: rotation rows, row 3: position
+        for j in range(3):
+            C0 = cs * B[0][j] + ss * B[2][j]
+            C1 = B[1][j]
+            np.multiply(c1, C0, out=out[0, j])
+            out[0, j] -= s1 * C1
+            np.multiply(s1, C0, out=out[1, j])
+            out[1, j] += c1 * C1
+            np.multiply(cs, B[2][j], out=out[2, j])
+            out[2, j] -= ss * B[0][j]
+        # TCP = flange + R_flange p_ft = flange + R (R_ft^T p_ft)
+        if p_ft is not None:
+            v = self.T_flange_tool[:3, :3].T @ p_ft
+            for i in range(3):
+                out[3, i] = out[i, 0] * v[0] + out[i, 1] * v[1] + out[i, 2] * v[2]
+            out[3, 0] += r * c1
+            out[3, 1] += r * s1
+            out[3, 2] += z
+        else:
+            np.multiply(r, c1, out=out[3, 0])
+            np.multiply(r, s1, out=out[3, 1])
+            out[3, 2] = z
+        return BatchPoses(out[3].T, out[:3].transpose(2, 0, 1))
+
+    @property
+    def _batch_consts(self) -> tuple[Array, Array, Array, Array | None]:
+        R_ft = self.T_flange_tool[:3, :3]
+        p_ft = self.T_flange_tool[:3, 3]
+        P = np.diag([1.0, 1.0, 0.0]) @ R_ft
+        M = np.array([[0, -1.0, 0], [1.0, 0, 0], [0, 0, 0]]) @ R_ft
+        K = np.diag([0.0, 0.0, 1.0]) @ R_ft
+        return _R0 @ P, _R0 @ M, _R0 @ K, (p_ft.copy() if np.any(p_ft != 0.0) else None)
+
+    # ----------------------------------------------------------------- inverse kinematics
+    def ik(
+        self,
+        T_base_tool: Array,
+        seed: Array | None = None,
+        *,
+        position_only: bool = False,
+    ) -> IKResult:
+        T_base_tool = np.asarray(T_base_tool, dtype=float)
+        if position_only:
+            return self._ik_position_only(T_base_tool[:3, 3], seed)
+        T_flange = T_base_tool @ self._T_tool_flange
+        nearest = self.nearest_reachable_orientation(T_base_tool)
+        if nearest is not None:
+            angle = rotation_angle(nearest[:3, :3].T @ T_base_tool[:3, :3])
+            return IKResult(
+                [],
+                IKFailure.ORIENTATION,
+                "the RV-2AJ has 5 axes: the tool's approach direction must lie in the vertical "
+                "plane through the robot's J1 axis and the target; the nearest reachable "
+                f"orientation is {np.degrees(angle):.1f} deg away",
+                nearest,
+            )
+        raw, reach_ok = self._ik_flange_all(T_flange)
+        if not reach_ok:
+            return IKResult(
+                [],
+                IKFailure.REACH,
+                f"target at {np.linalg.norm(T_base_tool[:3, 3]) * 1000:.0f} mm from the base "
+                "is out of the arm's reach for this orientation",
+            )
+        inside = [q for q in raw if self.limits.contains(q)]
+        if not inside:
+            detail = "; ".join(
+                ", ".join(self.limits.violations(q, self.joint_names)) for q in raw[:2]
+            )
+            return IKResult([], IKFailure.JOINT_LIMIT,
+                            f"every arm configuration for this pose breaks a joint limit ({detail})")
+        inside = _sort_by_seed(inside, seed)
+        return IKResult(inside)
+
+    def nearest_reachable_orientation(self, T_base_tool: Array) -> Array | None:
+        """None if the 5-axis constraint holds; else the closest pose that satisfies it.
+
+        The approach vector is rotated by the smallest angle into the arm plane (about the TCP
+        point); with an off-axis tool the plane moves with the flange, so a few fixed-point
+        passes settle it.
+        """
+        T = np.asarray(T_base_tool, dtype=float).copy()
+        for _ in range(20):
+            Tf = T @ self._T_tool_flange
+            p = Tf[:3, 3]
+            a = Tf[:3, 2]
+            rxy = np.hypot(p[0], p[1])
+            if rxy < 1e-9:
+                return None if _ == 0 else T  # on the J1 axis: any approach plane works
+            n = np.array([-p[1], p[0], 0.0]) / rxy
+            off = float(a @ n)
+            if abs(off) <= self.config.plane_tolerance:
+                return None if _ == 0 else T
+            a_proj = a - off * n
+            if np.linalg.norm(a_proj) < 1e-9:  # approach perpendicular to the plane
+                a_proj = np.array([0.0, 0.0, -1.0])
+            a_proj /= np.linalg.norm(a_proj)
+            axis = np.cross(a, a_proj)
+            ang = float(np.arcsin(np.clip(np.linalg.norm(axis), -1.0, 1.0)))
+            R_fix = axis_angle(axis, ang)
+            Rf_new = R_fix @ Tf[:3, :3]
+            T_new = np.eye(4)
+            T_new[:3, :3] = Rf_new @ self.T_flange_tool[:3, :3]
+            T_new[:3, 3] = T[:3, 3]  # keep the TCP where the operator asked for it
+            T = T_new
+        return T
+
+    def _ik_flange_all(self, T_flange: Array) -> tuple[list[Array], bool]:
+        """All analytic branches (not yet limit-filtered) for a flange pose in the arm plane."""
+        p = T_flange[:3, 3]
+        R = T_flange[:3, :3]
+        a = R[:, 2]
+        rxy = np.hypot(p[0], p[1])
+        if rxy < 1e-9:
+            # On the J1 axis: take J1 from the approach direction (or 0 if vertical).
+            base = np.arctan2(a[1], a[0]) if np.hypot(a[0], a[1]) > 1e-9 else 0.0
+        else:
+            base = np.arctan2(p[1], p[0])
+        sols: list[Array] = []
+        reach_ok = False
+        for q1 in (base, base + np.pi):
+            u = np.array([np.cos(q1), np.sin(q1), 0.0])
+            s_pitch = np.arctan2(a @ u, a[2])
+            w = p - L6 * a
+            rw = float(w @ u)
+            zw = float(w[2] - L1)
+            D = (rw * rw + zw * zw - L2 * L2 - L3 * L3) / (2.0 * L2 * L3)
+            if D > 1.0 + 1e-12 or D < -1.0 - 1e-12:
+                continue
+            reach_ok = True
+            D = float(np.clip(D, -1.0, 1.0))
+            for q3 in {float(np.arccos(D)), float(-np.arccos(D))}:
+                q2 = np.arctan2(rw, zw) - np.arctan2(L3 * np.sin(q3), L2 + L3 * np.cos(q3))
+                q5 = s_pitch - q2 - q3
+                A = rot_z(q1) @ rot_y(s_pitch) @ _R0
+                Mz = A.T @ R
+                q6 = np.arctan2(Mz[1, 0], Mz[0, 0])
+                sols += _angle_variants(np.array([q1, q2, q3, q5, q6]), self.limits)
+        return sols, reach_ok
+
+    def _ik_position_only(self, p_target: Array, seed: Array | None) -> IKResult:
+        """Any orientation: scan the approach pitch in the arm plane, keep solutions in limits.
+
+        Pitches are tried nearest-first to the seed's (so a jog stays smooth) or to "tool
+        pointing down" without a seed; the first few pitches that work are returned.
+        """
+        if seed is not None:
+            seed = np.asarray(seed, dtype=float)
+            preferred = float(seed[1] + seed[2] + seed[3])
+            q6 = float(seed[4])
+        else:
+            preferred, q6 = np.pi, 0.0
+        offsets = np.radians(np.arange(0.0, 180.1, 2.5))
+        pitches = [preferred + sgn * o for o in offsets for sgn in ((1,) if o == 0 else (1, -1))]
+        found: list[Array] = []
+        any_reach = False
+        pitches_ok = 0
+        for sp in pitches:
+            before = len(found)
+            for q1 in (np.arctan2(p_target[1], p_target[0]),
+                       np.arctan2(p_target[1], p_target[0]) + np.pi):
+                T = np.eye(4)
+                T[:3, :3] = rot_z(q1) @ rot_y(sp) @ _R0 @ rot_z(q6)
+                T[:3, 3] = p_target - T[:3, :3] @ self.T_flange_tool[:3, 3]
+                raw, ok = self._ik_flange_all(T)
+                any_reach |= ok
+                for q in raw:
+                    if (self.limits.contains(q)
+                            and np.linalg.norm(self.fk(q)[:3, 3] - p_target) < 1e-7):
+                        found.append(q)
+            if len(found) > before:
+                pitches_ok += 1
+                if pitches_ok >= 3:
+                    break
+        if not found:
+            if not any_reach:
+                return IKResult([], IKFailure.REACH,
+                                f"point at {np.linalg.norm(p_target) * 1000:.0f} mm from the base "
+                                "is out of the arm's reach")
+            return IKResult([], IKFailure.JOINT_LIMIT,
+                            "the point is within reach but only with joints outside their limits")
+        return IKResult(_dedupe(_sort_by_seed(found, seed)))
+
+    # ----------------------------------------------------------------- description
+    def with_tool(self, T_flange_tool: Array | Tool) -> RV2AJ:
+        tool = T_flange_tool if isinstance(T_flange_tool, Tool) else Tool(
+            "custom", np.asarray(T_flange_tool, dtype=float))
+        return RV2AJ(replace(self.config, tool=tool))
+
+    def urdf(self) -> str:
+        return urdf_from_chain("rv2aj", self.chain, self.joint_names, self.limits, self.links,
+                               self.T_flange_tool)
+
+    def description_hash(self) -> str:
+        payload = json.dumps({"robot": "rv2aj", "dh": [list(vars(r).values()) for r in
+                                                       self.chain.rows],
+                              **self.config.to_json()}, sort_keys=True)
+        return hashlib.sha256(payload.encode()).hexdigest()[:16]
+
+    def _reach_radii(self) -> Array:
+        return self.arm_radii()
+
+    def arm_radii(self) -> Array:
+        """Upper bound per joint of the distance from its axis to any point of the arm beyond.
+
+        Triangle inequality along the chain: the link frames' origins sit on the joint axes
+        at fixed distances, and every shape lies within its bounding sphere.
+        """
+        frames = self.link_poses(np.zeros(self.dof))
+        origins = frames[1:, :3, 3]  # joint i's axis passes through origins[i]
+        tcp_in_6 = (self._F5 @ self.T_flange_tool)[:3, 3]
+        extents = []
+        for k, link in enumerate(self.links[1:]):
+            e = max((np.linalg.norm(s.T_link_shape[:3, 3]) + s.bounding_radius()
+                     for s in link.collision), default=0.0)
+            if k == self.dof - 1:
+                e = max(e, float(np.linalg.norm(tcp_in_6)))
+            extents.append(e)
+        radii = np.zeros(self.dof)
+        for i in range(self.dof):
+            best = 0.0
+            acc = 0.0
+            for j in range(i, self.dof):
+                if j > i:
+                    acc += float(np.linalg.norm(origins[j] - origins[j - 1]))
+                best = max(best, acc + extents[j])
+            radii[i] = best
+        return radii
+
+
+def _angle_variants(q: Array, limits: JointLimits) -> list[Array]:
+    """Each joint wrapped into (-pi, pi] plus the +-2pi copies its range allows (J6 is +-200).
+
+    If a joint has no copy inside its range the wrapped value is kept, so the caller can say
+    which limit failed.
+    """
+    q = (q + np.pi) % (2 * np.pi) - np.pi
+    per_joint = []
+    for i, v in enumerate(q):
+        c = [v + k for k in (0.0, -2 * np.pi, 2 * np.pi)
+             if limits.lower[i] - 1e-9 <= v + k <= limits.upper[i] + 1e-9]
+        per_joint.append(c or [v])
+    return [np.array(c) for c in itertools.product(*per_joint)]
+
+
+def _sort_by_seed(sols: list[Array], seed: Array | None) -> list[Array]:
+    if seed is None:
+        return sorted(sols, key=lambda q: float(np.abs(q).sum()))
+    seed = np.asarray(seed, dtype=float)
+    return sorted(sols, key=lambda q: float(np.linalg.norm(q - seed)))
+
+
+def _dedupe(sols: list[Array]) -> list[Array]:
+    out: list[Array] = []
+    for q in sols:
+        if all(np.linalg.norm(q - o) > 1e-6 for o in out):
+            out.append(q)
+    return out

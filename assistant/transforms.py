@@ -1,0 +1,111 @@
+"""Rigid transforms as 4x4 numpy arrays, named ``T_parent_child`` at every call site.
+
+Internal units are metres and radians; `pose_from_mm_deg` / `pose_to_mm_deg` are the only
+places where millimetres and degrees cross into the core. Euler angles follow the convention
+of the robot controllers we export to (A, B, C = rotations about Z, Y', X'' — i.e.
+R = Rz(A) @ Ry(B) @ Rx(C)), so a number typed in the UI reads the same as in the program.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+Array = np.ndarray
+
+
+def rot_x(angle: float) -> Array:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[1.0, 0.0, 0.0], [0.0, c, -s], [0.0, s, c]])
+
+
+def rot_y(angle: float) -> Array:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+def rot_z(angle: float) -> Array:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def make_T(R: Array | None = None, p: Array | None = None) -> Array:
+    """Homogeneous transform from a rotation matrix and a translation."""
+    T = np.eye(4)
+    if R is not None:
+        T[:3, :3] = R
+    if p is not None:
+        T[:3, 3] = p
+    return T
+
+
+def inv_T(T: Array) -> Array:
+    """Inverse of a rigid transform (cheaper and exacter than np.linalg.inv)."""
+    Ti = np.eye(4)
+    R = T[:3, :3]
+    Ti[:3, :3] = R.T
+    Ti[:3, 3] = -R.T @ T[:3, 3]
+    return Ti
+
+
+def rpy_to_matrix(a: float, b: float, c: float) -> Array:
+    """R = Rz(a) Ry(b) Rx(c): the ZYX convention of KUKA A,B,C and MELFA's (A,B,C) read as Z,Y,X."""
+    return rot_z(a) @ rot_y(b) @ rot_x(c)
+
+
+def matrix_to_rpy(R: Array) -> tuple[float, float, float]:
+    """Inverse of `rpy_to_matrix`; at the singularity (|b| = 90 deg) c is set to 0."""
+    sb = -R[2, 0]
+    sb = float(np.clip(sb, -1.0, 1.0))
+    b = float(np.arcsin(sb))
+    if abs(sb) > 1.0 - 1e-12:
+        a = float(np.arctan2(-R[0, 1], R[1, 1]))
+        return a, b, 0.0
+    a = float(np.arctan2(R[1, 0], R[0, 0]))
+    c = float(np.arctan2(R[2, 1], R[2, 2]))
+    return a, b, c
+
+
+def pose_from_xyz_rpy(xyz: Array, rpy: Array) -> Array:
+    return make_T(rpy_to_matrix(*rpy), np.asarray(xyz, dtype=float))
+
+
+def pose_from_mm_deg(values: Array) -> Array:
+    """(x, y, z [mm], a, b, c [deg]) as typed by an operator -> T in metres/radians."""
+    v = np.asarray(values, dtype=float)
+    if v.shape != (6,):
+        raise ValueError(f"a pose needs 6 numbers (x, y, z, a, b, c), got {v.shape}")
+    return pose_from_xyz_rpy(v[:3] / 1000.0, np.radians(v[3:]))
+
+
+def pose_to_mm_deg(T: Array) -> Array:
+    """T in metres/radians -> (x, y, z [mm], a, b, c [deg]) for display and programs."""
+    a, b, c = matrix_to_rpy(T[:3, :3])
+    return np.concatenate([T[:3, 3] * 1000.0, np.degrees([a, b, c])])
+
+
+def axis_angle(axis: Array, angle: float) -> Array:
+    """Rotation matrix for a rotation of `angle` about the unit vector `axis` (Rodrigues)."""
+    k = np.asarray(axis, dtype=float)
+    n = np.linalg.norm(k)
+    if n < 1e-15:
+        return np.eye(3)
+    k = k / n
+    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)
+
+
+def rotation_vector(R: Array) -> Array:
+    """Axis*angle vector of a rotation matrix (URScript's pose orientation), stable near pi."""
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_matrix(R).as_rotvec()
+
+
+def rotation_angle(R: Array) -> float:
+    """Angle of the rotation R in [0, pi]."""
+    return float(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)))
+
+
+def wrap_angle(a: Array | float) -> Array | float:
+    """Wrap to (-pi, pi]."""
+    return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi
