@@ -202,7 +202,8 @@ class Robot(abc.ABC):
     name: str
     joint_names: list[str]
     limits: JointLimits
-    #: Base link first, then one moving link per joint (in chain order), then fixed ones.
+    #: Exactly dof + 1 entries: the base, then the link moved by each joint in chain order.
+    #: Bodies fixed to a moving link (flange, hand, tool) are merged into that link.
     links: list[LinkGeometry]
     #: Flange -> tool centre point.
     T_flange_tool: Array
@@ -257,13 +258,30 @@ class Robot(abc.ABC):
     def tcp_position(self, q: Array) -> Array:
         return self.fk(q)[:3, 3]
 
-    def max_link_speed_factor(self) -> Array:
-        """Per joint: the largest distance (m) from its axis to any point of the arm beyond it.
+    def arm_radii(self) -> Array:
+        """Per joint, an upper bound (m) on the distance from its axis to any point beyond it.
 
-        A joint motion of dq moves no point of the arm more than sum(r_i * |dq_i|); used to
-        step continuous collision checks and by the reachability table (d_step / r_i).
+        A joint step dq then moves no point of the arm more than sum(r_i |dq_i|): this steps
+        the continuous collision check. Triangle inequality along the chain: link frames sit
+        on their joint axes at fixed distances (true for DH and URDF frames) and each shape
+        lies within its bounding sphere; the TCP counts as a point of the last link.
         """
-        return self._reach_radii()
-
-    @abc.abstractmethod
-    def _reach_radii(self) -> Array: ...
+        frames = self.link_poses(np.zeros(self.dof))
+        origins = frames[1 : self.dof + 1, :3, 3]
+        T_last_tool = np.linalg.inv(frames[self.dof]) @ self.fk(np.zeros(self.dof))
+        extents = []
+        for k, link in enumerate(self.links[1 : self.dof + 1]):
+            e = max((float(np.linalg.norm(s.T_link_shape[:3, 3])) + s.bounding_radius()
+                     for s in link.collision), default=0.0)
+            if k == self.dof - 1:
+                e = max(e, float(np.linalg.norm(T_last_tool[:3, 3])))
+            extents.append(e)
+        radii = np.zeros(self.dof)
+        for i in range(self.dof):
+            acc, best = 0.0, 0.0
+            for j in range(i, self.dof):
+                if j > i:
+                    acc += float(np.linalg.norm(origins[j] - origins[j - 1]))
+                best = max(best, acc + extents[j])
+            radii[i] = best
+        return radii

@@ -252,7 +252,8 @@ class RV2AJ(Robot):
                 ", ".join(self.limits.violations(q, self.joint_names)) for q in raw[:2]
             )
             return IKResult([], IKFailure.JOINT_LIMIT,
-                            f"every arm configuration for this pose breaks a joint limit ({detail})")
+                            "every arm configuration for this pose breaks a joint limit "
+                            f"({detail})")
         inside = _sort_by_seed(inside, seed)
         return IKResult(inside)
 
@@ -380,36 +381,6 @@ class RV2AJ(Robot):
                                                        self.chain.rows],
                               **self.config.to_json()}, sort_keys=True)
         return hashlib.sha256(payload.encode()).hexdigest()[:16]
-
-    def _reach_radii(self) -> Array:
-        return self.arm_radii()
-
-    def arm_radii(self) -> Array:
-        """Upper bound per joint of the distance from its axis to any point of the arm beyond.
-
-        Triangle inequality along the chain: the link frames' origins sit on the joint axes
-        at fixed distances, and every shape lies within its bounding sphere.
-        """
-        frames = self.link_poses(np.zeros(self.dof))
-        origins = frames[1:, :3, 3]  # joint i's axis passes through origins[i]
-        tcp_in_6 = (self._F5 @ self.T_flange_tool)[:3, 3]
-        extents = []
-        for k, link in enumerate(self.links[1:]):
-            e = max((np.linalg.norm(s.T_link_shape[:3, 3]) + s.bounding_radius()
-                     for s in link.collision), default=0.0)
-            if k == self.dof - 1:
-                e = max(e, float(np.linalg.norm(tcp_in_6)))
-            extents.append(e)
-        radii = np.zeros(self.dof)
-        for i in range(self.dof):
-            best = 0.0
-            acc = 0.0
-            for j in range(i, self.dof):
-                if j > i:
-                    acc += float(np.linalg.norm(origins[j] - origins[j - 1]))
-                best = max(best, acc + extents[j])
-            radii[i] = best
-        return radii
 
 
 def _angle_variants(q: Array, limits: JointLimits) -> list[Array]:
