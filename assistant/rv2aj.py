@@ -265,9 +265,12 @@ class RV2AJ(Robot):
         passes settle it.
         """
         T = np.asarray(T_base_tool, dtype=float).copy()
+        # With the TCP on the flange axis (the usual tool) the TCP lies in the arm plane too,
+        # so the plane through the TCP is fixed and one minimal rotation is exact.
+        on_axis = bool(np.allclose(self.T_flange_tool[:2, 3], 0.0))
         for _ in range(20):
             Tf = T @ self._T_tool_flange
-            p = Tf[:3, 3]
+            p = T[:3, 3] if on_axis else Tf[:3, 3]
             a = Tf[:3, 2]
             rxy = np.hypot(p[0], p[1])
             if rxy < 1e-9:

@@ -1,0 +1,439 @@
+"""Exact collision checking of the robot against the cell and itself (python-fcl).
+
+Every answer comes from FCL's exact narrow phase; numpy only decides which pairs cannot touch.
+The broad phase covers each link shape with a few spheres (`fcl_shapes.covering_spheres`) and
+each obstacle with its axis-aligned box, vectorised over many configurations at once, so a
+batch of configurations in free space costs a few array operations and only the pairs that
+might touch reach FCL. Because the bounds are conservative the result equals the brute-force
+FCL answer (checked by the tests and `benchmarks/collision.py`).
+
+Self-collision skips adjacent links and the pairs that never touch (or always touch) over a
+sampled sweep of the joint space, computed once per robot description.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import fcl
+import numpy as np
+
+from assistant.fcl_shapes import covering_spheres, fcl_geometry, fcl_transform, world_aabb
+from assistant.robot_model import CollisionShape, Robot
+
+Array = np.ndarray
+
+
+class ObstacleView(Protocol):
+    """What the checker needs of a cell object (see `cell.Cell.collision_objects_in_base`)."""
+
+    name: str
+    T_base_object: Array
+    collision: tuple[CollisionShape, ...]
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """A plain obstacle for callers without a cell (tests, benchmarks, hidden obstacles)."""
+
+    name: str
+    T_base_object: Array
+    collision: tuple[CollisionShape, ...]
+    role: str = "obstacle"
+
+
+@dataclass(frozen=True)
+class Contact:
+    """Link `link` touches `other` (an obstacle name, or another link for self-collision)."""
+
+    link: str
+    other: str
+    self_collision: bool = False
+
+
+@dataclass(frozen=True)
+class CollisionReport:
+    within_limits: bool
+    contacts: tuple[Contact, ...]
+    limit_violations: tuple[str, ...] = ()
+
+    @property
+    def collision_free(self) -> bool:
+        return not self.contacts
+
+    @property
+    def valid(self) -> bool:
+        return self.within_limits and not self.contacts
+
+    def describe(self) -> str:
+        parts = [f"{c.link} touches {c.other}" for c in self.contacts]
+        parts += [f"joint limit: {v}" for v in self.limit_violations]
+        return "; ".join(parts) if parts else "free"
+
+
+@dataclass(frozen=True)
+class Clearance:
+    """Smallest distance between the robot and an obstacle (negative: penetrating)."""
+
+    distance: float
+    link: str
+    other: str
+    point_on_link: Array = field(repr=False)
+    point_on_other: Array = field(repr=False)
+
+
+@dataclass(frozen=True)
+class MotionCheck:
+    """Result of a continuous check of the straight joint-space motion q0 -> q1."""
+
+    first_invalid_fraction: float | None
+    samples: int
+    report: CollisionReport | None = None
+
+    @property
+    def valid(self) -> bool:
+        return self.first_invalid_fraction is None
+
+
+@dataclass
+class _RobotShape:
+    link: int
+    shape: CollisionShape
+    obj: fcl.CollisionObject
+
+
+@dataclass
+class _EnvShape:
+    owner: str
+    obj: fcl.CollisionObject
+
+
+_SELF_PAIR_CACHE: dict[str, list[tuple[int, int]]] = {}
+_SELF_PAIR_LOCK = threading.Lock()
+
+
+class CollisionChecker:
+    """Robot vs obstacles (+ self) for one configuration, a batch, a motion, or a clearance.
+
+    Not thread-safe (FCL objects are re-posed in place): give each thread its own checker;
+    building one is cheap next to the checks it will run.
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        obstacles: Iterable[ObstacleView] = (),
+        *,
+        self_collision: bool = True,
+        max_step: float = 0.005,
+        chunk: int = 2048,
+    ):
+        self.robot = robot
+        self.max_step = float(max_step)
+        self.chunk = chunk
+        self._req = fcl.CollisionRequest()
+        self._link_names = [lk.name for lk in robot.links]
+        self._radii = robot.arm_radii()
+        # Robot shapes, and the spheres covering them (link frame).
+        self._rshapes: list[_RobotShape] = []
+        sph_c, sph_r, sph_owner = [], [], []
+        for li, link in enumerate(robot.links):
+            for shape in link.collision:
+                idx = len(self._rshapes)
+                self._rshapes.append(
+                    _RobotShape(li, shape, fcl.CollisionObject(fcl_geometry(shape)))
+                )
+                c, r = covering_spheres(shape)
+                sph_c.append(c)
+                sph_r.append(r)
+                sph_owner += [idx] * len(r)
+        self._sph_local = np.concatenate(sph_c) if sph_c else np.zeros((0, 3))
+        self._sph_r = np.concatenate(sph_r) if sph_r else np.zeros(0)
+        self._sph_shape = np.asarray(sph_owner, dtype=np.int64)
+        self._sph_link = np.array([self._rshapes[i].link for i in sph_owner], dtype=np.int64)
+        # Obstacles. The fixed base link takes part in self-collision only: an object that
+        # overlaps the base is a placement error for the cell to report, not a motion issue.
+        self._env: list[_EnvShape] = []
+        lo, hi = [], []
+        self.obstacle_names: list[str] = []
+        for ob in obstacles:
+            self.obstacle_names.append(ob.name)
+            for shape in ob.collision:
+                T = np.asarray(ob.T_base_object, dtype=float) @ shape.T_link_shape
+                obj = fcl.CollisionObject(fcl_geometry(shape), fcl_transform(T))
+                self._env.append(_EnvShape(ob.name, obj))
+                a, b = world_aabb(shape, np.asarray(ob.T_base_object, dtype=float))
+                lo.append(a)
+                hi.append(b)
+        self._env_lo = np.array(lo).reshape(-1, 3) - 1e-9
+        self._env_hi = np.array(hi).reshape(-1, 3) + 1e-9
+        self._self_pairs = self._self_shape_pairs() if self_collision else []
+        # Sphere pairs for the self broad phase.
+        sp_a, sp_b, sp_pair = [], [], []
+        for pi, (a, b) in enumerate(self._self_pairs):
+            ia = np.nonzero(self._sph_shape == a)[0]
+            ib = np.nonzero(self._sph_shape == b)[0]
+            for x in ia:
+                for y in ib:
+                    sp_a.append(x)
+                    sp_b.append(y)
+                    sp_pair.append(pi)
+        self._sp_a = np.asarray(sp_a, dtype=np.int64)
+        self._sp_b = np.asarray(sp_b, dtype=np.int64)
+        self._sp_pair = np.asarray(sp_pair, dtype=np.int64)
+
+    # ------------------------------------------------------------------ self-collision pairs
+    def _self_shape_pairs(self) -> list[tuple[int, int]]:
+        """Shape pairs worth checking for self-collision, cached per robot description."""
+        key = self.robot.description_hash()
+        with _SELF_PAIR_LOCK:
+            if key in _SELF_PAIR_CACHE:
+                return list(_SELF_PAIR_CACHE[key])
+        n_links = len(self.robot.links)
+        adjacent = {(i, i + 1) for i in range(n_links - 1)}
+        candidates = []
+        for i, a in enumerate(self._rshapes):
+            for j in range(i + 1, len(self._rshapes)):
+                b = self._rshapes[j]
+                la, lb = sorted((a.link, b.link))
+                if la == lb or (la, lb) in adjacent:
+                    continue
+                candidates.append((i, j))
+        pairs = self._sampled_pairs(candidates) if candidates else []
+        with _SELF_PAIR_LOCK:
+            _SELF_PAIR_CACHE[key] = list(pairs)
+        return pairs
+
+    def _sampled_pairs(self, candidates: list[tuple[int, int]], n: int = 1500,
+                       margin: float = 0.03) -> list[tuple[int, int]]:
+        """Keep the pairs a sweep of the joint space shows can matter.
+
+        Dropped: pairs touching in every sample (built touching, e.g. overlapping housings)
+        and pairs that never came within `margin` of each other in the sweep (the "never"
+        pairs of MoveIt's set-up assistant, with a safety margin instead of a bare miss).
+        """
+        rng = np.random.default_rng(12345)
+        lim = self.robot.limits
+        Q = rng.uniform(lim.lower, lim.upper, size=(n, self.robot.dof))
+        frames = self.robot.batch_link_poses(Q)
+        hits = np.zeros(len(candidates), dtype=np.int64)
+        closest = np.full(len(candidates), np.inf)
+        dreq = fcl.DistanceRequest()
+        for k in range(n):
+            self._pose_robot(frames[k])
+            for ci, (i, j) in enumerate(candidates):
+                a, b = self._rshapes[i].obj, self._rshapes[j].obj
+                if fcl.collide(a, b, self._req, fcl.CollisionResult()):
+                    hits[ci] += 1
+                    closest[ci] = 0.0
+                elif closest[ci] >= margin:
+                    closest[ci] = min(closest[ci], fcl.distance(a, b, dreq, fcl.DistanceResult()))
+        return [c for c, h, d in zip(candidates, hits, closest, strict=True)
+                if h < n and d < margin]
+
+    # ------------------------------------------------------------------ posing
+    def _pose_robot(self, frames: Array, which: Iterable[int] | None = None) -> None:
+        idx = range(len(self._rshapes)) if which is None else which
+        for i in idx:
+            rs = self._rshapes[i]
+            rs.obj.setTransform(fcl_transform(frames[rs.link] @ rs.shape.T_link_shape))
+
+    def _sphere_centres(self, frames: Array) -> Array:
+        """(N, S, 3) covering-sphere centres for link frames (N, L, 4, 4)."""
+        F = frames[:, self._sph_link]
+        R = F[..., :3, :3]
+        t = F[..., :3, 3]
+        return np.einsum("nsij,sj->nsi", R, self._sph_local) + t
+
+    # ------------------------------------------------------------------ checks
+    def _candidates(self, frames: Array) -> tuple[Array, Array]:
+        """Broad phase: for each config, which (robot shape, env shape) and self pairs may touch.
+
+        Returns two boolean arrays: (N, R, E) and (N, P).
+        """
+        N = frames.shape[0]
+        R, E, P = len(self._rshapes), len(self._env), len(self._self_pairs)
+        env_c = np.zeros((N, R, E), dtype=bool)
+        self_c = np.zeros((N, P), dtype=bool)
+        if len(self._sph_r) == 0:
+            return env_c, self_c
+        C = self._sphere_centres(frames)
+        if E:
+            d = np.maximum(self._env_lo[None, None] - C[:, :, None], 0.0)
+            d += np.maximum(C[:, :, None] - self._env_hi[None, None], 0.0)
+            # d now holds per-axis gaps (one of the two terms is zero per axis)
+            dist2 = np.einsum("nsek,nsek->nse", d, d)
+            near = dist2 <= (self._sph_r[None, :, None] ** 2)
+            near[:, self._sph_link == 0, :] = False  # the fixed base cannot move into anything
+            # Reduce spheres to shapes.
+            for s in range(R):
+                mask = self._sph_shape == s
+                env_c[:, s, :] = near[:, mask, :].any(axis=1)
+        if P:
+            diff = C[:, self._sp_a] - C[:, self._sp_b]
+            near = np.einsum("npk,npk->np", diff, diff) <= (
+                (self._sph_r[self._sp_a] + self._sph_r[self._sp_b]) ** 2
+            )[None]
+            for p in range(P):
+                self_c[:, p] = near[:, self._sp_pair == p].any(axis=1)
+        return env_c, self_c
+
+    def _narrow(self, frames_n: Array, env_c: Array, self_c: Array, *, all_contacts: bool,
+                ) -> list[Contact]:
+        shapes_needed = set(np.nonzero(env_c.any(axis=1))[0].tolist())
+        for p in np.nonzero(self_c)[0]:
+            shapes_needed.update(self._self_pairs[p])
+        if not shapes_needed:
+            return []
+        self._pose_robot(frames_n, shapes_needed)
+        contacts: list[Contact] = []
+        seen: set[tuple[str, str]] = set()
+        for s, e in zip(*np.nonzero(env_c), strict=True):
+            rs, es = self._rshapes[s], self._env[e]
+            key = (self._link_names[rs.link], es.owner)
+            if key in seen:
+                continue
+            if fcl.collide(rs.obj, es.obj, self._req, fcl.CollisionResult()):
+                seen.add(key)
+                contacts.append(Contact(*key))
+                if not all_contacts:
+                    return contacts
+        for p in np.nonzero(self_c)[0]:
+            a, b = self._self_pairs[p]
+            ra, rb = self._rshapes[a], self._rshapes[b]
+            key = (self._link_names[ra.link], self._link_names[rb.link])
+            if key in seen:
+                continue
+            if fcl.collide(ra.obj, rb.obj, self._req, fcl.CollisionResult()):
+                seen.add(key)
+                contacts.append(Contact(*key, self_collision=True))
+                if not all_contacts:
+                    return contacts
+        return contacts
+
+    def check(self, q: Array) -> CollisionReport:
+        """Full report for one configuration: every (link, obstacle) contact and limit issue."""
+        q = np.asarray(q, dtype=float)
+        frames = self.robot.link_poses(q)[None]
+        env_c, self_c = self._candidates(frames)
+        contacts = self._narrow(frames[0], env_c[0], self_c[0], all_contacts=True)
+        viol = self.robot.limits.violations(q, self.robot.joint_names)
+        return CollisionReport(not viol, tuple(contacts), tuple(viol))
+
+    def is_valid(self, q: Array) -> bool:
+        q = np.asarray(q, dtype=float)
+        if not self.robot.limits.contains(q):
+            return False
+        return not self.in_collision_batch(q[None])[0]
+
+    def is_valid_batch(self, Q: Array) -> Array:
+        Q = np.asarray(Q, dtype=float)
+        ok = self.robot.limits.contains_batch(Q)
+        if ok.any():
+            ok[ok] = ~self.in_collision_batch(Q[ok])
+        return ok
+
+    def in_collision_batch(self, Q: Array) -> Array:
+        """Exact collision flag (ignoring joint limits) for each configuration."""
+        Q = np.atleast_2d(np.asarray(Q, dtype=float))
+        out = np.zeros(len(Q), dtype=bool)
+        for start in range(0, len(Q), self.chunk):
+            block = Q[start : start + self.chunk]
+            frames = self.robot.batch_link_poses(block)
+            env_c, self_c = self._candidates(frames)
+            maybe = np.nonzero(env_c.any(axis=(1, 2)) | self_c.any(axis=1))[0]
+            for k in maybe:
+                if self._narrow(frames[k], env_c[k], self_c[k], all_contacts=False):
+                    out[start + k] = True
+        return out
+
+    def in_collision_naive(self, q: Array) -> bool:
+        """Brute force: every robot shape against every obstacle and self pair through FCL.
+
+        The reference the fast path is checked against (tests, benchmarks).
+        """
+        frames = self.robot.link_poses(np.asarray(q, dtype=float))
+        self._pose_robot(frames)
+        for rs in self._rshapes:
+            if rs.link == 0:
+                continue
+            for es in self._env:
+                if fcl.collide(rs.obj, es.obj, self._req, fcl.CollisionResult()):
+                    return True
+        for a, b in self._self_pairs:
+            if fcl.collide(self._rshapes[a].obj, self._rshapes[b].obj, self._req,
+                           fcl.CollisionResult()):
+                return True
+        return False
+
+    # ------------------------------------------------------------------ motions
+    def motion_samples(self, q0: Array, q1: Array, max_step: float | None = None) -> int:
+        """Number of steps so that no point of the arm moves more than max_step per step."""
+        step = self.max_step if max_step is None else max_step
+        travel = float(np.sum(self._radii * np.abs(np.asarray(q1) - np.asarray(q0))))
+        return max(1, int(np.ceil(travel / step)))
+
+    def check_motion(self, q0: Array, q1: Array, max_step: float | None = None) -> MotionCheck:
+        """Continuous check of q0 -> q1, in order, returning the first invalid fraction."""
+        q0, q1 = np.asarray(q0, dtype=float), np.asarray(q1, dtype=float)
+        n = self.motion_samples(q0, q1, max_step)
+        fr = np.arange(0, n + 1) / n
+        for start in range(0, n + 1, self.chunk):
+            f = fr[start : start + self.chunk]
+            Q = q0[None] + f[:, None] * (q1 - q0)[None]
+            ok = self.is_valid_batch(Q)
+            if not ok.all():
+                k = int(np.argmin(ok))
+                return MotionCheck(float(f[k]), n, self.check(Q[k]))
+        return MotionCheck(None, n)
+
+    def first_invalid_fraction(self, q0: Array, q1: Array) -> float | None:
+        return self.check_motion(q0, q1).first_invalid_fraction
+
+    def check_path(self, path: Sequence[Array], max_step: float | None = None,
+                   ) -> tuple[int, MotionCheck] | None:
+        """First invalid segment (index, check) of a joint path, or None if all of it is valid."""
+        for i in range(len(path) - 1):
+            mc = self.check_motion(path[i], path[i + 1], max_step)
+            if not mc.valid:
+                return i, mc
+        return None
+
+    # ------------------------------------------------------------------ clearance
+    def clearance(self, q: Array, include_self: bool = False) -> Clearance | None:
+        """Minimum distance between the arm and any obstacle (None without obstacles)."""
+        frames = self.robot.link_poses(np.asarray(q, dtype=float))
+        self._pose_robot(frames)
+        best: Clearance | None = None
+        req = fcl.DistanceRequest(enable_nearest_points=True, enable_signed_distance=True)
+        pairs = [(rs, es.obj, es.owner) for rs in self._rshapes if rs.link > 0
+                 for es in self._env]
+        if include_self:
+            pairs += [(self._rshapes[a], self._rshapes[b].obj,
+                       self._link_names[self._rshapes[b].link]) for a, b in self._self_pairs]
+        for rs, obj, owner in pairs:
+            res = fcl.DistanceResult()
+            d = float(fcl.distance(rs.obj, obj, req, res))
+            if best is None or d < best.distance:
+                best = Clearance(d, self._link_names[rs.link], owner,
+                                 np.array(res.nearest_points[0]), np.array(res.nearest_points[1]))
+        return best
+
+    def min_clearance_along(self, path: Sequence[Array], max_step: float = 0.01) -> float:
+        """Smallest clearance over a joint path sampled every `max_step` of arm travel."""
+        best = np.inf
+        if not self._env:
+            return float(best)
+        for i in range(len(path) - 1):
+            n = self.motion_samples(path[i], path[i + 1], max_step)
+            for f in np.arange(0, n + 1) / n:
+                c = self.clearance(path[i] + f * (np.asarray(path[i + 1]) - path[i]))
+                if c is not None:
+                    best = min(best, c.distance)
+        if len(path) == 1:
+            c = self.clearance(path[0])
+            best = c.distance if c else best
+        return float(best)

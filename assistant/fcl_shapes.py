@@ -1,0 +1,89 @@
+"""Our `CollisionShape` -> python-fcl geometry, and the conservative bounds the broad phase uses.
+
+FCL objects are created once per shape and only re-posed afterwards; meshes become BVH models
+(OBBRSS) built once and shared by every object that uses the same trimesh.
+"""
+
+from __future__ import annotations
+
+import fcl
+import numpy as np
+
+from assistant.robot_model import CollisionShape, ShapeKind
+
+Array = np.ndarray
+
+
+def fcl_geometry(shape: CollisionShape) -> fcl.CollisionGeometry:
+    if shape.kind == ShapeKind.CAPSULE:
+        return fcl.Capsule(float(shape.size[0]), float(shape.size[1]))
+    if shape.kind == ShapeKind.CYLINDER:
+        return fcl.Cylinder(float(shape.size[0]), float(shape.size[1]))
+    if shape.kind == ShapeKind.BOX:
+        return fcl.Box(*(float(v) for v in shape.size))
+    if shape.kind == ShapeKind.SPHERE:
+        return fcl.Sphere(float(shape.size[0]))
+    if shape.mesh is None:
+        raise ValueError("a mesh collision shape without a mesh")
+    m = fcl.BVHModel()
+    verts = np.asarray(shape.mesh.vertices, dtype=np.float64)
+    faces = np.asarray(shape.mesh.faces, dtype=np.int64)
+    m.beginModel(len(verts), len(faces))
+    m.addSubModel(verts, faces)
+    m.endModel()
+    return m
+
+
+def fcl_transform(T: Array) -> fcl.Transform:
+    return fcl.Transform(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]))
+
+
+def covering_spheres(shape: CollisionShape, max_count: int = 6) -> tuple[Array, Array]:
+    """Spheres (centres in the link frame, radii) whose union contains the shape.
+
+    A capsule/cylinder of length L is split into k pieces, each covered by a sphere of radius
+    r + L/(2k) (cylinders: the corner distance), which is far tighter than one sphere for the
+    long upper arm. Everything else gets one sphere around its bounding box.
+    """
+    T = shape.T_link_shape
+    if shape.kind in (ShapeKind.CAPSULE, ShapeKind.CYLINDER):
+        r, length = float(shape.size[0]), float(shape.size[1])
+        k = int(np.clip(np.ceil(length / max(r, 1e-6)), 1, max_count))
+        half = length / (2 * k)
+        rad = (r + half) if shape.kind == ShapeKind.CAPSULE else float(np.hypot(r, half))
+        t = -length / 2 + length * (np.arange(k) + 0.5) / k
+        local = np.zeros((k, 3))
+        local[:, 2] = t
+        centres = local @ T[:3, :3].T + T[:3, 3]
+        return centres, np.full(k, rad)
+    if shape.kind == ShapeKind.SPHERE:
+        return T[:3, 3][None, :].copy(), np.array([float(shape.size[0])])
+    if shape.kind == ShapeKind.BOX:
+        return T[:3, 3][None, :].copy(), np.array([float(np.linalg.norm(shape.size) / 2)])
+    assert shape.mesh is not None
+    lo, hi = shape.mesh.bounds
+    c_local = (lo + hi) / 2
+    rad = float(np.max(np.linalg.norm(shape.mesh.vertices - c_local, axis=1)))
+    return (T[:3, :3] @ c_local + T[:3, 3])[None, :], np.array([rad])
+
+
+def world_aabb(shape: CollisionShape, T_base_owner: Array) -> tuple[Array, Array]:
+    """Axis-aligned box (in the base frame) that contains the shape placed by T_base_owner."""
+    T = T_base_owner @ shape.T_link_shape
+    if shape.kind == ShapeKind.MESH:
+        assert shape.mesh is not None
+        v = np.asarray(shape.mesh.vertices) @ T[:3, :3].T + T[:3, 3]
+        return v.min(axis=0), v.max(axis=0)
+    if shape.kind == ShapeKind.SPHERE:
+        r = float(shape.size[0])
+        return T[:3, 3] - r, T[:3, 3] + r
+    if shape.kind == ShapeKind.BOX:
+        half = np.asarray(shape.size, dtype=float) / 2
+    elif shape.kind == ShapeKind.CYLINDER:
+        r, length = shape.size
+        half = np.array([r, r, length / 2])
+    else:  # capsule
+        r, length = shape.size
+        half = np.array([r, r, length / 2 + r])
+    ext = np.abs(T[:3, :3]) @ half
+    return T[:3, 3] - ext, T[:3, 3] + ext

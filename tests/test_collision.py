@@ -1,0 +1,136 @@
+"""Exact FCL collision checks: agreement with brute force, contacts, motions, clearance."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from assistant.collision import CollisionChecker, Obstacle
+from assistant.robot_model import CollisionShape, ShapeKind
+from assistant.transforms import make_T
+
+
+def box(name: str, centre, size) -> Obstacle:
+    return Obstacle(name, make_T(p=centre), (CollisionShape(ShapeKind.BOX, tuple(size)),))
+
+
+@pytest.fixture(scope="module")
+def cell_obstacles() -> list[Obstacle]:
+    return [
+        box("O1", [0.30, 0.10, 0.10], [0.10, 0.10, 0.20]),
+        box("O2", [-0.10, 0.30, 0.25], [0.15, 0.10, 0.10]),
+        box("table", [0.0, 0.0, -0.011], [1.5, 1.5, 0.02]),
+    ]
+
+
+@pytest.fixture(scope="module")
+def checker(rv2aj, cell_obstacles) -> CollisionChecker:
+    return CollisionChecker(rv2aj, cell_obstacles)
+
+
+def test_batch_check_agrees_with_brute_force_fcl(checker, rv2aj):
+    rng = np.random.default_rng(7)
+    Q = rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper, size=(1500, 5))
+    fast = checker.in_collision_batch(Q)
+    naive = np.array([checker.in_collision_naive(q) for q in Q])
+    assert np.array_equal(fast, naive)
+    # The sample must contain both outcomes or the comparison proves nothing.
+    assert 0.02 < fast.mean() < 0.9
+
+
+def test_upright_arm_is_free_and_reports_clearance(checker):
+    q = np.zeros(5)
+    assert checker.is_valid(q)
+    rep = checker.check(q)
+    assert rep.valid and rep.describe() == "free"
+    c = checker.clearance(q)
+    # The turret capsule starts at z = 0.16 - 0.075; the table top is at z = -0.001.
+    assert c.other == "table"
+    assert c.distance == pytest.approx(0.085 + 0.001, abs=1e-6)
+
+
+def test_contact_names_the_link_and_the_obstacle(rv2aj):
+    # The arm stretched forward along +x at shoulder height sweeps through a box there.
+    q = np.radians([0.0, 90.0, 0.0, 0.0, 0.0])
+    p = rv2aj.link_poses(q)[3][:3, 3]  # elbow
+    chk = CollisionChecker(rv2aj, [box("block", p, [0.05, 0.05, 0.05])])
+    rep = chk.check(q)
+    assert not rep.valid
+    links = {c.link for c in rep.contacts}
+    assert {"J2_upper_arm", "J3_forearm"} <= links
+    assert all(c.other == "block" for c in rep.contacts)
+
+
+def test_adjacent_links_overlapping_at_their_joint_are_not_a_self_collision(rv2aj):
+    chk = CollisionChecker(rv2aj, [])
+    assert chk.is_valid(np.zeros(5))
+    linked = {(chk._rshapes[a].link, chk._rshapes[b].link) for a, b in chk._self_pairs}
+    assert all(abs(a - b) > 1 for a, b in linked)
+
+
+def test_folded_arm_is_a_self_collision(rv2aj):
+    chk = CollisionChecker(rv2aj, [])
+    rng = np.random.default_rng(3)
+    Q = rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper, size=(3000, 5))
+    hit = chk.in_collision_batch(Q)
+    assert hit.any()
+    q = Q[np.argmax(hit)]
+    rep = chk.check(q)
+    assert rep.contacts and all(c.self_collision for c in rep.contacts)
+    assert chk.in_collision_naive(q)
+
+
+def test_joint_limits_make_a_configuration_invalid(checker, rv2aj):
+    q = np.zeros(5)
+    q[0] = rv2aj.limits.upper[0] + 0.01
+    assert not checker.is_valid(q)
+    rep = checker.check(q)
+    assert rep.collision_free and not rep.within_limits
+    assert "J1" in rep.describe()
+
+
+def test_continuous_check_finds_the_first_contact_within_one_step(rv2aj):
+    # Swing J1 from -90 to +90 deg with the arm stretched forward: a block at +x is hit
+    # when the arm passes its angular extent.
+    q0 = np.radians([-90.0, 60.0, 30.0, 0.0, 0.0])
+    q1 = np.radians([90.0, 60.0, 30.0, 0.0, 0.0])
+    mid = q0 + 0.5 * (q1 - q0)
+    wrist = rv2aj.link_poses(mid)[4][:3, 3]
+    chk = CollisionChecker(rv2aj, [box("post", wrist, [0.03, 0.03, 0.03])], max_step=0.005)
+    mc = chk.check_motion(q0, q1)
+    assert not mc.valid
+    assert mc.report is not None and not mc.report.collision_free
+    f = mc.first_invalid_fraction
+    assert 0.3 < f < 0.5
+    # The configuration one step earlier is free: the answer is the *first* contact.
+    step = 1.0 / mc.samples
+    assert chk.is_valid(q0 + (f - step) * (q1 - q0))
+    assert not chk.is_valid(q0 + f * (q1 - q0))
+
+
+def test_motion_sampling_respects_the_step_bound(checker, rv2aj):
+    rng = np.random.default_rng(11)
+    for _ in range(20):
+        q0 = rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper)
+        q1 = rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper)
+        n = checker.motion_samples(q0, q1, 0.005)
+        pts = np.array([rv2aj.fk(q0 + f * (q1 - q0))[:3, 3] for f in np.arange(n + 1) / n])
+        assert np.max(np.linalg.norm(np.diff(pts, axis=0), axis=1)) <= 0.005 + 1e-12
+
+
+def test_clear_motion_is_valid(checker):
+    q0 = np.radians([0.0, 0.0, 30.0, 0.0, 0.0])
+    q1 = np.radians([0.0, 0.0, 60.0, 20.0, 0.0])
+    assert checker.check_motion(q0, q1).valid
+    assert checker.check_path([q0, q1, q0]) is None
+    assert checker.min_clearance_along([q0, q1]) > 0.05
+
+
+def test_clearance_to_a_box_is_the_analytic_distance(rv2aj):
+    # Upright arm: the forearm capsule (radius 45 mm) runs along z from 550 to 710 mm; a thin
+    # wall beside it at 650-670 mm is nearest to the forearm's side.
+    q = np.zeros(5)
+    chk = CollisionChecker(rv2aj, [box("wall", [0.30, 0.0, 0.66], [0.02, 0.4, 0.02])])
+    c = chk.clearance(q)
+    assert c.other == "wall" and c.link == "J3_forearm"
+    assert c.distance == pytest.approx(0.30 - 0.01 - 0.045, abs=1e-5)
