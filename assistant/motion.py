@@ -17,6 +17,32 @@ import numpy as np
 Array = np.ndarray
 
 
+class ToolActionKind(str, Enum):
+    GRIPPER_OPEN = "gripper_open"  # MELFA HOPEN, KRL/RAPID/UR: an output
+    GRIPPER_CLOSE = "gripper_close"
+    OUTPUT = "output"  # set digital output `channel` to `value`
+    WAIT = "wait"  # dwell `seconds`
+
+
+@dataclass(frozen=True)
+class ToolAction:
+    """Something the tool does between moves (gripper, output, dwell)."""
+
+    kind: ToolActionKind
+    channel: int = 1
+    value: bool = True
+    seconds: float = 0.0
+
+    def to_json(self) -> dict:
+        return {"kind": self.kind.value, "channel": self.channel, "value": self.value,
+                "seconds": self.seconds}
+
+    @staticmethod
+    def from_json(d: dict) -> ToolAction:
+        return ToolAction(ToolActionKind(d["kind"]), int(d.get("channel", 1)),
+                          bool(d.get("value", True)), float(d.get("seconds", 0.0)))
+
+
 class MotionKind(str, Enum):
     JOINT = "joint"  # PTP / MOV / MoveJ / movej
     LINEAR = "linear"  # LIN / MVS / MoveL / movel
@@ -48,6 +74,12 @@ class Motion:
     #: Dense joint path from the previous target to this one (for execution/verification).
     joint_path: Array | None = field(default=None, repr=False)
     label: str = ""  # mission step name, for comments in programs
+    #: Cartesian speed (m/s) for LINEAR/CIRCULAR/SPLINE; for JOINT a fraction of max speed.
+    speed: float | None = None
+    #: Blend into the next move (controller approximation/CNT) within this radius (m).
+    blend_radius: float = 0.0
+    #: Tool actions performed after arriving at `target` (gripper, outputs, waits).
+    actions_after: tuple[ToolAction, ...] = ()
 
 
 @dataclass
@@ -56,6 +88,8 @@ class Trajectory:
 
     start: Waypoint
     motions: list[Motion] = field(default_factory=list)
+    #: Tool actions before the first move (e.g. open the gripper).
+    actions_at_start: tuple[ToolAction, ...] = ()
 
     def waypoints(self) -> list[Waypoint]:
         return [self.start] + [m.target for m in self.motions]

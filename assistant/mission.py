@@ -1,0 +1,157 @@
+"""What the operator teaches: named locations, application paths with tool actions, a mission.
+
+Positions are in the cell (world) frame in metres; the planner maps them into the robot base
+frame. An application path is where the tool does its work (a seam, a drawing, a pick); the
+planner plans the transfers between paths and may order them (SPEC §6 mission ordering).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+
+from assistant.motion import ToolAction
+
+Array = np.ndarray
+
+
+class LocationSource(str, Enum):
+    TYPED = "typed"
+    CAD_CLICK = "cad_click"
+    ROBOT_POSE = "robot_pose"
+    POINTER = "pointer"
+
+
+@dataclass(frozen=True)
+class Location:
+    """A taught TCP pose (world frame), where it came from, and its uncertainty if measured."""
+
+    name: str
+    T_world_tool: Array
+    source: LocationSource = LocationSource.TYPED
+    #: Joint configuration it was taught with (robot-pose teaching), to keep that arm branch.
+    q_hint: Array | None = None
+    uncertainty_m: float = 0.0
+
+    @property
+    def position(self) -> Array:
+        return self.T_world_tool[:3, 3]
+
+    def to_json(self) -> dict:
+        return {"name": self.name, "T_world_tool": np.asarray(self.T_world_tool).tolist(),
+                "source": self.source.value,
+                "q_hint": None if self.q_hint is None else np.asarray(self.q_hint).tolist(),
+                "uncertainty_m": self.uncertainty_m}
+
+    @staticmethod
+    def from_json(d: dict) -> Location:
+        T = np.asarray(d["T_world_tool"], dtype=float)
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise ValueError(f"location {d.get('name')!r}: T_world_tool must be a finite 4x4")
+        q = d.get("q_hint")
+        return Location(str(d["name"]), T, LocationSource(d.get("source", "typed")),
+                        None if q is None else np.asarray(q, dtype=float),
+                        float(d.get("uncertainty_m", 0.0)))
+
+
+class SegmentKind(str, Enum):
+    LINE = "line"  # points: (start, end)
+    ARC = "arc"  # points: (start, via, end)
+    BEZIER = "bezier"  # points: (p0, c1, c2, p3), a cubic Bezier
+
+
+_N_POINTS = {SegmentKind.LINE: 2, SegmentKind.ARC: 3, SegmentKind.BEZIER: 4}
+
+
+@dataclass(frozen=True)
+class PathSegment:
+    kind: SegmentKind
+    points: tuple[Array, ...]
+
+    def __post_init__(self) -> None:
+        if len(self.points) != _N_POINTS[self.kind]:
+            raise ValueError(f"a {self.kind.value} segment needs {_N_POINTS[self.kind]} points, "
+                             f"got {len(self.points)}")
+        for p in self.points:
+            if np.asarray(p).shape != (3,) or not np.all(np.isfinite(p)):
+                raise ValueError(f"{self.kind.value} segment: points must be finite (x, y, z)")
+
+    @property
+    def start(self) -> Array:
+        return np.asarray(self.points[0], dtype=float)
+
+    @property
+    def end(self) -> Array:
+        return np.asarray(self.points[-1], dtype=float)
+
+    def to_json(self) -> dict:
+        return {"kind": self.kind.value, "points": [np.asarray(p).tolist() for p in self.points]}
+
+    @staticmethod
+    def from_json(d: dict) -> PathSegment:
+        return PathSegment(SegmentKind(d["kind"]),
+                           tuple(np.asarray(p, dtype=float) for p in d["points"]))
+
+
+@dataclass
+class ApplicationPath:
+    """A chain of segments the tool follows at a fixed orientation, with tool actions."""
+
+    name: str
+    segments: list[PathSegment]
+    #: Tool orientation held along the path (world frame).
+    R_world_tool: Array = field(default_factory=lambda: np.diag([1.0, -1.0, -1.0]))
+    actions_before: list[ToolAction] = field(default_factory=list)
+    actions_after: list[ToolAction] = field(default_factory=list)
+    speed: float = 0.05  # m/s along the path
+    #: The planner may run the path backwards when ordering the mission.
+    reversible: bool = False
+
+    @property
+    def start(self) -> Array:
+        return self.segments[0].start
+
+    @property
+    def end(self) -> Array:
+        return self.segments[-1].end
+
+    def to_json(self) -> dict:
+        return {"name": self.name, "segments": [s.to_json() for s in self.segments],
+                "R_world_tool": np.asarray(self.R_world_tool).tolist(),
+                "actions_before": [a.to_json() for a in self.actions_before],
+                "actions_after": [a.to_json() for a in self.actions_after],
+                "speed": self.speed, "reversible": self.reversible}
+
+    @staticmethod
+    def from_json(d: dict) -> ApplicationPath:
+        return ApplicationPath(
+            str(d["name"]), [PathSegment.from_json(s) for s in d["segments"]],
+            np.asarray(d.get("R_world_tool", np.diag([1.0, -1.0, -1.0])), dtype=float),
+            [ToolAction.from_json(a) for a in d.get("actions_before", [])],
+            [ToolAction.from_json(a) for a in d.get("actions_after", [])],
+            float(d.get("speed", 0.05)), bool(d.get("reversible", False)))
+
+
+@dataclass
+class Mission:
+    """Start, goal and the application paths between them (in the order the operator gave)."""
+
+    start: Location | None = None
+    goal: Location | None = None
+    paths: list[ApplicationPath] = field(default_factory=list)
+    #: Order chosen by the mission planner (indices into `paths`), None until planned.
+    order: list[int] | None = None
+
+    def to_json(self) -> dict:
+        return {"start": self.start.to_json() if self.start else None,
+                "goal": self.goal.to_json() if self.goal else None,
+                "paths": [p.to_json() for p in self.paths], "order": self.order}
+
+    @staticmethod
+    def from_json(d: dict) -> Mission:
+        return Mission(Location.from_json(d["start"]) if d.get("start") else None,
+                       Location.from_json(d["goal"]) if d.get("goal") else None,
+                       [ApplicationPath.from_json(p) for p in d.get("paths", [])],
+                       list(d["order"]) if d.get("order") is not None else None)
