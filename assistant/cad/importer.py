@@ -166,5 +166,6 @@ def import_with_options(data: bytes, filename: str, options: ImportOptions) -> C
         filename=filename, format=fmt.value, mesh=mesh, collision=collision, proxy=proxy,
         units=decision.units, units_source=decision.source.value,
         file_units=decision.file_units, scale_to_m=decision.scale_to_m,
-        units_reason=decision.reason, repairs=tuple(rep.repairs), notes=tuple(raw.notes + rep.notes),
+        units_reason=decision.reason, repairs=tuple(rep.repairs),
+        notes=tuple(raw.notes + rep.notes),
         warnings=tuple(warnings), bodies=raw.bodies, source=source)
