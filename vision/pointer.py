@@ -1,0 +1,430 @@
+"""`PointerSystem`: the facade the Session uses. One `step()` reads a frame from every camera,
+finds the ball in each, tracks it per camera, turns the views into one 3-D position (stereo
+triangulation, or the single-camera size estimate), filters it in 3-D and watches for a dwell.
+
+Failure is reported, never fatal: a camera that times out, has stopped or delivers a frame of
+the wrong size is marked in that frame's `CameraView`, and the tracks carry on with the other
+cameras (or coast, for up to `hold_s`).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import itertools
+import time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from vision.camera_model import CameraModel
+from vision.color import DEFAULT_POINTER_RED, ColorProfile
+from vision.detection import BlobDetector, Detection, DetectorParams, Window, window_around
+from vision.dwell import DwellDetector, DwellParams, TaughtPoint
+from vision.errors import CameraClosed, CameraError, CameraTimeout, FrameError
+from vision.frame import Frame, validate_image
+from vision.geometry import (
+    PointEstimate,
+    expected_radius_px,
+    mono_from_size,
+    project_covariance,
+    sphere_ray,
+    triangulate,
+)
+from vision.sources import FrameSource
+from vision.tracking2d import Tracker2D, Tracking2DParams
+from vision.tracking3d import Track3D, Tracking3DParams
+
+
+@dataclass(frozen=True)
+class PointerParams:
+    """Everything tunable about the pointer. `hold_s` applies to the 2-D and 3-D tracks."""
+
+    ball_diameter: float = 0.025
+    read_timeout_s: float = 0.25
+    hold_s: float = 1.0
+    min_distance: float = 0.2  # metres from a camera: bounds the apparent size
+    max_distance: float = 4.0
+    centre_sigma_px: float = 0.3  # noise of a detected centre (measured: ~0.15-0.2 px)
+    radius_sigma_px: float = 0.3
+    reprojection_gate_px: float = 2.5
+    size_ratio_range: tuple[float, float] = (0.65, 1.5)
+    max_candidates_per_camera: int = 4
+    search_window: bool = True
+    detector: DetectorParams = field(default_factory=DetectorParams)
+    tracking2d: Tracking2DParams = field(default_factory=Tracking2DParams)
+    tracking3d: Tracking3DParams = field(default_factory=Tracking3DParams)
+    dwell: DwellParams = field(default_factory=DwellParams)
+
+    def __post_init__(self) -> None:
+        if self.ball_diameter <= 0:
+            raise ValueError("ball diameter must be positive")
+        if self.read_timeout_s <= 0 or self.hold_s < 0:
+            raise ValueError("read timeout must be positive and hold time non-negative")
+        if not 0 < self.min_distance < self.max_distance:
+            raise ValueError("need 0 < min_distance < max_distance")
+
+    @property
+    def ball_radius(self) -> float:
+        return 0.5 * self.ball_diameter
+
+
+@dataclass
+class CameraView:
+    """What one camera contributed to a step (drawn as an overlay by the UI)."""
+
+    camera_id: str
+    status: str = "ok"  # ok | timeout | closed | bad_frame | stale | error
+    message: str = ""
+    timestamp: float | None = None
+    detections: list[Detection] = field(default_factory=list)
+    pointer: Detection | None = None  # the detection used for this step's 3-D position
+    predicted_px: np.ndarray | None = None  # where the 3-D track expected the ball
+    window: Window | None = None  # the search window used (None: whole image)
+    frame: Frame | None = None
+
+
+@dataclass
+class PointerState:
+    """Result of one `PointerSystem.step()`."""
+
+    timestamp: float
+    position_world: np.ndarray | None
+    covariance: np.ndarray  # 3x3 of `position_world` (NaN when lost)
+    mode: str  # "stereo", "mono" (less accurate) or "lost"
+    measured: bool  # False while coasting on the prediction
+    track_id: int | None
+    velocity_world: np.ndarray | None = None
+    measurement: PointEstimate | None = None  # this frame's raw 3-D point, if any
+    cameras: dict[str, CameraView] = field(default_factory=dict)
+    taught: TaughtPoint | None = None
+    dwell_progress: float = 0.0
+
+    @property
+    def detections(self) -> dict[str, list[Detection]]:
+        return {cid: v.detections for cid, v in self.cameras.items()}
+
+    @property
+    def less_accurate(self) -> bool:
+        """True in single-camera mode: the UI must say the depth is a size estimate."""
+        return self.mode == "mono"
+
+
+@dataclass
+class _Hypothesis:
+    est: PointEstimate
+    used: dict[int, int]  # camera index -> detection index
+
+
+class PointerSystem:
+    """Cameras + their calibrations + a colour profile -> pointer positions and taught points."""
+
+    def __init__(self, sources: Sequence[FrameSource],
+                 models: Sequence[CameraModel] | Mapping[str, CameraModel],
+                 profile: ColorProfile = DEFAULT_POINTER_RED,
+                 params: PointerParams | None = None) -> None:
+        if not sources:
+            raise CameraError("no camera: connect a camera, pick a video/folder, or use the "
+                              "synthetic camera")
+        ids = [s.camera_id for s in sources]
+        if len(set(ids)) != len(ids):
+            raise ValueError(f"camera ids must be unique, got {ids}; give each source an id")
+        if isinstance(models, Mapping):
+            missing = [i for i in ids if i not in models]
+            if missing:
+                raise ValueError(f"no camera model (calibration) for {missing}")
+            models = [models[i] for i in ids]
+        if len(models) != len(sources):
+            raise ValueError(f"{len(sources)} cameras but {len(models)} camera models")
+        self.sources = list(sources)
+        self.models = list(models)
+        self.params = params or PointerParams()
+        p = self.params
+        self._t2 = dataclasses.replace(p.tracking2d, hold_s=p.hold_s)
+        self._t3 = dataclasses.replace(p.tracking3d, hold_s=p.hold_s)
+        self.profile = profile
+        self.trackers2d = [Tracker2D(self._t2) for _ in self.sources]
+        self.track = Track3D(self._t3)
+        self.dwell = DwellDetector(p.dwell)
+        self._radius_ranges = [
+            (m.focal_px * p.ball_radius / p.max_distance, m.focal_px * p.ball_radius
+             / p.min_distance) for m in self.models]
+        self._last_stamp: list[float | None] = [None] * len(self.sources)
+        self._pointer_track2d: list[int | None] = [None] * len(self.sources)
+        self._time: float | None = None
+        self._wall_at_time = 0.0
+        self.last_state: PointerState | None = None
+
+    # -- configuration ------------------------------------------------------------------------
+    @property
+    def profile(self) -> ColorProfile:
+        return self._profile
+
+    @profile.setter
+    def profile(self, profile: ColorProfile) -> None:
+        """Switch or recalibrate the colour profile; tracks are kept."""
+        self._profile = profile
+        self.detector = BlobDetector(profile, self.params.detector)
+
+    @property
+    def camera_ids(self) -> list[str]:
+        return [s.camera_id for s in self.sources]
+
+    def reset(self) -> None:
+        """Forget all tracks and any dwell in progress (cameras stay open)."""
+        for tr in self.trackers2d:
+            tr.reset()
+        self.track.reset()
+        self.dwell.reset()
+        self._pointer_track2d = [None] * len(self.sources)
+        self._last_stamp = [None] * len(self.sources)
+        self._time = None
+        self.last_state = None
+
+    def close(self) -> None:
+        for s in self.sources:
+            with contextlib.suppress(Exception):  # closing must not fail: the camera is gone
+                s.close()
+
+    # -- one step -----------------------------------------------------------------------------
+    def _read(self) -> tuple[dict[int, Frame], list[CameraView]]:
+        frames: dict[int, Frame] = {}
+        views: list[CameraView] = []
+        for i, (src, model) in enumerate(zip(self.sources, self.models, strict=True)):
+            view = CameraView(src.camera_id)
+            views.append(view)
+            try:
+                fr = src.read(self.params.read_timeout_s)
+                validate_image(fr.image, model.width, model.height, src.camera_id)
+            except CameraTimeout as exc:
+                view.status, view.message = "timeout", str(exc)
+                continue
+            except CameraClosed as exc:
+                view.status, view.message = "closed", str(exc)
+                continue
+            except FrameError as exc:
+                view.status, view.message = "bad_frame", str(exc)
+                continue
+            except Exception as exc:  # a broken driver is reported, never fatal
+                view.status, view.message = "error", f"camera {src.camera_id!r}: {exc}"
+                continue
+            view.timestamp = fr.timestamp
+            view.frame = fr
+            last = self._last_stamp[i]
+            if last is not None and fr.timestamp <= last:
+                view.status = "stale"
+                view.message = f"camera {src.camera_id!r} repeated an old frame"
+                continue
+            self._last_stamp[i] = fr.timestamp
+            frames[i] = fr
+        return frames, views
+
+    def _clock(self, frames: dict[int, Frame]) -> float:
+        now = time.monotonic()
+        if frames:
+            t = max(f.timestamp for f in frames.values())
+        elif self._time is None:
+            t = 0.0
+        else:  # no camera delivered: let time pass so a held track expires
+            t = self._time + (now - self._wall_at_time)
+        if self._time is not None and t < self._time:
+            # a source restarted its clock (looped file, reconnected camera): start afresh
+            for tr in self.trackers2d:
+                tr.reset()
+            self.track.reset()
+            self.dwell.reset()
+        self._time = t
+        self._wall_at_time = now
+        return t
+
+    def _search(self, i: int, frame: Frame, view: CameraView) -> list[Detection]:
+        p = self.params
+        model = self.models[i]
+        window: Window | None = None
+        radius_range = self._radius_ranges[i]
+        if p.search_window and self.track.active:
+            X = self.track.filter.position
+            uv = model.project(X)
+            r_exp = expected_radius_px(model, X, p.ball_radius)
+            if np.all(np.isfinite(uv)) and np.isfinite(r_exp):
+                view.predicted_px = uv
+                cov_px = project_covariance(model, X, self.track.filter.position_cov)
+                sd = float(np.sqrt(max(np.linalg.eigvalsh(cov_px).max(), 0.0)))
+                half = min(4.0 * sd + 2.5 * r_exp + 8.0, 0.5 * min(model.width, model.height))
+                window = window_around(uv, half, model.width, model.height)
+                radius_range = (0.6 * r_exp, 1.6 * r_exp + 1.0)
+        elif p.search_window and self._pointer_track2d[i] is not None:
+            pred = self.trackers2d[i].predicted(self._pointer_track2d[i], self._time)
+            tr = self.trackers2d[i].track(self._pointer_track2d[i])
+            if pred is not None and tr is not None:
+                sd = float(np.sqrt(max(np.linalg.eigvalsh(pred[1]).max(), 0.0)))
+                half = min(4.0 * sd + 2.5 * tr.radius_px + 8.0,
+                           0.5 * min(model.width, model.height))
+                window = window_around(pred[0], half, model.width, model.height)
+                radius_range = (0.6 * tr.radius_px, 1.6 * tr.radius_px + 1.0)
+        dets: list[Detection] = []
+        if window is not None and window[2] > window[0] and window[3] > window[1]:
+            dets = self.detector.detect(frame.image, window, radius_range)
+        if not dets:
+            window = None
+            dets = self.detector.detect(frame.image, None, self._radius_ranges[i])
+        view.window = window
+        return dets
+
+    def _size_ok(self, X: np.ndarray, used: dict[int, int],
+                 dets: dict[int, list[Detection]]) -> float | None:
+        """Worst |log| ratio of seen to expected apparent radius, None if out of range."""
+        lo, hi = self.params.size_ratio_range
+        worst = 0.0
+        for i, j in used.items():
+            r_exp = expected_radius_px(self.models[i], X, self.params.ball_radius)
+            ratio = dets[i][j].radius_px / r_exp if np.isfinite(r_exp) else 0.0
+            if not lo <= ratio <= hi:
+                return None
+            worst = max(worst, abs(np.log(ratio)))
+        return worst
+
+    def _stereo_hypotheses(self, dets: dict[int, list[Detection]]) -> list[_Hypothesis]:
+        p = self.params
+        k = p.max_candidates_per_camera
+        rays = {(i, j): sphere_ray(self.models[i], d.center_px, d.radius_px)
+                for i, ds in dets.items() for j, d in enumerate(ds[:k])}
+        cams = sorted(i for i in dets if dets[i])
+        out: list[_Hypothesis] = []
+        seen: set[frozenset] = set()
+        for a, b in itertools.combinations(cams, 2):
+            for ja, jb in itertools.product(range(min(k, len(dets[a]))),
+                                            range(min(k, len(dets[b])))):
+                used = {a: ja, b: jb}
+                est = self._triangulate(used, rays)
+                if est is None:
+                    continue
+                for c in cams:  # add agreeing views from further cameras
+                    if c in used:
+                        continue
+                    uv = self.models[c].project(est.position_world)
+                    best = min(range(min(k, len(dets[c]))),
+                               key=lambda j, c=c, uv=uv: np.linalg.norm(dets[c][j].center_px - uv),
+                               default=None)
+                    if best is not None and np.linalg.norm(dets[c][best].center_px - uv) \
+                            <= 2 * p.reprojection_gate_px:
+                        more = self._triangulate({**used, c: best}, rays)
+                        if more is not None:
+                            used, est = {**used, c: best}, more
+                key = frozenset(used.items())
+                if key in seen or self._size_ok(est.position_world, used, dets) is None:
+                    continue
+                seen.add(key)
+                out.append(_Hypothesis(est, used))
+        return out
+
+    def _triangulate(self, used: dict[int, int], rays: dict) -> PointEstimate | None:
+        idx = sorted(used)
+        est = triangulate([self.models[i] for i in idx], [rays[(i, used[i])] for i in idx],
+                          self.params.centre_sigma_px)
+        if est is None or est.reprojection_px > self.params.reprojection_gate_px:
+            return None
+        return dataclasses.replace(est, cameras=tuple(idx))
+
+    def _mono(self, i: int, j: int, d: Detection) -> _Hypothesis:
+        p = self.params
+        model = self.models[i]
+        est = mono_from_size(model, sphere_ray(model, d.center_px, d.radius_px), p.ball_radius,
+                             p.centre_sigma_px, p.radius_sigma_px)
+        return _Hypothesis(dataclasses.replace(est, cameras=(i,)), {i: j})
+
+    def _choose(self, t: float, dets: dict[int, list[Detection]],
+                ids2d: dict[int, list[int]], n_delivering: int) -> _Hypothesis | None:
+        """Pick this frame's measurement (or none) and feed the 3-D track."""
+        stereo = self._stereo_hypotheses(dets)
+        k = self.params.max_candidates_per_camera
+        if self.track.active:
+            gated = [(self.track.gate_distance(h.est), h) for h in stereo]
+            gated = [g for g in gated if g[0] <= self._t3.gate_chi2]
+            if not gated:  # a view lost the ball: single-camera measurements may continue
+                monos = [self._mono(i, j, d) for i, ds in dets.items()
+                         for j, d in enumerate(ds[:k])]
+                gated = [(self.track.gate_distance(h.est), h) for h in monos]
+                gated = [g for g in gated if g[0] <= self._t3.gate_chi2]
+            if gated:
+                h = min(gated, key=lambda g: g[0])[1]
+                self.track.update(t, h.est)
+                return h
+            if stereo and self.track.disagreement(t):
+                h = self._best_new(stereo, dets)
+                self.track.start(t, h.est)
+                return h
+            return None
+        if stereo:
+            h = self._best_new(stereo, dets)
+            self.track.start(t, h.est)
+            return h
+        if n_delivering == 1:  # a single working camera: start from a confirmed blob track
+            confirmed = [(d.score, i, j) for i, ds in dets.items() for j, d in enumerate(ds[:k])
+                         if self.trackers2d[i].is_confirmed(ids2d[i][j])]
+            if confirmed:
+                _, i, j = max(confirmed)
+                h = self._mono(i, j, dets[i][j])
+                self.track.start(t, h.est)
+                return h
+        return None
+
+    def _best_new(self, stereo: list[_Hypothesis],
+                  dets: dict[int, list[Detection]]) -> _Hypothesis:
+        """Without a track, prefer more views, then views that agree, then the right size."""
+        def cost(h: _Hypothesis) -> tuple[float, float]:
+            size = self._size_ok(h.est.position_world, h.used, dets) or 0.0
+            return (-len(h.used), h.est.reprojection_px / self.params.centre_sigma_px
+                    + 10.0 * size)
+        return min(stereo, key=cost)
+
+    def step(self) -> PointerState:
+        """Process one synchronised frame set; never raises for camera trouble."""
+        frames, views = self._read()
+        t = self._clock(frames)
+        self.track.predict_to(t)
+        dets: dict[int, list[Detection]] = {}
+        ids2d: dict[int, list[int]] = {}
+        for i, fr in frames.items():
+            dets[i] = self._search(i, fr, views[i])
+            ids2d[i] = self.trackers2d[i].update(t, dets[i])
+            views[i].detections = dets[i]
+        chosen = self._choose(t, dets, ids2d, len(frames))
+        if chosen is not None:
+            for i, j in chosen.used.items():
+                views[i].pointer = dets[i][j]
+                self._pointer_track2d[i] = ids2d[i][j]
+        taught = None
+        if self.track.active:
+            pos = self.track.filter.position
+            meas = chosen.est if chosen is not None else None
+            taught = self.dwell.update(t, pos, None if meas is None else meas.position_world,
+                                       None if meas is None else meas.covariance,
+                                       self.track.last_mode)
+            state = PointerState(
+                timestamp=t, position_world=pos, covariance=self.track.filter.position_cov,
+                mode=self.track.last_mode, measured=chosen is not None,
+                track_id=self.track.track_id, velocity_world=self.track.filter.velocity,
+                measurement=meas, taught=taught, dwell_progress=self.dwell.progress())
+        else:
+            self.dwell.update(t, None)
+            self._pointer_track2d = [
+                tid if self.trackers2d[i].track(tid) is not None else None
+                for i, tid in enumerate(self._pointer_track2d)]
+            state = PointerState(timestamp=t, position_world=None,
+                                 covariance=np.full((3, 3), np.nan), mode="lost",
+                                 measured=False, track_id=None)
+        state.cameras = {v.camera_id: v for v in views}
+        self.last_state = state
+        return state
+
+    # -- convenience --------------------------------------------------------------------------
+    @classmethod
+    def synthetic(cls, models: Sequence[CameraModel], scene, *, seed: int = 0,
+                  fps: float = 60.0, profile: ColorProfile = DEFAULT_POINTER_RED,
+                  params: PointerParams | None = None) -> PointerSystem:
+        """A system watching a `PointerScene` through synthetic cameras (sample cells, tests)."""
+        from vision.sources import synthetic_cameras
+
+        return cls(synthetic_cameras(models, scene, seed=seed, fps=fps), models, profile, params)

@@ -1,0 +1,99 @@
+"""The pointer's 3-D track: one constant-velocity Kalman filter in the world frame, Mahalanobis
+gating of each frame's candidate positions, held (coasting) for up to `hold_s` without a
+measurement, re-initialised when the measurements persistently disagree with it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from vision.geometry import PointEstimate
+from vision.kalman import ConstantVelocityFilter
+
+CHI2_3DOF_999 = 16.27
+
+
+@dataclass(frozen=True)
+class Tracking3DParams:
+    hold_s: float = 1.0
+    accel_std: float = 8.0  # m/s^2: brisk hand motion
+    initial_velocity_std: float = 1.0  # m/s
+    gate_chi2: float = CHI2_3DOF_999
+    min_gate: float = 0.003  # metres: never gate tighter than the ball wobble
+    reinit_after_s: float = 0.25  # persistent disagreement this long: start a new track
+
+
+class Track3D:
+    """At most one pointer track. `step` predicts; `offer` gates and updates."""
+
+    def __init__(self, params: Tracking3DParams | None = None) -> None:
+        self.params = params or Tracking3DParams()
+        self.filter: ConstantVelocityFilter | None = None
+        self.track_id = 0
+        self.time: float | None = None
+        self.last_measurement_time: float | None = None
+        self.last_mode = "lost"
+        self._disagree_since: float | None = None
+
+    @property
+    def active(self) -> bool:
+        return self.filter is not None
+
+    def reset(self) -> None:
+        self.filter = None
+        self.time = None
+        self.last_measurement_time = None
+        self.last_mode = "lost"
+        self._disagree_since = None
+
+    def predict_to(self, t: float) -> None:
+        """Advance to time t; drop the track when it has gone unmeasured for over `hold_s`."""
+        if self.filter is None:
+            self.time = t
+            return
+        if self.time is not None and t > self.time:
+            self.filter.predict(t - self.time)
+        self.time = t if self.time is None else max(self.time, t)
+        if self.last_measurement_time is not None and \
+                t - self.last_measurement_time > self.params.hold_s:
+            self.reset()
+            self.time = t
+
+    def gate_distance(self, est: PointEstimate) -> float:
+        """Squared Mahalanobis distance of a candidate (inf with no track)."""
+        if self.filter is None:
+            return float("inf")
+        if np.linalg.norm(est.position_world - self.filter.position) <= self.params.min_gate:
+            return 0.0
+        return self.filter.mahalanobis_sq(est.position_world, est.covariance)
+
+    def in_gate(self, est: PointEstimate) -> bool:
+        return self.gate_distance(est) <= self.params.gate_chi2
+
+    def start(self, t: float, est: PointEstimate) -> None:
+        p = self.params
+        self.filter = ConstantVelocityFilter(3, est.position_world, est.covariance,
+                                             p.initial_velocity_std, p.accel_std)
+        self.track_id += 1
+        self.time = t
+        self.last_measurement_time = t
+        self.last_mode = est.mode
+        self._disagree_since = None
+
+    def update(self, t: float, est: PointEstimate) -> None:
+        assert self.filter is not None
+        self.filter.update(est.position_world, est.covariance)
+        self.last_measurement_time = t
+        self.last_mode = est.mode
+        self._disagree_since = None
+
+    def disagreement(self, t: float) -> bool:
+        """Note that this frame's only candidates fell outside the gate; True once that has
+        lasted `reinit_after_s` (the pointer really is elsewhere: restart there)."""
+        if self._disagree_since is None:
+            self._disagree_since = t
+        return t - self._disagree_since >= self.params.reinit_after_s
+
+    def agree(self) -> None:
+        self._disagree_since = None
