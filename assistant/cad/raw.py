@@ -33,8 +33,13 @@ class Outline:
         return float(max(b[:, 2].max() - b[:, 0].min(), b[:, 3].max() - b[:, 1].min()))
 
     def extrude(self, height: float) -> trimesh.Trimesh:
-        """A solid of the given height (file units) above z0; several profiles are merged."""
-        parts = [trimesh.creation.extrude_polygon(p, height) for p in self.polygons]
+        """A solid of the given height (file units) above z0; several profiles are merged.
+
+        Triangulated with manifold3d: earcut's bridges to several holes can reuse an edge,
+        which leaves the solid non-watertight.
+        """
+        parts = [trimesh.creation.extrude_polygon(p, height, engine="manifold")
+                 for p in self.polygons]
         mesh = merge_meshes(parts)
         mesh.apply_translation((0.0, 0.0, self.z0))
         return mesh

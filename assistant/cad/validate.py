@@ -82,10 +82,9 @@ def repair(mesh: trimesh.Trimesh, filename: str) -> tuple[trimesh.Trimesh, Repai
     m.remove_unreferenced_vertices()
 
     if not m.is_watertight:
-        n_f = len(m.faces)
-        trimesh.repair.fill_holes(m)
-        if len(m.faces) > n_f:
-            rep.repairs.append(f"filled small holes with {len(m.faces) - n_f} faces")
+        added = _fill_small_holes(m)
+        if added:
+            rep.repairs.append(f"filled small holes with {added} faces")
 
     faces_before = m.faces.copy()
     trimesh.repair.fix_normals(m, multibody=True)  # consistent winding, outward per body
@@ -102,3 +101,32 @@ def repair(mesh: trimesh.Trimesh, filename: str) -> tuple[trimesh.Trimesh, Repai
     elif abs(m.volume) < 1e-15:
         rep.warnings.append("the mesh encloses no volume (a flat sheet)")
     return m, rep
+
+
+def _fill_small_holes(m: trimesh.Trimesh) -> int:
+    """trimesh's fill (3- and 4-edge holes), except on flat pieces: closing the rim of a flat
+    sheet (a single 3DFACE, a plate drawn as one quad) would glue a back face onto it."""
+    n_f = len(m.faces)
+    labels = np.full(n_f, -1)
+    for k, group in enumerate(trimesh.graph.connected_components(
+            m.face_adjacency, nodes=np.arange(n_f), min_len=1)):
+        labels[group] = k
+    flat = {}
+    for k in np.unique(labels):
+        v = m.vertices[np.unique(m.faces[labels == k])]
+        c = v - v.mean(axis=0)
+        sv = np.linalg.svd(c, compute_uv=False) if len(v) >= 3 else np.zeros(3)
+        flat[int(k)] = len(sv) < 3 or sv[-1] <= 1e-9 * max(float(sv[0]), 1e-30)
+    vertex_label = np.full(len(m.vertices), -1)
+    vertex_label[m.faces.ravel()] = np.repeat(labels, 3)
+
+    candidate = m.copy()
+    trimesh.repair.fill_holes(candidate)
+    new = candidate.faces[n_f:]
+    if len(new) == 0 or len(candidate.vertices) != len(m.vertices):
+        return 0
+    keep = np.array([not flat.get(int(vertex_label[f[0]]), True) for f in new], dtype=bool)
+    if not keep.any():
+        return 0
+    m.faces = np.vstack([m.faces, new[keep]])
+    return int(keep.sum())
