@@ -139,7 +139,9 @@ def calibrate_from_ellipse(
     take the `percentile` / 100-`percentile` quantiles, not the extremes, and widen them by the
     margins, so a few background or highlight pixels caught by a sloppy ellipse do not blow the
     range open. Hue statistics are circular, so a red ball straddling H = 0 yields a wrapping
-    profile. Unsaturated pixels (highlights, grey background) carry no hue and are ignored.
+    profile. Unsaturated pixels (highlights, grey background) carry no hue and are ignored, and
+    only the dominant hue peak is kept, so a patch of coloured background in the ellipse does
+    not widen the range either.
     """
     if not isinstance(image_bgr, np.ndarray) or image_bgr.dtype != np.uint8 \
             or image_bgr.ndim != 3 or image_bgr.shape[2] != 3:
@@ -163,6 +165,7 @@ def calibrate_from_ellipse(
             f"the ellipse holds {len(coloured)} coloured pixels (need {min_pixels}); it covers "
             "grey or white only: draw it over the coloured ball"
         )
+    coloured = _dominant_hue(coloured)
     hue, sat, val = coloured[:, 0], coloured[:, 1], coloured[:, 2]
     ang = hue * (2 * np.pi / H_RANGE)
     mean_h = (np.arctan2(np.sin(ang).mean(), np.cos(ang).mean()) * H_RANGE / (2 * np.pi)) % H_RANGE
@@ -183,3 +186,21 @@ def calibrate_from_ellipse(
         s_max=int(min(255, np.ceil(s_hi + sat_margin))),
         v_min=int(max(0, np.floor(v_lo - val_margin))),
     )
+
+
+def _dominant_hue(hsv: np.ndarray, max_half_width: int = 30) -> np.ndarray:
+    """Keep the pixels of the strongest hue peak (circular histogram weighted by saturation,
+    grown out to where it falls to 3 % of the peak): an ellipse that also caught a piece of
+    coloured background then still calibrates on the ball alone."""
+    h = hsv[:, 0].astype(int) % H_RANGE
+    hist = np.bincount(h, weights=hsv[:, 1], minlength=H_RANGE)
+    smooth = sum(np.roll(hist, k) for k in (-2, -1, 0, 1, 2))
+    peak = int(np.argmax(smooth))
+    floor = 0.03 * smooth[peak]
+    lo = hi = 0
+    while lo < max_half_width and smooth[(peak - lo - 1) % H_RANGE] > floor:
+        lo += 1
+    while hi < max_half_width and smooth[(peak + hi + 1) % H_RANGE] > floor:
+        hi += 1
+    off = (h - peak + H_RANGE // 2) % H_RANGE - H_RANGE // 2
+    return hsv[(off >= -lo - 2) & (off <= hi + 2)]

@@ -252,17 +252,31 @@ def draw_board(canvas: Canvas, T_camera_world: np.ndarray, board: PlanarTarget) 
     sx, sy = board.width_m / tw, board.height_m / th
     S = np.array([[sx, 0, 0.5 * sx], [0, sy, 0.5 * sy], [0, 0, 1.0]])
     H = canvas.K @ np.column_stack([T_cb[:3, 0], T_cb[:3, 1], T_cb[:3, 3]]) @ S
-    ss = _BOARD_SUPERSAMPLE
-    A = np.array([[ss, 0, (ss - 1) / 2], [0, ss, (ss - 1) / 2], [0, 0, 1.0]])
+    # texture pixel -> canvas pixel
     h, w = canvas.image.shape[:2]
+    corners = np.array([[-0.5, -0.5, 1], [tw - 0.5, -0.5, 1], [tw - 0.5, th - 0.5, 1],
+                        [-0.5, th - 0.5, 1]]).T
+    proj = H @ corners
+    if np.any(proj[2] <= 0):
+        return  # the board plane crosses behind the camera: not a view anyone calibrates with
+    uv = (proj[:2] / proj[2]).T
+    x0, y0 = np.maximum(np.floor(uv.min(axis=0)).astype(int) - 1, 0)
+    x1, y1 = np.minimum(np.ceil(uv.max(axis=0)).astype(int) + 2, [w, h])
+    if x0 >= x1 or y0 >= y1:
+        return
+    ss = _BOARD_SUPERSAMPLE
+    # canvas pixel u <-> supersampled pixel ss*(u - x0) + (ss - 1)/2
+    A = np.array([[ss, 0, (ss - 1) / 2 - ss * x0], [0, ss, (ss - 1) / 2 - ss * y0], [0, 0, 1.0]])
+    bw, bh = x1 - x0, y1 - y0
     tex = board.texture.astype(np.float32)
-    warped = cv2.warpPerspective(tex, A @ H, (w * ss, h * ss), flags=cv2.INTER_LINEAR)
-    ones = np.ones((th, tw), np.float32)
-    alpha = cv2.warpPerspective(ones, A @ H, (w * ss, h * ss), flags=cv2.INTER_LINEAR)
-    warped = cv2.resize(warped, (w, h), interpolation=cv2.INTER_AREA)
-    alpha = cv2.resize(alpha, (w, h), interpolation=cv2.INTER_AREA)[..., None]
-    canvas.image *= 1.0 - alpha
-    canvas.image += warped
+    warped = cv2.warpPerspective(tex, A @ H, (bw * ss, bh * ss), flags=cv2.INTER_LINEAR)
+    alpha = cv2.warpPerspective(np.ones((th, tw), np.float32), A @ H, (bw * ss, bh * ss),
+                                flags=cv2.INTER_LINEAR)
+    warped = cv2.resize(warped, (bw, bh), interpolation=cv2.INTER_AREA)
+    alpha = cv2.resize(alpha, (bw, bh), interpolation=cv2.INTER_AREA)[..., None]
+    roi = canvas.image[y0:y1, x0:x1]
+    roi *= 1.0 - alpha
+    roi += warped
 
 
 # -- whole frame --------------------------------------------------------------------------------
@@ -296,6 +310,12 @@ def render_scene(geometry: CanvasGeometry, scene: PointerScene, t: float,
     base = background.copy()
     for board in scene.boards_at(t):
         draw_board(Canvas(base, geometry.K, geometry.pad), T_cw, board)
+    ball = scene.ball_at(t)
+    if scene.stick is not None and ball is not None and not scene.ball_hidden(t):
+        # the stick is drawn sharp at mid-exposure: it is big, and its blur matters to no one
+        s = scene.stick
+        draw_stick(Canvas(base, geometry.K, geometry.pad), T_cw, ball, s.direction_world,
+                   s.length, s.radius, s.bgr, scene.lighting)
     box = _dynamic_box(geometry, scene, times)
     if box is not None:
         x0, y0, x1, y1 = box
@@ -313,15 +333,30 @@ def render_scene(geometry: CanvasGeometry, scene: PointerScene, t: float,
     if gain != 1.0:
         img *= np.float32(gain)
     if sensor.noise_sigma > 0:
-        img += rng.standard_normal(img.shape, dtype=np.float32) * np.float32(sensor.noise_sigma)
+        img += _noise(img.shape, rng) * np.float32(sensor.noise_sigma)
     img += np.float32(0.5)
     np.clip(img, 0, 255, out=img)
     return img.astype(np.uint8)
 
 
+_NOISE_BANK: dict[int, np.ndarray] = {}
+
+
+def _noise(shape: tuple[int, ...], rng: np.random.Generator) -> np.ndarray:
+    """Unit Gaussian noise of `shape`: a random window into a bank 1.5x the frame size, drawn
+    once per size (fresh draws for every frame cost more than the rest of the render)."""
+    n = int(np.prod(shape))
+    bank = _NOISE_BANK.get(n)
+    if bank is None:
+        bank = np.random.default_rng(12345).standard_normal(n + n // 2, dtype=np.float32)
+        _NOISE_BANK[n] = bank
+    start = int(rng.integers(0, n // 2 + 1))
+    return bank[start:start + n].reshape(shape)
+
+
 def _dynamic_box(geometry: CanvasGeometry, scene: PointerScene,
                  times: list[float]) -> tuple[int, int, int, int] | None:
-    """Canvas box (x0, y0, x1, y1) holding every ball, stick and marker over the exposure."""
+    """Canvas box (x0, y0, x1, y1) holding every ball and marker over the exposure."""
     T_cw = geometry.model.T_camera_world
     K = geometry.K
     f = float(max(K[0, 0], K[1, 1]))
@@ -343,9 +378,6 @@ def _dynamic_box(geometry: CanvasGeometry, scene: PointerScene,
         ball = scene.ball_at(ts)
         if ball is not None and not scene.ball_hidden(ts):
             add(ball, scene.ball_radius)
-            if scene.stick is not None:
-                s = scene.stick
-                add(ball + s.length * s.direction_world, s.radius)
         for m in scene.markers:
             p = m.position(ts)
             if p is not None:
@@ -367,7 +399,7 @@ def _dynamic_box(geometry: CanvasGeometry, scene: PointerScene,
 
 
 def _draw_objects(canvas: Canvas, T_cw: np.ndarray, scene: PointerScene, t: float) -> None:
-    """Markers and the pointer, far to near so nearer balls cover farther ones."""
+    """Markers and the pointer ball, far to near so nearer balls cover farther ones."""
     items: list[tuple[float, str, object]] = []
     ball = scene.ball_at(t)
     if ball is not None and not scene.ball_hidden(t):
@@ -379,10 +411,6 @@ def _draw_objects(canvas: Canvas, T_cw: np.ndarray, scene: PointerScene, t: floa
             items.append(((T_cw[:3, :3] @ p + T_cw[:3, 3])[2], "marker", (m, p)))
     for _, kind, obj in sorted(items, key=lambda it: -it[0]):
         if kind == "ball":
-            if scene.stick is not None:
-                s = scene.stick
-                draw_stick(canvas, T_cw, obj, s.direction_world, s.length, s.radius, s.bgr,
-                           scene.lighting)
             draw_sphere(canvas, T_cw, obj, scene.ball_radius, scene.ball_bgr, scene.lighting)
         else:
             m, p = obj
