@@ -565,16 +565,25 @@ def test_big_concave_mesh_gets_a_closer_proxy_and_a_measured_deviation():
     # The hull's worst point is the middle of its cap, sqrt(R^2 + r^2) - r from the tube.
     assert tried["convex_hull"] == pytest.approx(np.hypot(R, r) - r, abs=0.005)
     assert result.proxy.kind != "convex_hull"
-    assert result.proxy.deviation_m < tried["convex_hull"] / 3
-    assert len(result.collision) == result.proxy.parts
+    assert result.proxy.deviation_m <= 0.02
+    assert len(result.collision) == result.proxy.parts >= 2
 
-    # Independent check of the reported deviation from other surface samples.
-    parts = [s.mesh for s in result.collision]
-    pts, _ = trimesh.sample.sample_surface(result.mesh, 500, seed=123)
-    d = np.min([trimesh.proximity.closest_point(p, pts)[1] for p in parts], axis=0)
-    assert d.max() <= result.proxy.deviation_m + 0.002
-    if result.proxy.deviation_m > 0.02:
-        assert any("no collision proxy within" in w for w in result.warnings)
+    # Check the reported deviation against the exact torus, independently of the estimator.
+    def tube_distance(p):  # > 0 outside the (ideal) torus
+        return np.hypot(np.hypot(p[:, 0], p[:, 1]) - R, p[:, 2]) - r
+
+    # The report is a sampled estimate (it may miss the worst point by a little), and the
+    # tessellated torus lies up to ~0.5 mm inside the ideal one.
+    parts = [shape.mesh for shape in result.collision]
+    bound = 1.1 * result.proxy.deviation_m + 0.001
+    on_proxy = np.vstack([trimesh.sample.sample_surface(p, 300, seed=5)[0] for p in parts])
+    assert tube_distance(on_proxy).max() <= bound
+    u, v = np.random.default_rng(9).uniform(0, 2 * np.pi, (2, 2000))
+    on_part = np.column_stack([(R + r * np.cos(v)) * np.cos(u), (R + r * np.cos(v)) * np.sin(u),
+                               r * np.sin(v)])
+    inside = np.any([p.contains(on_part) for p in parts], axis=0)
+    gap = np.min([trimesh.proximity.closest_point(p, on_part[~inside])[1] for p in parts], axis=0)
+    assert gap.max(initial=0.0) <= bound
 
 
 def test_small_mesh_collides_as_itself():

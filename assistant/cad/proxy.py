@@ -11,8 +11,9 @@ big mesh (more than `max_faces` triangles) is replaced by, in order of preferenc
    which is closest on smooth free-form parts but may cut slightly into the part.
 
 If none is within tolerance the closest is kept and a warning says by how much it deviates.
-The deviation is a symmetric Hausdorff estimate from seeded surface samples: the largest
-distance from the mesh surface to the proxy surface and from the proxy surface to the mesh.
+The deviation is a symmetric Hausdorff estimate from seeded surface samples (see
+`_deviation`): how far the part sticks out of the proxy, and how far the proxy sticks out of
+the part. Being sampled, it can miss the very worst point: on a torus it reads ~5 % low.
 """
 
 from __future__ import annotations
@@ -30,7 +31,7 @@ Array = np.ndarray
 SAMPLES = 2000
 #: Exact point-to-mesh queries on big meshes are slow; screen with a KD-tree on dense samples
 #: and measure exactly only the most distant candidates.
-_EXACT_CANDIDATES = 64
+_EXACT_CANDIDATES = 128
 _SEED = 7
 
 
@@ -117,38 +118,52 @@ def _decimate(mesh: trimesh.Trimesh, max_faces: int) -> trimesh.Trimesh | None:
         return None
 
 
-def _distance_to_parts(points: Array, parts: tuple[trimesh.Trimesh, ...]) -> Array:
-    d = np.full(len(points), np.inf)
-    for p in parts:
-        _, dist, _ = trimesh.proximity.closest_point(p, points)
-        d = np.minimum(d, dist)
-    return d
-
-
-def _inside_convex(points: Array, part: trimesh.Trimesh, eps: float = 1e-9) -> Array:
+def _inside_convex(points: Array, part: trimesh.Trimesh, tol: float) -> Array:
     n = part.face_normals
     offs = np.einsum("ij,ij->i", n, part.triangles[:, 0])
-    return np.all(points @ n.T - offs <= -eps, axis=1)
+    return np.all(points @ n.T - offs <= tol, axis=1)
+
+
+def _inside(points: Array, part: trimesh.Trimesh, convex: bool, tol: float) -> Array:
+    if convex:
+        return _inside_convex(points, part, tol)
+    if part.is_watertight:
+        return part.contains(points)
+    return np.zeros(len(points), dtype=bool)
 
 
 def _deviation(mesh: trimesh.Trimesh, samples: Array, tree: cKDTree,
                parts: tuple[trimesh.Trimesh, ...], *, convex: bool = True) -> float:
-    """Symmetric Hausdorff estimate between the mesh surface and the union of the parts."""
-    d_mesh_to_proxy = float(_distance_to_parts(samples, parts).max())
-    proxy_pts = []
-    for i, p in enumerate(parts):
-        pts, _ = trimesh.sample.sample_surface(p, max(64, SAMPLES // len(parts)), seed=_SEED)
-        pts = np.vstack([pts, p.vertices])
-        if convex and len(parts) > 1:
-            # Points buried inside another part are not on the union's surface.
-            buried = np.zeros(len(pts), dtype=bool)
-            for j, q in enumerate(parts):
-                if j != i:
-                    buried |= _inside_convex(pts, q)
-            pts = pts[~buried]
-        proxy_pts.append(pts)
-    pts = np.vstack(proxy_pts)
-    approx, _ = tree.query(pts)
-    worst = pts[np.argsort(approx)[-_EXACT_CANDIDATES:]]
-    _, exact, _ = trimesh.proximity.closest_point(mesh, worst)
-    return max(d_mesh_to_proxy, float(exact.max()))
+    """Hausdorff estimate between the part and the proxy, as solids where they are closed.
+
+    Missed: points of the mesh surface outside every proxy part, measured to the nearest part.
+    Excess: points of the proxy surface outside the mesh, measured to the mesh surface.
+    Points inside the other solid count zero: the shared walls between convex pieces are not
+    on the proxy's outside, and proxy surface buried in the part cannot cause a false contact.
+    For an open mesh (no inside) this falls back to plain surface-to-surface distances.
+    """
+    tol = 1e-6 * float(mesh.scale)
+    covered = np.zeros(len(samples), dtype=bool)
+    for p in parts:
+        covered |= _inside(samples, p, convex, tol)
+    missed = 0.0
+    if not covered.all():
+        out = samples[~covered]
+        d = np.full(len(out), np.inf)
+        for p in parts:
+            d = np.minimum(d, trimesh.proximity.closest_point(p, out)[1])
+        missed = float(d.max())
+
+    pts = np.vstack([
+        np.vstack([trimesh.sample.sample_surface(p, max(256, SAMPLES // len(parts)),
+                                                 seed=_SEED)[0], p.vertices])
+        for p in parts
+    ])
+    if mesh.is_watertight:
+        pts = pts[~mesh.contains(pts)]
+    excess = 0.0
+    if len(pts):
+        approx, _ = tree.query(pts)
+        worst = pts[np.argsort(approx)[-_EXACT_CANDIDATES:]]
+        excess = float(trimesh.proximity.closest_point(mesh, worst)[1].max())
+    return max(missed, excess)
