@@ -241,7 +241,9 @@ def _geometry(el: etree._Element, tag: str, link: str, source: str, base_dir: Pa
     if g is None or len(g) == 0:
         raise RobotModelError(f"{source}:{el.sourceline}: link {link!r}: <{tag}> has no "
                               "<geometry>")
-    shape = next(c for c in g if isinstance(c.tag, str))
+    shape = next((c for c in g if isinstance(c.tag, str)), None)
+    if shape is None:
+        raise RobotModelError(f"{source}:{g.sourceline}: link {link!r}: <geometry> is empty")
     rgba = None
     mat = el.find("material")
     if mat is not None:
@@ -376,8 +378,11 @@ class IKSettings:
     restarts: int = 12
     #: Stop once this many distinct solutions are found.
     max_solutions: int = 4
-    #: lambda of dq = J^T (J J^T + lambda^2 I)^-1 e: bounded steps near singularities.
+    #: lambda of dq = J^T (J J^T + lambda^2 I)^-1 e: bounded steps near singularities. It is
+    #: scaled by min(1, |e| / `damping_error`) (Levenberg-Marquardt style), so the last steps
+    #: are Gauss-Newton and converge fast even close to a singular configuration.
     damping: float = 1e-2
+    damping_error: float = 0.01
     #: Largest joint step per iteration (rad or m): keeps an iteration inside the linear range.
     max_step: float = 0.4
     position_tolerance: float = 1e-6
@@ -542,6 +547,10 @@ class URDFRobot(Robot):
                 raise RobotModelError(f"{doc.source}: cannot lock joint {name!r}: it is "
                                       + ("in the arm's chain" if name in chain
                                          else "not a movable joint of the URDF"))
+            j = doc.joints[name]
+            if not (j.lower - 1e-12 <= float(v) <= j.upper + 1e-12):
+                raise RobotModelError(f"{doc.where(j.line)}: locked joint {name!r}: {v} is "
+                                      f"outside [{j.lower}, {j.upper}]")
             out[name] = float(v)
         return out
 
@@ -794,17 +803,19 @@ class URDFRobot(Robot):
                 sols.append(q)
                 if len(sols) >= want:
                     break
-        nearest = self.fk(best_q)
         ref = first if seed is not None else home
         if sols:
             sols.sort(key=lambda s: float(np.linalg.norm(s - ref)))
             return IKResult(sols)
+        nearest = self.fk(best_q)
         target = "point" if position_only else "pose"
         if out_of_reach:
             return IKResult([], IKFailure.REACH,
                             f"{target} at {dist * 1000:.0f} mm from the first joint is beyond "
                             f"the arm's reach ({self._reach * 1000:.0f} mm)", nearest)
-        free = self._solve_unlimited(T_root_target, starts, position_only)
+        inside, free = self._solve_unlimited(T_root_target, starts, position_only)
+        if inside is not None:
+            return IKResult([inside])
         if free is not None:
             return IKResult([], IKFailure.JOINT_LIMIT,
                             f"the {target} needs a joint outside its range ("
@@ -822,18 +833,19 @@ class URDFRobot(Robot):
                         f"{len(starts)} starts; the nearest pose found is offered", nearest)
 
     def _solve_unlimited(self, T_root_target: Array, starts: list[Array],
-                         position_only: bool) -> Array | None:
-        """A solution ignoring limits (shifted by 2 pi where that helps), or None."""
-        best = None
+                         position_only: bool) -> tuple[Array | None, Array | None]:
+        """Solve ignoring limits: (a solution that is inside after 2 pi shifts, or else the
+        first solution found outside them); (None, None) if none converges."""
+        outside = None
         for q0 in starts:
             q, ok, _ = self._dls(T_root_target, q0, position_only, clamp=False)
             if ok:
                 q = self._wrap_into_limits(q)
                 if self.limits.contains(q):
-                    return None  # reachable after all: restarts were just unlucky
-                if best is None:
-                    best = q
-        return best
+                    return q, None  # reachable after all: the clamped runs were unlucky
+                if outside is None:
+                    outside = q
+        return None, outside
 
     def _wrap_into_limits(self, q: Array) -> Array:
         q = q.copy()
@@ -888,10 +900,11 @@ class URDFRobot(Robot):
                 return q, True, err
             # Active set: a joint on a limit that the step would push further out is taken
             # out of the solve, so the others make the progress (plain clamping stalls).
+            damp = min(1.0, float(np.linalg.norm(e)) / st.damping_error)
             free = np.ones(self.dof, dtype=bool)
             for _ in range(3):
                 Jf = J * free
-                dq = Jf.T @ np.linalg.solve(Jf @ Jf.T + lam2 * eye, e)
+                dq = Jf.T @ np.linalg.solve(Jf @ Jf.T + lam2 * damp * eye, e)
                 if not clamp:
                     break
                 blocked = ((q <= lo) & (dq < 0)) | ((q >= hi) & (dq > 0))
@@ -933,8 +946,11 @@ class URDFRobot(Robot):
             lim.set("lower", repr(lo))
             lim.set("upper", repr(hi))
         tool_name = "tool" if "tool" not in self._doc.links else "cellteach_tool"
+        joint_name = f"{tool_name}_fixed"
+        while joint_name in self._doc.joints:
+            joint_name = "_" + joint_name
         etree.SubElement(root, "link", name=tool_name)
-        j = etree.SubElement(root, "joint", name=f"{tool_name}_fixed", type="fixed")
+        j = etree.SubElement(root, "joint", name=joint_name, type="fixed")
         T = self.T_flange_tool
         rpy = pin.rpy.matrixToRpy(T[:3, :3])
         etree.SubElement(j, "origin", xyz=" ".join(repr(float(v)) for v in T[:3, 3]),

@@ -113,17 +113,26 @@ def test_default_tool_of_panda_includes_the_finger_joint():
     assert all(lk.visual is None for lk in robot.links)
 
 
-@pytest.mark.parametrize("which", ["ur5", "panda"])
+OPEN_HAND = {"panda_finger_joint1": 0.03, "panda_finger_joint2": 0.03}
+
+
+@pytest.mark.parametrize("which", ["ur5", "panda", "panda_open"])
 def test_collision_shapes_sit_where_pinocchio_puts_the_urdf_geometry(which, request):
     """Merged/re-expressed shapes, placed by link_poses, equal pinocchio's geometry placements."""
-    robot = request.getfixturevalue(which)
+    locked = OPEN_HAND if which == "panda_open" else {}
+    if which == "panda_open":
+        robot = URDFRobot.from_file(PANDA_URDF, tool_link="panda_hand", load_visual=False,
+                                    locked_positions=OPEN_HAND)
+        assert robot.locked_positions == OPEN_HAND
+    else:
+        robot = request.getfixturevalue(which)
     urdf = UR5_URDF if which == "ur5" else PANDA_URDF
     model = pin.buildModelFromUrdf(str(urdf))
     geom = pin.buildGeomFromUrdf(model, str(urdf), pin.COLLISION, package_dirs=[str(SHARE)])
     data, gdata = model.createData(), geom.createData()
     for q in _random_q(robot, 3, seed=4):
         qf = pin.neutral(model)
-        for name, v in zip(robot.joint_names, q, strict=True):
+        for name, v in list(zip(robot.joint_names, q, strict=True)) + list(locked.items()):
             qf[model.joints[model.getJointId(name)].idx_q] = v
         pin.updateGeometryPlacements(model, data, geom, gdata, qf)
         ref = [gdata.oMg[i].homogeneous for i in range(len(geom.geometryObjects))]
@@ -236,8 +245,8 @@ def test_tool_offset_and_non_root_base(tmp_path):
 
 
 def test_continuous_prismatic_and_oblique_axes(tmp_path):
-    xml = _arm_urdf(j1_type="continuous", j2_axis="0.3 -0.5 0.8", j3_type="prismatic",
-                    j3_axis="0 -1 0")
+    xml = _arm_urdf(j1_type="continuous", j1_axis="0 0 -1", j2_axis="0.3 -0.5 0.8",
+                    j3_type="prismatic", j3_axis="0 -1 0")
     robot = URDFRobot.from_string(xml, base_dir=tmp_path)
     assert robot.limits.lower[0] == -2 * np.pi and robot.limits.upper[0] == 2 * np.pi
     Q = _random_q(robot, 15, seed=5)
@@ -398,6 +407,20 @@ def test_urdf_text_has_absolute_meshes_limits_and_tool(ur5):
     assert np.abs(again.fk(q) - robot.fk(q)).max() < 1e-9
 
 
+def test_shared_robot_is_safe_across_threads(panda):
+    """pinocchio's Data is per thread: concurrent FK/IK give the single-threaded answers."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    Q = _random_q(panda, 40, seed=18)
+    expected = [panda.fk(q) for q in Q]
+    with ThreadPoolExecutor(4) as pool:
+        got = list(pool.map(panda.fk, Q))
+        iks = list(pool.map(lambda q: panda.ik(panda.fk(q), seed=q, max_solutions=1), Q[:8]))
+    assert all(np.array_equal(a, b) for a, b in zip(expected, got, strict=True))
+    assert all(r.ok and np.linalg.norm(panda.fk(r.solutions[0])[:3, 3] - panda.fk(q)[:3, 3])
+               < POS_TOL for r, q in zip(iks, Q[:8], strict=True))
+
+
 def test_pinocchio_model_has_the_chain_and_tcp(panda):
     model = panda.pinocchio_model
     assert model.nq == 7 and list(model.names)[1:] == panda.joint_names
@@ -497,6 +520,23 @@ def test_revolute_without_limit_is_refused(tmp_path):
         URDFRobot.from_file(p)
 
 
+def test_bad_locked_positions(tmp_path):
+    with pytest.raises(RobotModelError, match=r"panda\.urdf:\d+: locked joint "
+                                              r"'panda_finger_joint1': 0.5 is outside"):
+        URDFRobot.from_file(PANDA_URDF, tool_link="panda_hand", load_visual=False,
+                            locked_positions={"panda_finger_joint1": 0.5})
+    with pytest.raises(RobotModelError, match=r"cannot lock joint 'panda_joint2': it is in the "
+                                              r"arm's chain"):
+        URDFRobot.from_file(PANDA_URDF, tool_link="panda_hand", load_visual=False,
+                            locked_positions={"panda_joint2": 0.1})
+
+
+def test_empty_geometry_is_refused(tmp_path):
+    p = _write(tmp_path, _arm_urdf(collision="<!-- nothing -->"))
+    with pytest.raises(RobotModelError, match=r"bad\.urdf:\d+: link 'l1': <geometry> is empty"):
+        URDFRobot.from_file(p)
+
+
 def test_unreadable_file(tmp_path):
     with pytest.raises(RobotModelError, match="cannot read the URDF"):
         URDFRobot.from_file(tmp_path / "nope.urdf")
@@ -536,7 +576,8 @@ def test_numeric_ik_on_the_rv2aj_urdf_agrees_with_the_closed_form():
 # ------------------------------------------------------------------------------ helpers
 def _arm_urdf(*, collision: str = '<cylinder radius="0.03" length="0.2"/>',
               visual: str | None = None, extra: str = "", root_offset: str = "",
-              j1_type: str = "revolute", j2_axis: str = "0 1 0", j3_type: str = "revolute",
+              j1_type: str = "revolute", j1_axis: str = "0 0 1", j2_axis: str = "0 1 0",
+              j3_type: str = "revolute",
               j3_axis: str = "0 1 0", planar: bool = False,
               j1_limit: str = '<limit lower="-2.5" upper="2.5" effort="1" velocity="2"/>'
               ) -> str:
@@ -544,7 +585,7 @@ def _arm_urdf(*, collision: str = '<cylinder radius="0.03" length="0.2"/>',
     vis = f"<visual><geometry>{visual}</geometry></visual>" if visual else ""
     lim = '<limit lower="-2" upper="2" effort="1" velocity="2"/>'
     plim = '<limit lower="-0.1" upper="0.2" effort="1" velocity="0.5"/>'
-    j1_axis = "0 1 0" if planar else "0 0 1"
+    j1_axis = "0 1 0" if planar else j1_axis
     return f"""<?xml version="1.0"?>
 <robot name="arm">
   <link name="world"/>
