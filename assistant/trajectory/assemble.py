@@ -1,0 +1,335 @@
+"""From fitted primitives to a verified `Trajectory` (and the whole smoothing pipeline).
+
+Each line/arc becomes a LINEAR/CIRCULAR motion whose waypoints carry the TCP pose and the
+joints. A waypoint's orientation is taken from FK of the net particle that ends the
+primitive (position replaced by the primitive's end); along the move the orientation is
+slerped between its two waypoints, as controllers do, and the dense joint path is solved pose
+by pose at <= `step` TCP spacing, each seeded from the previous solution. If that cannot be
+done continuously (no IK, a branch flip, a singularity) the piece becomes a JOINT motion to
+the same end, and the report says so.
+
+Nothing is offered unverified: the dense joint path of the whole trajectory goes through the
+exact continuous FCL check (`CollisionChecker.check_path`) and the joint limits. On failure
+`AssemblyResult.trajectory` is None and the report names the motion, where along it, and
+what touched what.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from assistant.collision import MotionCheck
+from assistant.motion import Motion, MotionKind, Trajectory, Waypoint
+from assistant.progress import Progress
+from assistant.robot_model import Robot
+from assistant.trajectory.cartesian_follow import follow_poses, poses_from, slerp_rotations
+from assistant.trajectory.elastic_net import (
+    AllowedFn,
+    ElasticNetParams,
+    ElasticNetResult,
+    run_elastic_net,
+)
+from assistant.trajectory.particles import Particles
+from assistant.trajectory.primitives import (
+    FitParams,
+    Primitive,
+    PrimitiveFit,
+    PrimitiveKind,
+    fit_primitives,
+    sample_primitive,
+)
+from assistant.validity import ValidityChecker
+
+Array = np.ndarray
+
+
+class PathVerifier(Protocol):
+    """What verification needs; `collision.CollisionChecker` provides it."""
+
+    def check_path(self, path: Sequence[Array], max_step: float | None = None,
+                   ) -> tuple[int, MotionCheck] | None: ...
+
+    def min_clearance_along(self, path: Sequence[Array], max_step: float = 0.01) -> float: ...
+
+
+@dataclass(frozen=True)
+class AssemblyParams:
+    #: Largest TCP distance between dense joint-path samples (m).
+    step: float = 0.005
+    #: Largest joint change between two dense samples before it counts as a jump (rad).
+    max_joint_step: float = 0.1
+    #: Cartesian speed of LINEAR/CIRCULAR motions (m/s).
+    speed: float = 0.1
+    #: JOINT fallbacks: fraction of the maximum joint speed.
+    joint_speed: float = 0.3
+    #: Blend radius at line/line corners (the controller rounds them, thesis Fig. 108).
+    corner_blend: float = 0.01
+    #: Arm travel between clearance samples (m).
+    clearance_step: float = 0.01
+    label: str = ""
+
+
+@dataclass(frozen=True)
+class VerificationFailure:
+    """Where a trajectory fails: motion index and kind, fraction along it, and what happened."""
+
+    motion_index: int
+    motion_kind: str
+    fraction: float
+    q: Array = field(repr=False)
+    tcp_position: Array
+    description: str
+
+    def describe(self) -> str:
+        p = self.tcp_position * 1000.0
+        return (f"motion {self.motion_index + 1} ({self.motion_kind}) at "
+                f"{self.fraction * 100:.0f}%, TCP ({p[0]:.0f}, {p[1]:.0f}, {p[2]:.0f}) mm: "
+                f"{self.description}")
+
+
+@dataclass(frozen=True)
+class TrajectoryReport:
+    ok: bool
+    reason: str
+    failure: VerificationFailure | None
+    #: Smallest arm-obstacle distance along the dense path (m); None without a verifier.
+    min_clearance: float | None
+    tcp_length: float  # m, of the executed (dense) TCP path
+    joint_length: float  # rad, sum of joint-space step norms
+    primitive_counts: dict[str, int]
+    max_deviation: float  # m, nodes to primitives (0 if not from a fit)
+    fallbacks: tuple[str, ...] = ()
+    dense_configurations: int = 0
+
+    def describe(self) -> str:
+        counts = ", ".join(f"{v} {k}" for k, v in self.primitive_counts.items() if v)
+        clear = ("" if self.min_clearance is None
+                 else f", min clearance {self.min_clearance * 1000:.1f} mm")
+        head = "verified" if self.ok else f"REJECTED: {self.reason}"
+        return (f"{head}; {counts}; TCP {self.tcp_length * 1000:.0f} mm, joints "
+                f"{self.joint_length:.2f} rad{clear}; max deviation "
+                f"{self.max_deviation * 1000:.2f} mm"
+                + (f"; fallbacks: {'; '.join(self.fallbacks)}" if self.fallbacks else ""))
+
+
+@dataclass(frozen=True)
+class AssemblyResult:
+    #: None when verification failed: such a trajectory is never offered.
+    trajectory: Trajectory | None
+    report: TrajectoryReport
+    #: The assembled trajectory even when rejected (for display of the failure only).
+    candidate: Trajectory | None = field(default=None, repr=False)
+
+    @property
+    def ok(self) -> bool:
+        return self.report.ok
+
+
+def assemble_trajectory(
+    robot: Robot,
+    fit: PrimitiveFit,
+    particles: Particles,
+    verifier: PathVerifier | None,
+    params: AssemblyParams | None = None,
+) -> AssemblyResult:
+    """Motions for the fitted primitives, with dense joint paths, then verification."""
+    params = params or AssemblyParams()
+    q0 = np.asarray(particles.joints[0], dtype=float)
+    start = Waypoint(robot.fk(q0), q0, "start")
+    motions: list[Motion] = []
+    fallbacks: list[str] = []
+    current = start
+    prims = fit.primitives
+    for k, prim in enumerate(prims):
+        nxt = prims[k + 1] if k + 1 < len(prims) else None
+        blend = (params.corner_blend if nxt is not None and prim.kind == PrimitiveKind.LINE
+                 and nxt.kind == PrimitiveKind.LINE else 0.0)
+        q_ref = np.asarray(particles.joints[prim.last_node], dtype=float)
+        R_end = robot.fk(q_ref)[:3, :3]
+        motion, note = _cartesian_motion(robot, prim, current, R_end, q_ref, params, blend, k)
+        if note:
+            fallbacks.append(note)
+        if motion is None:
+            report = _report(robot, None, fit, fallbacks, False,
+                             f"primitive {k + 1} ({prim.kind.value}) cannot be reached", None,
+                             None)
+            return AssemblyResult(None, report)
+        motions.append(motion)
+        current = motion.target
+    traj = Trajectory(start, motions)
+    return verify(robot, traj, verifier, max_deviation=fit.max_deviation,
+                  fallbacks=tuple(fallbacks), clearance_step=params.clearance_step)
+
+
+def _cartesian_motion(robot: Robot, prim: Primitive, current: Waypoint, R_end: Array,
+                      q_ref: Array, params: AssemblyParams, blend: float, k: int,
+                      ) -> tuple[Motion | None, str]:
+    u, pts = sample_primitive(prim, params.step)
+    R = slerp_rotations(current.T_base_tool[:3, :3], R_end, u)
+    follow = follow_poses(robot, poses_from(pts, R), current.q,
+                          max_joint_step=params.max_joint_step)
+    if follow.ok:
+        Q = follow.joints
+        Q[0] = current.q  # the move starts where the arm is
+        target = Waypoint(robot.fk(Q[-1]), Q[-1])
+        kind = MotionKind.LINEAR if prim.kind == PrimitiveKind.LINE else MotionKind.CIRCULAR
+        via = None
+        if kind == MotionKind.CIRCULAR:
+            m = len(u) // 2
+            via = Waypoint(robot.fk(Q[m]), Q[m])
+        return Motion(kind, target, via=via, joint_path=Q, label=params.label,
+                      speed=params.speed, blend_radius=blend), ""
+    # Fallback: a joint move to the primitive's end, keeping the particle's arm branch.
+    T_end = np.eye(4)
+    T_end[:3, :3], T_end[:3, 3] = R_end, prim.end
+    res = robot.ik(T_end, q_ref)
+    if not res.ok and res.nearest_T_base_tool is not None:
+        res = robot.ik(res.nearest_T_base_tool, q_ref)
+    if not res.ok:
+        res = robot.ik(T_end, q_ref, position_only=True)
+    if not res.ok:
+        return None, f"primitive {k + 1}: end unreachable ({res.message})"
+    q_end = np.asarray(res.best(q_ref), dtype=float)
+    Q = joint_interpolation(robot, current.q, q_end, params.step)
+    note = (f"primitive {k + 1} ({prim.kind.value}) became a joint move: {follow.message} "
+            f"at {100.0 * (follow.fail_index or 0) / max(1, len(u) - 1):.0f}%")
+    return Motion(MotionKind.JOINT, Waypoint(robot.fk(q_end), q_end), joint_path=Q,
+                  label=params.label, speed=params.joint_speed, blend_radius=0.0), note
+
+
+def joint_interpolation(robot: Robot, q0: Array, q1: Array, step: float) -> Array:
+    """The straight joint-space move q0 -> q1 sampled so no arm point moves more than `step`."""
+    q0, q1 = np.asarray(q0, dtype=float), np.asarray(q1, dtype=float)
+    travel = float(np.sum(robot.arm_radii() * np.abs(q1 - q0)))
+    n = max(1, int(np.ceil(travel / step)))
+    f = np.linspace(0.0, 1.0, n + 1)[:, None]
+    return q0 + f * (q1 - q0)
+
+
+def verify(robot: Robot, traj: Trajectory, verifier: PathVerifier | None, *,
+           max_deviation: float = 0.0, fallbacks: tuple[str, ...] = (),
+           clearance_step: float = 0.01) -> AssemblyResult:
+    """Joint limits and the exact continuous collision check of the dense path, then figures."""
+    paths = [_motion_path(traj, i) for i in range(len(traj.motions))]
+    # Joint limits first: a clearer message than a collision report.
+    for i, Q in enumerate(paths):
+        inside = robot.limits.contains_batch(Q)
+        if not inside.all():
+            j = int(np.argmin(inside))
+            viol = ", ".join(robot.limits.violations(Q[j], robot.joint_names))
+            fail = _failure(robot, traj, i, j / max(1, len(Q) - 1), Q[j],
+                            f"joint limit: {viol}")
+            return _rejected(robot, traj, fail, max_deviation, fallbacks)
+    if verifier is not None:
+        for i, Q in enumerate(paths):
+            hit = verifier.check_path(list(Q))
+            if hit is not None:
+                seg, mc = hit
+                frac = (seg + (mc.first_invalid_fraction or 0.0)) / max(1, len(Q) - 1)
+                q = Q[seg] + (mc.first_invalid_fraction or 0.0) * (Q[seg + 1] - Q[seg])
+                what = mc.report.describe() if mc.report is not None else "invalid"
+                return _rejected(robot, traj, _failure(robot, traj, i, frac, q, what),
+                                 max_deviation, fallbacks)
+    dense = traj.dense_joint_path()
+    clearance = (verifier.min_clearance_along(list(dense), max_step=clearance_step)
+                 if verifier is not None else None)
+    if clearance is not None and not np.isfinite(clearance):
+        clearance = None  # no obstacles known
+    report = _report(robot, traj, None, fallbacks, True, "", None, clearance,
+                     max_deviation=max_deviation)
+    return AssemblyResult(traj, report, traj)
+
+
+def _motion_path(traj: Trajectory, i: int) -> Array:
+    m = traj.motions[i]
+    prev = traj.start if i == 0 else traj.motions[i - 1].target
+    if m.joint_path is not None and len(m.joint_path):
+        return np.asarray(m.joint_path, dtype=float)
+    return np.stack([np.asarray(prev.q, dtype=float), np.asarray(m.target.q, dtype=float)])
+
+
+def _failure(robot: Robot, traj: Trajectory, i: int, frac: float, q: Array, what: str,
+             ) -> VerificationFailure:
+    return VerificationFailure(i, traj.motions[i].kind.value, float(frac), np.asarray(q),
+                               robot.fk(q)[:3, 3].copy(), what)
+
+
+def _rejected(robot: Robot, traj: Trajectory, fail: VerificationFailure, max_deviation: float,
+              fallbacks: tuple[str, ...]) -> AssemblyResult:
+    report = _report(robot, traj, None, fallbacks, False, fail.describe(), fail, None,
+                     max_deviation=max_deviation)
+    return AssemblyResult(None, report, traj)
+
+
+def _report(robot: Robot, traj: Trajectory | None, fit: PrimitiveFit | None,
+            fallbacks: Sequence[str], ok: bool, reason: str,
+            failure: VerificationFailure | None, clearance: float | None, *,
+            max_deviation: float | None = None) -> TrajectoryReport:
+    if traj is not None:
+        dense = traj.dense_joint_path()
+        tcp = np.asarray(robot.batch_fk(dense).positions)
+        tcp_len = float(np.linalg.norm(np.diff(tcp, axis=0), axis=1).sum())
+        joint_len = float(np.linalg.norm(np.diff(dense, axis=0), axis=1).sum())
+        counts = traj.primitive_counts()
+        n_dense = len(dense)
+    else:
+        tcp_len = joint_len = 0.0
+        counts = {}
+        n_dense = 0
+    if max_deviation is None:
+        max_deviation = fit.max_deviation if fit is not None else 0.0
+    return TrajectoryReport(ok, reason, failure, clearance, tcp_len, joint_len, counts,
+                            float(max_deviation), tuple(fallbacks), n_dense)
+
+
+# ---------------------------------------------------------------------- the whole pipeline
+
+
+@dataclass(frozen=True)
+class SmoothedTrajectory:
+    """Net, fit and assembly of one searched path, for display and figures."""
+
+    net: ElasticNetResult
+    fit: PrimitiveFit
+    assembly: AssemblyResult
+
+    @property
+    def trajectory(self) -> Trajectory | None:
+        return self.assembly.trajectory
+
+    @property
+    def report(self) -> TrajectoryReport:
+        return self.assembly.report
+
+
+def trajectory_from_joint_path(
+    robot: Robot,
+    joint_path: Sequence[Array] | Array,
+    *,
+    allowed: AllowedFn | None = None,
+    validity: ValidityChecker | None = None,
+    verifier: PathVerifier | None = None,
+    net_params: ElasticNetParams | None = None,
+    fit_params: FitParams | None = None,
+    assembly_params: AssemblyParams | None = None,
+    progress: Progress | None = None,
+) -> SmoothedTrajectory:
+    """Searched joint path -> elastic net -> lines/arcs -> verified trajectory.
+
+    `validity` guards the net's particles (FCL or the octree), `verifier` checks the final
+    dense path exactly; a `CollisionChecker` serves as both.
+    """
+    net = run_elastic_net(robot, joint_path, allowed=allowed, validity=validity,
+                          params=net_params,
+                          progress=progress.sub(0.0, 0.8) if progress else None)
+    fit = fit_primitives(net.particles.points, fit_params)
+    if progress is not None:
+        progress.update(0.85, "primitives fitted")
+    asm = assemble_trajectory(robot, fit, net.particles, verifier, assembly_params)
+    if progress is not None:
+        progress.update(1.0, "trajectory verified" if asm.ok else "trajectory rejected")
+    return SmoothedTrajectory(net, fit, asm)

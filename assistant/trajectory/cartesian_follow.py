@@ -1,0 +1,89 @@
+"""Joint paths for Cartesian moves: IK pose by pose, each seeded from the previous one.
+
+A LINEAR or CIRCULAR move is executed by the controller along the TCP path; our dense joint
+path must be the configurations the arm actually passes through, so it is built the same way:
+small TCP steps, each solved next to the previous solution. A step whose nearest solution is
+still far away means a branch flip or a singularity on the way - the controller would stop
+there - so it is reported, never silently bridged. For the 5-axis RV-2AJ an orientation off
+the arm plane is projected into it (as the controller must) and the correction is reported.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+from assistant.robot_model import IKFailure, Robot
+from assistant.transforms import rotation_angle
+
+Array = np.ndarray
+
+
+@dataclass(frozen=True)
+class FollowResult:
+    """Joints for each pose followed so far; `ok` False with the index and reason of the stop."""
+
+    joints: Array  # (k, dof): the poses reached, k == len(poses) when ok
+    ok: bool
+    fail_index: int | None = None
+    message: str = ""
+    #: Largest rotation (rad) applied to a requested orientation to make it reachable.
+    max_orientation_correction: float = 0.0
+
+
+def follow_poses(robot: Robot, poses: Array, q_start: Array, *, max_joint_step: float = 0.1,
+                 project_orientation: bool = True) -> FollowResult:
+    """Solve IK along `poses` (M, 4, 4) starting next to `q_start`.
+
+    Args:
+        robot: kinematics.
+        poses: T_base_tool per sample, the first one where the arm is at `q_start` or close.
+        q_start: the configuration the move starts from (keeps its arm branch).
+        max_joint_step: largest change of any joint between consecutive samples (rad).
+        project_orientation: replace an unreachable orientation by the robot's nearest one.
+    """
+    q_prev = np.asarray(q_start, dtype=float)
+    out = []
+    worst = 0.0
+    for i, T in enumerate(np.asarray(poses, dtype=float)):
+        res = robot.ik(T, q_prev)
+        if (not res.ok and project_orientation and res.failure == IKFailure.ORIENTATION
+                and res.nearest_T_base_tool is not None):
+            worst = max(worst, rotation_angle(res.nearest_T_base_tool[:3, :3].T @ T[:3, :3]))
+            res = robot.ik(res.nearest_T_base_tool, q_prev)
+        if not res.ok:
+            return FollowResult(_stack(out, q_prev), False, i, res.message or "no IK solution",
+                                worst)
+        q = np.asarray(res.best(q_prev), dtype=float)
+        jump = np.abs(q - q_prev)
+        if jump.max() > max_joint_step:
+            j = int(np.argmax(jump))
+            name = robot.joint_names[j]
+            return FollowResult(
+                _stack(out, q_prev), False, i,
+                f"{name} would jump {np.degrees(jump[j]):.1f} deg between two samples "
+                "(arm branch change or singularity)", worst)
+        out.append(q)
+        q_prev = q
+    return FollowResult(_stack(out, q_prev), True, None, "", worst)
+
+
+def slerp_rotations(R0: Array, R1: Array, u: Array) -> Array:
+    """Rotations (M, 3, 3) from R0 to R1 at fractions u (what controllers interpolate)."""
+    key = Rotation.from_matrix(np.stack([R0, R1]))
+    return Slerp([0.0, 1.0], key)(np.clip(np.asarray(u, dtype=float), 0.0, 1.0)).as_matrix()
+
+
+def poses_from(points: Array, rotations: Array) -> Array:
+    """Stack positions (M, 3) and rotations (M, 3, 3) into T_base_tool (M, 4, 4)."""
+    T = np.zeros((len(points), 4, 4))
+    T[:, :3, :3] = rotations
+    T[:, :3, 3] = points
+    T[:, 3, 3] = 1.0
+    return T
+
+
+def _stack(rows: list[Array], q: Array) -> Array:
+    return np.array(rows) if rows else np.zeros((0, len(q)))

@@ -1,0 +1,369 @@
+"""Elastic net (thesis §8.5.8, SPEC §6): smooth a searched path into lines and arcs.
+
+Particles are TCP points with their joints. Each iteration moves every interior particle by
+a blend of three local forces (A, B, C = previous, this, next particle; t = (C - A)/|C - A|):
+
+* equidistance ``F_eq = (|BC| - |AB|) t`` keeps the spacing even;
+* shrink ``F_sh = (A - B) + (C - B)``, taken normal to t ("considering the equidistance
+  constraint"), pulls the path straight;
+* rotation equalises the turn angles of neighbouring particles, so bends become arcs.
+
+A particle whose three neighbouring turn angles are all below ``t_a,min`` (the turn angle of a
+regular polygon with the current spacing on a circle of radius ``r_max``) is on a line and
+only shrinks; otherwise (65) applies: ``F = C1 F_eq + (1 - lam) C2 F_rot + lam C3 F_sh`` with
+``lam = C5 E / (1 + C5 E)`` and E the mean particle movement of the previous iteration, so the
+net orders itself by shrinking while it still moves a lot and forms arcs once it is calm.
+Stage 1 (the strategy of the elastic-net paper): equidistance plus a strong shrink, no
+rotation, no threshold; stage 2: the full rule. A stage ends when E < epsilon (thesis 1e-10),
+when every proposed move was rejected, or at its iteration budget; the result says which.
+
+Every proposed move is mapped back to joints by local position IK seeded from the particle's
+joints (null-space pull towards the neighbours' joints keeps the tool pitch smooth) and is
+rejected - the particle stays - if the point or the midpoints of its two edges are not
+`allowed` (octree: occupied or unreachable cell), if IK fails or jumps, or if the arm would
+collide (`ValidityChecker.is_valid_batch`). A rejected move is retried once at half length.
+
+Constants (thesis Table 10: 0.8, 4.0, 0.1, 0.1, 200.0; the table's header was lost, so the
+mapping is ours). Particles are updated one colour class at a time (i mod 3: a particle never
+moves together with a neighbour it reads), i.e. Gauss-Seidel, which makes each gain a
+relaxation factor of the exact local correction:
+
+* C1 = 0.8 on the literal F_eq: B moves 1.6x the step that would equalise |AB| and |BC|
+  (successive over-relaxation, stable below 2);
+* C2 = 4.0 on F_rot, which we define as the *mean of four* edge-rotation corrections like
+  the thesis (each a quarter of the exact local one): C2 = 4 makes the sum, relaxation 1.0;
+* C3 = 0.1 shrink inside the curve rule (65), C4 = 0.1 shrink on lines: relaxation 0.2,
+  deliberately gentle so a calm net keeps its arcs;
+* C5 = 200 per metre in lam: lam = 0.5 at 5 mm mean movement per iteration.
+
+Shrink strength of stage 1 is the explore/final switch: low while exploring (stay near the
+road, i.e. the clearance of the Voronoi roadmap), high once the final path is known.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field, replace
+from enum import Enum
+
+import numpy as np
+
+from assistant.progress import Progress
+from assistant.robot_model import Robot
+from assistant.trajectory.particles import Particles, resample_joint_path
+from assistant.trajectory.position_ik import BatchPositionIK, PositionIKParams
+from assistant.validity import ValidityChecker
+
+Array = np.ndarray
+
+#: Is each TCP point (N, 3) allowed (free, reachable cell)? The octree provides this.
+AllowedFn = Callable[[Array], Array]
+
+
+@dataclass(frozen=True)
+class ElasticNetParams:
+    """Forces, thresholds and budgets of the net (metres, radians)."""
+
+    c_equidistance: float = 0.8  # C1
+    c_rotation: float = 4.0  # C2
+    c_shrink: float = 0.1  # C3, inside the curve rule (65)
+    c_line_shrink: float = 0.1  # C4, on lines
+    c_error: float = 200.0  # C5, 1/m: lam = C5 E / (1 + C5 E)
+    #: Shrink gain of stage 1 (0.4 = relaxation 0.8, "high"); see `exploring`/`final`.
+    stage1_shrink: float = 0.4
+    #: Bends with a radius above r_max count as straight (the line/arc switch t_a,min).
+    r_max: float = 0.4
+    #: Bends tighter than r_min are shrunk instead of rotated (the paper's t_a,max); 0 = off.
+    r_min: float = 0.0
+    #: Target particle spacing when resampling the searched path (m).
+    spacing: float = 0.02
+    #: Largest move of one particle in one iteration (m): keeps IK local and moves checkable.
+    max_move: float = 0.005
+    epsilon: float = 1e-10
+    stage1_iterations: int = 400
+    stage2_iterations: int = 400
+    #: Also require the midpoints of a moved particle's two edges to be allowed.
+    check_edge_midpoints: bool = True
+    ik: PositionIKParams = field(default_factory=PositionIKParams)
+
+    @staticmethod
+    def exploring(**kw) -> ElasticNetParams:
+        """Low shrink: smooth the road but stay near it (keeps the roadmap's clearance)."""
+        return replace(ElasticNetParams(stage1_shrink=0.05), **kw)
+
+    @staticmethod
+    def final(**kw) -> ElasticNetParams:
+        """High shrink: pull the final path taut around what is known to be occupied."""
+        return replace(ElasticNetParams(stage1_shrink=0.4), **kw)
+
+
+class StopReason(str, Enum):
+    CONVERGED = "converged"  # mean movement below epsilon
+    BLOCKED = "blocked"  # every proposed move was rejected
+    ITERATION_CAP = "iteration_cap"
+    NOTHING_TO_DO = "nothing_to_do"  # fewer than three particles
+
+
+@dataclass(frozen=True)
+class StageReport:
+    iterations: int
+    stop: StopReason
+    final_movement: float  # E of the last iteration (m)
+
+
+@dataclass(frozen=True)
+class ElasticNetResult:
+    particles: Particles
+    initial: Particles
+    stage1: StageReport
+    stage2: StageReport
+    rejected_moves: int
+    accepted_moves: int
+    seconds: float
+
+    @property
+    def iterations(self) -> int:
+        return self.stage1.iterations + self.stage2.iterations
+
+    def describe(self) -> str:
+        return (f"elastic net: {len(self.particles)} particles, stage 1 {self.stage1.iterations} "
+                f"it ({self.stage1.stop.value}), stage 2 {self.stage2.iterations} it "
+                f"({self.stage2.stop.value}); TCP length {self.initial.tcp_length() * 1000:.0f} "
+                f"-> {self.particles.tcp_length() * 1000:.0f} mm; {self.rejected_moves} of "
+                f"{self.rejected_moves + self.accepted_moves} moves rejected")
+
+
+def run_elastic_net(
+    robot: Robot,
+    joint_path: Sequence[Array] | Array,
+    *,
+    allowed: AllowedFn | None = None,
+    validity: ValidityChecker | None = None,
+    params: ElasticNetParams | None = None,
+    progress: Progress | None = None,
+) -> ElasticNetResult:
+    """Resample a searched joint path into particles and relax them (both stages).
+
+    Args:
+        robot: kinematics for FK and IK.
+        joint_path: the searched path, first and last configurations are kept exactly.
+        allowed: TCP points -> bool, False for occupied/unreachable space (octree).
+        validity: arm collision and joint limits for the particles' joints.
+        params: forces and budgets; `ElasticNetParams.final()` by default.
+        progress: reports per iteration and can cancel (raises `Cancelled`).
+    """
+    params = params or ElasticNetParams.final()
+    initial = resample_joint_path(robot, joint_path, params.spacing)
+    return relax(robot, initial, allowed=allowed, validity=validity, params=params,
+                 progress=progress)
+
+
+def relax(
+    robot: Robot,
+    particles: Particles,
+    *,
+    allowed: AllowedFn | None = None,
+    validity: ValidityChecker | None = None,
+    params: ElasticNetParams | None = None,
+    progress: Progress | None = None,
+) -> ElasticNetResult:
+    """Run both stages on given particles (already about equidistant)."""
+    params = params or ElasticNetParams.final()
+    net = _Net(robot, particles, allowed, validity, params)
+    t0 = time.perf_counter()
+    total = max(1, params.stage1_iterations + params.stage2_iterations)
+    s1 = net.run_stage(1, params.stage1_iterations, progress, 0.0, total)
+    s2 = net.run_stage(2, params.stage2_iterations, progress, s1.iterations, total)
+    return ElasticNetResult(Particles(net.P.copy(), net.Q.copy()), particles, s1, s2,
+                            net.rejected, net.accepted, time.perf_counter() - t0)
+
+
+def turn_angles(P: Array) -> Array:
+    """Turn angle at each interior point of a polyline (N - 2,), radians in [0, pi]."""
+    a = np.diff(P, axis=0)
+    n = np.linalg.norm(a, axis=1)
+    u = a / np.maximum(n, 1e-15)[:, None]
+    c = np.einsum("ij,ij->i", u[:-1], u[1:])
+    return np.arccos(np.clip(c, -1.0, 1.0))
+
+
+def polygon_turn_angle(side: float | Array, radius: float) -> float | Array:
+    """Turn angle of a regular polygon with this side inscribed in a circle of this radius."""
+    if radius <= 0.0:
+        return np.pi
+    return 2.0 * np.arcsin(np.minimum(1.0, np.asarray(side) / (2.0 * radius)))
+
+
+class _Net:
+    """Mutable state of one relaxation: positions P, joints Q, counters."""
+
+    def __init__(self, robot: Robot, particles: Particles, allowed: AllowedFn | None,
+                 validity: ValidityChecker | None, params: ElasticNetParams):
+        self.robot = robot
+        self.P = np.array(particles.points, dtype=float)
+        self.Q = np.array(particles.joints, dtype=float)
+        self.allowed = allowed
+        self.validity = validity
+        self.p = params
+        self.ik = BatchPositionIK(robot, params.ik)
+        self.rejected = 0
+        self.accepted = 0
+        self.E = np.inf  # mean movement of the last iteration (m)
+        n = len(self.P)
+        interior = np.arange(1, n - 1)
+        self.colours = [interior[interior % 3 == c] for c in range(3)]
+        self.colours = [c for c in self.colours if len(c)]
+
+    # ---------------------------------------------------------------- stages
+    def run_stage(self, stage: int, budget: int, progress: Progress | None, done: int,
+                  total: int) -> StageReport:
+        if len(self.P) < 3:
+            return StageReport(0, StopReason.NOTHING_TO_DO, 0.0)
+        for it in range(1, budget + 1):
+            if progress is not None:
+                progress.update((done + it) / total, f"elastic net stage {stage}, iteration {it}")
+            E = self.E
+            lam = self.p.c_error * E / (1.0 + self.p.c_error * E) if np.isfinite(E) else 1.0
+            self.E, accepted, proposed = self.iterate(stage, lam)
+            if proposed and not accepted:
+                return StageReport(it, StopReason.BLOCKED, 0.0)
+            if self.E < self.p.epsilon:
+                return StageReport(it, StopReason.CONVERGED, float(self.E))
+        return StageReport(budget, StopReason.ITERATION_CAP, float(self.E))
+
+    def iterate(self, stage: int, lam: float) -> tuple[float, int, int]:
+        """One sweep: (E, accepted, proposed moves).
+
+        Forces are evaluated one colour class at a time on the tentative positions
+        (Gauss-Seidel); the moves are then checked together in one batch (one `allowed`,
+        one IK, one validity call per sweep) and the rejected ones retried at half length.
+        """
+        P0 = self.P
+        trial = P0.copy()
+        all_idx, all_D = [], []
+        for idx in self.colours:
+            self.P = trial
+            D = self.displacements(idx, stage, lam)
+            scale = np.maximum(1.0, np.linalg.norm(D, axis=1) / self.p.max_move)
+            D /= scale[:, None]
+            trial[idx] += D
+            all_idx.append(idx)
+            all_D.append(D)
+        self.P = P0
+        idx = np.concatenate(all_idx)
+        D = np.concatenate(all_D)
+        live = np.linalg.norm(D, axis=1) > 0.0
+        idx, D = idx[live], D[live]
+        if not len(idx):
+            return 0.0, 0, 0
+        ok = self.try_moves(idx, D, trial)
+        if not ok.all():
+            retry = np.nonzero(~ok)[0]
+            D[retry] *= 0.5
+            trial[idx[retry]] = P0[idx[retry]] + D[retry]
+            ok2 = self.try_moves(idx[retry], D[retry], trial)
+            ok[retry[ok2]] = True
+            self.rejected += int((~ok2).sum())
+        accepted = int(ok.sum())
+        self.accepted += accepted
+        E = float(np.linalg.norm(D[ok], axis=1).sum()) / max(1, len(P0) - 2)
+        return E, accepted, len(idx)
+
+    # ---------------------------------------------------------------- forces
+    def displacements(self, idx: Array, stage: int, lam: float) -> Array:
+        P, p = self.P, self.p
+        A, B, C = P[idx - 1], P[idx], P[idx + 1]
+        AB, BC = B - A, C - B
+        lab = np.linalg.norm(AB, axis=1)
+        lbc = np.linalg.norm(BC, axis=1)
+        AC = C - A
+        t = AC / np.maximum(np.linalg.norm(AC, axis=1), 1e-15)[:, None]
+        F_eq = (lbc - lab)[:, None] * t
+        S = (A - B) + (C - B)
+        F_sh = S - np.einsum("ij,ij->i", S, t)[:, None] * t
+        if stage == 1:
+            return p.c_equidistance * F_eq + p.stage1_shrink * F_sh
+        F_rot, g3 = self.rotation(idx, t)
+        side = 0.5 * (lab + lbc)
+        g_min = polygon_turn_angle(side, p.r_max)
+        g_max = polygon_turn_angle(side, p.r_min) if p.r_min > 0.0 else np.full(len(idx), np.inf)
+        line = np.all(g3 < g_min[:, None], axis=1) | (g3[:, 1] > g_max)
+        curve = (p.c_equidistance * F_eq + (1.0 - lam) * p.c_rotation * F_rot
+                 + lam * p.c_shrink * F_sh)
+        straight = p.c_equidistance * F_eq + p.c_line_shrink * F_sh
+        return np.where(line[:, None], straight, curve)
+
+    def rotation(self, idx: Array, t: Array) -> tuple[Array, Array]:
+        """F_rot for particles idx and their three neighbouring turn angles (n, 3).
+
+        The curvature vector k_j = gamma_j * (inward unit normal) of each interior particle is
+        compared with the mean of its neighbours' (projected into B's normal plane and
+        rescaled by 1/cos(gamma_B), exact on a circle). Moving B by d changes k_B by -2d/l
+        and each neighbour's by +d/l, so the exact local correction is l (k_B - target) / 3;
+        F_rot is the mean of four such edge rotations, i.e. a quarter of it.
+        """
+        P = self.P
+        n = len(P)
+        gam = turn_angles(P)  # interior j = 1..n-2 at gam[j-1]
+        S_all = P[:-2] + P[2:] - 2.0 * P[1:-1]
+        a_all = P[2:] - P[:-2]
+        a_all /= np.maximum(np.linalg.norm(a_all, axis=1), 1e-15)[:, None]
+        S_all -= np.einsum("ij,ij->i", S_all, a_all)[:, None] * a_all
+        sn = np.linalg.norm(S_all, axis=1)
+        normal = np.where(sn[:, None] > 1e-12, S_all / np.maximum(sn, 1e-300)[:, None], 0.0)
+        K = np.zeros((n, 3))
+        G = np.full(n, np.nan)
+        K[1:-1] = gam[:, None] * normal
+        G[1:-1] = gam
+        kb = K[idx]
+        has_l = (idx - 1) >= 1
+        has_r = (idx + 1) <= n - 2
+        cnt = has_l.astype(float) + has_r.astype(float)
+        ksum = np.where(has_l[:, None], K[idx - 1], 0.0) + np.where(has_r[:, None], K[idx + 1], 0.0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            kmean = np.where(cnt[:, None] > 0, ksum / cnt[:, None], kb)
+        kmean -= np.einsum("ij,ij->i", kmean, t)[:, None] * t
+        cosb = np.maximum(np.cos(G[idx]), 0.5)
+        target = kmean / cosb[:, None]
+        lab = np.linalg.norm(P[idx] - P[idx - 1], axis=1)
+        lbc = np.linalg.norm(P[idx + 1] - P[idx], axis=1)
+        side = 0.5 * (lab + lbc)
+        F_rot = 0.25 * side[:, None] * (kb - target) / 3.0
+        g3 = np.stack([np.where(has_l, G[np.maximum(idx - 1, 0)], 0.0), G[idx],
+                       np.where(has_r, G[np.minimum(idx + 1, n - 1)], 0.0)], axis=1)
+        return F_rot, g3
+
+    # ---------------------------------------------------------------- moves
+    def try_moves(self, idx: Array, D: Array, trial: Array) -> Array:
+        """Apply the moves that pass every test; returns which were accepted.
+
+        Edge midpoints are probed against both the old and the tentative position of each
+        neighbour, since the neighbour's own move may be accepted or not.
+        """
+        new_P = self.P[idx] + D
+        ok = np.ones(len(idx), dtype=bool)
+        if self.allowed is not None:
+            probe = [new_P]
+            if self.p.check_edge_midpoints:
+                for nb in (idx - 1, idx + 1):
+                    probe += [0.5 * (new_P + self.P[nb]), 0.5 * (new_P + trial[nb])]
+            flags = np.asarray(self.allowed(np.concatenate(probe)), dtype=bool)
+            ok &= flags.reshape(len(probe), len(idx)).all(axis=0)
+        cand = np.nonzero(ok)[0]
+        if not len(cand):
+            return ok
+        ref = 0.5 * (self.Q[idx[cand] - 1] + self.Q[idx[cand] + 1])
+        res = self.ik.solve(new_P[cand], self.Q[idx[cand]], ref)
+        ok[cand] &= res.ok
+        Qn = res.joints
+        if self.validity is not None:
+            good = np.nonzero(res.ok)[0]
+            if len(good):
+                valid = np.asarray(self.validity.is_valid_batch(Qn[good]), dtype=bool)
+                ok[cand[good[~valid]]] = False
+        acc = np.nonzero(ok)[0]
+        pos = np.searchsorted(cand, acc)
+        self.Q[idx[acc]] = Qn[pos]
+        self.P[idx[acc]] = np.asarray(self.robot.batch_fk(Qn[pos]).positions, dtype=float)
+        return ok
