@@ -372,7 +372,10 @@ def _cad_object(name: str, role: str, color: list, T: np.ndarray, cad: Any, wher
     scale = _need(cad, "scale_to_m", (int, float), where, path)
     if not math.isfinite(scale) or scale <= 0:
         raise CellFileError(path, f"{where}.scale_to_m: must be a positive number")
-    data = reader.read(member, MAX_FILE_BYTES)
+    try:
+        data = reader.read(member, MAX_FILE_BYTES)
+    except CellFileError as exc:
+        raise CellFileError(path, f"{where}: {exc.problem}") from exc
     actual = hashlib.sha256(data).hexdigest()
     if actual != sha.lower():
         raise CellFileError(path, f"{member!r} does not match its recorded checksum (the file "
