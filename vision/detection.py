@@ -1,9 +1,10 @@
 """Finding the coloured ball in one image: HSV threshold, median filter, morphological closing,
 connected components, size and roundness filters, sub-pixel centre and apparent radius.
 
-The thesis chain (003, §6.5.3) plus two shape tests that a ball passes from any direction and
-most look-alikes fail: the second-moment axis ratio (the thesis' circularity) and how much of its
-minimum enclosing circle the blob fills (rejects squares and triangles, which moments call round).
+The thesis chain (003, §6.5.3) plus tests that a ball passes from any direction and most
+look-alikes fail: the second-moment axis ratio (the thesis' circularity), how much of its
+minimum enclosing circle the blob fills (rejects triangles and bars), and shading (a lit sphere
+is not evenly bright; a square red sticker, which moments call round, is).
 The bare `threshold_centroid` baseline is kept here so benchmarks can compare against it.
 """
 
@@ -27,6 +28,8 @@ class DetectorParams:
     max_radius_px: float = 60.0
     min_axis_ratio: float = 0.65
     min_fill: float = 0.72
+    min_shading: float = 0.1  # std/mean of V inside the blob; 0 disables
+    max_hole_fraction: float = 0.2  # a highlight is a small hole; the "O" of a red STOP is not
     max_candidates: int = 8
 
     def __post_init__(self) -> None:
@@ -46,6 +49,8 @@ class Detection:
     area_px: float
     axis_ratio: float
     fill: float
+    shading: float = 0.0  # std/mean of brightness inside the blob
+    hole_fraction: float = 0.0  # share of the outline's area not in the colour mask
 
     @property
     def score(self) -> float:
@@ -105,7 +110,9 @@ class BlobDetector:
         if x1 - x0 < 3 or y1 - y0 < 3:
             return []
         roi = image_bgr[y0:y1, x0:x1]
-        mask = self._clean(self.profile.mask(cv2.cvtColor(roi, cv2.COLOR_BGR2HSV)))
+        hsv = cv2.cvtColor(roi, cv2.COLOR_BGR2HSV)
+        raw = self.profile.mask(hsv)
+        mask = self._clean(raw)
         n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
         if n <= 1:
             return []
@@ -122,11 +129,14 @@ class BlobDetector:
             if bx == 0 or by == 0 or bx + bw >= rw or by + bh >= rh:
                 continue  # touches the window / image edge
             component = labels[by:by + bh, bx:bx + bw] == i
-            det = self._measure(component, bx + x0, by + y0)
+            value = hsv[by:by + bh, bx:bx + bw, 2]
+            raw_in = raw[by:by + bh, bx:bx + bw] > 0
+            det = self._measure(component, value, raw_in, bx + x0, by + y0)
             if det is not None and self._accept(det, r_lo, r_hi):
                 found.append(det)
             elif det is not None and radius_range is not None and det.radius_px >= r_lo:
-                found.extend(d for d in self._split(component, bx + x0, by + y0, r_lo)
+                found.extend(d for d in self._split(component, value, raw_in, bx + x0,
+                                                    by + y0, r_lo)
                              if self._accept(d, r_lo, r_hi))
         found.sort(key=lambda d: -d.score)
         return found[: self.params.max_candidates]
@@ -134,9 +144,11 @@ class BlobDetector:
     def _accept(self, det: Detection, r_lo: float, r_hi: float) -> bool:
         p = self.params
         return (r_lo <= det.radius_px <= r_hi and det.axis_ratio >= p.min_axis_ratio
-                and det.fill >= p.min_fill)
+                and det.fill >= p.min_fill and det.shading >= p.min_shading
+                and det.hole_fraction <= p.max_hole_fraction)
 
-    def _split(self, component: np.ndarray, ox: int, oy: int, r_lo: float) -> list[Detection]:
+    def _split(self, component: np.ndarray, value: np.ndarray, raw: np.ndarray, ox: int,
+               oy: int, r_lo: float) -> list[Detection]:
         """Recover a ball merged with a thin look-alike (a red bar it passes in front of).
 
         Opening with a disc a little smaller than the largest inscribed disc leaves a ball
@@ -153,14 +165,18 @@ class BlobDetector:
         n, labels = cv2.connectedComponents(opened, connectivity=8)
         out = []
         for j in range(1, n):
-            d = self._measure((labels == j)[1:-1, 1:-1], ox, oy)
+            d = self._measure((labels == j)[1:-1, 1:-1], value, raw, ox, oy)
             if d is not None:
                 out.append(d)
         return out
 
     @staticmethod
-    def _measure(component: np.ndarray, ox: int, oy: int) -> Detection | None:
-        """Centre, radius and roundness of one component (holes such as a highlight filled)."""
+    def _measure(component: np.ndarray, value: np.ndarray, raw: np.ndarray, ox: int,
+                 oy: int) -> Detection | None:
+        """Centre, radius, roundness and shading of one component (holes such as a highlight
+        filled). Shading: a lit sphere is brighter towards its middle than at its rim, while
+        a flat sticker of the same colour and outline is evenly bright. Holes are judged on
+        the raw colour mask, since closing also fills the hole of a small red "O"."""
         comp = np.pad(component.astype(np.uint8), 1)
         contours, _ = cv2.findContours(comp, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_NONE)
         if not contours:
@@ -179,12 +195,18 @@ class BlobDetector:
         axis_ratio = float(np.sqrt(max(l2, 0.0) / l1)) if l1 > 0 else 0.0
         _, r_enc = cv2.minEnclosingCircle(contour)
         fill = float(area / (np.pi * (r_enc + 0.5) ** 2))
+        own = (filled[1:-1, 1:-1] > 0) & raw
+        v = value[own].astype(np.float32)
+        shading = float(v.std() / v.mean()) if v.size and v.mean() > 0 else 0.0
+        holes = 1.0 - float(own.sum()) / area
         return Detection(
             center_px=np.array([cx - 1 + ox, cy - 1 + oy]),
             radius_px=float(np.sqrt(area / np.pi)),
             area_px=float(area),
             axis_ratio=axis_ratio,
             fill=fill,
+            shading=shading,
+            hole_fraction=max(0.0, holes),
         )
 
 
