@@ -376,6 +376,9 @@ class IKSettings:
     max_iterations: int = 150
     #: Random starts tried after the seed (or the home configuration without a seed).
     restarts: int = 12
+    #: More random starts, only when the first ones found nothing (targets that only one
+    #: narrow branch reaches inside the limits).
+    extra_restarts: int = 36
     #: Stop once this many distinct solutions are found.
     max_solutions: int = 4
     #: lambda of dq = J^T (J J^T + lambda^2 I)^-1 e: bounded steps near singularities. It is
@@ -795,14 +798,19 @@ class URDFRobot(Robot):
 
         sols: list[Array] = []
         best_q, best_err = first, np.inf
-        for q0 in starts:
-            q, ok, err = self._dls(T_root_target, q0, position_only, clamp=True)
+        k = 0
+        while k < len(starts):
+            q, ok, err = self._dls(T_root_target, starts[k], position_only, clamp=True)
+            k += 1
             if err < best_err:
                 best_q, best_err = q, err
             if ok and all(np.linalg.norm(q - s) > st.distinct for s in sols):
                 sols.append(q)
                 if len(sols) >= want:
                     break
+            if k == len(starts) and not sols and not out_of_reach and \
+                    len(starts) == 1 + st.restarts:
+                starts += [rng.uniform(lo, hi) for _ in range(st.extra_restarts)]
         ref = first if seed is not None else home
         if sols:
             sols.sort(key=lambda s: float(np.linalg.norm(s - ref)))
@@ -813,13 +821,15 @@ class URDFRobot(Robot):
             return IKResult([], IKFailure.REACH,
                             f"{target} at {dist * 1000:.0f} mm from the first joint is beyond "
                             f"the arm's reach ({self._reach * 1000:.0f} mm)", nearest)
-        inside, free = self._solve_unlimited(T_root_target, starts, position_only)
+        inside, free = self._solve_unlimited(T_root_target, starts[:1 + st.restarts],
+                                             position_only)
         if inside is not None:
             return IKResult([inside])
         if free is not None:
             return IKResult([], IKFailure.JOINT_LIMIT,
-                            f"the {target} needs a joint outside its range ("
-                            + ", ".join(self.limits.violations(free, self.joint_names)) + ")",
+                            f"no solution within the joint limits was found for this {target}; "
+                            "without limits it is reachable with "
+                            + ", ".join(self.limits.violations(free, self.joint_names)),
                             nearest)
         if not position_only and self.dof < 6:
             for q0 in starts[:4]:
