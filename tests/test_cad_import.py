@@ -350,6 +350,20 @@ def test_dxf_polyface_polymesh_and_mesh_entities_and_blocks():
     assert m.area == pytest.approx(4 * 6 * 1e-4 + 1e-4, rel=1e-9)
 
 
+def test_binary_dxf_is_read_and_a_truncated_one_refused():
+    doc = ezdxf.new("R2010")
+    doc.header["$INSUNITS"] = 4
+    for tri in _faces_of(_box_mm()):
+        doc.modelspace().add_3dface(tri)
+    stream = io.BytesIO()
+    doc.write(stream, fmt="bin")
+    data = stream.getvalue()
+    assert data.startswith(b"AutoCAD Binary DXF")
+    _assert_box_m(load_cad(data, "binary.dxf"), (0.04, 0.03, 0.02))
+    with pytest.raises(CadImportError, match=r"cut\.dxf.*could not be read as DXF"):
+        load_cad(data[:300], "cut.dxf")
+
+
 def test_dxf_outline_needs_a_height():
     def build(doc, msp):
         msp.add_lwpolyline([(0, 0), (100, 0), (100, 50), (0, 50)], close=True)

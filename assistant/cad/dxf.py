@@ -6,14 +6,19 @@ transforms. The unit is the header's $INSUNITS (0 = unitless). A drawing with no
 may hold a part's outline (closed polylines, circles, or chains of lines and arcs); it becomes
 a solid only with a thickness from the operator, since a flat drawing does not say how thick
 the part is. ACIS solids (3DSOLID, BODY, REGION) are opaque to us and reported as such.
+Binary DXF is read through ezdxf's plain file reader, the only one that detects it.
 """
 
 from __future__ import annotations
 
 import io
+import tempfile
+from pathlib import Path
 
+import ezdxf
 import numpy as np
 import trimesh
+from ezdxf import disassemble, recover
 
 from assistant.cad.errors import CadImportError
 from assistant.cad.options import ImportOptions
@@ -28,25 +33,68 @@ _BINARY_SENTINEL = b"AutoCAD Binary DXF"
 
 def read_dxf(data: bytes, filename: str, options: ImportOptions) -> RawGeometry:
     """Faces of a DXF's model space (or its closed outlines) in drawing units."""
-    import ezdxf
-    from ezdxf import disassemble, recover
-
     if not (data.startswith(_BINARY_SENTINEL) or b"SECTION" in data[:65536]):
         raise CadImportError(filename, "is not a DXF file (no DXF sections found)",
                              "export the drawing again as DXF")
     try:
-        doc, _auditor = recover.read(io.BytesIO(data))
-    except (ezdxf.DXFError, UnicodeDecodeError, ValueError, EOFError) as exc:
+        doc = _read_document(data)
+    except Exception as exc:  # a parser of untrusted bytes: any failure means "unreadable"
         raise CadImportError(filename, f"could not be read as DXF ({exc})",
                              "the file may be truncated or damaged; export it again") from exc
 
     raw = RawGeometry(mesh=None)
-    code = int(doc.header.get("$INSUNITS", 0) or 0)
+    try:
+        code = int(doc.header.get("$INSUNITS", 0) or 0)
+    except (TypeError, ValueError):
+        code = 0
     raw.file_units = _INSUNITS.get(code)
     if code and raw.file_units is None:
         raw.warnings.append(f"unusual drawing unit ($INSUNITS={code}) ignored; "
                             "the unit is guessed from the size")
 
+    try:
+        triangles, curves, acis, open_polylines = _collect(doc)
+    except Exception as exc:  # odd entities or broken block references in untrusted data
+        raise CadImportError(filename, f"its entities could not be interpreted ({exc})",
+                             "the drawing may be damaged; export it again") from exc
+
+    if acis:
+        raw.warnings.append(f"{acis} ACIS solid(s) (3DSOLID/BODY/REGION) cannot be read and were "
+                            "skipped; export those bodies as STEP or STL")
+    if open_polylines:
+        raw.notes.append(f"ignored {open_polylines} 3-D polyline(s) (wires, not surfaces)")
+    if triangles:
+        tri = np.stack(triangles)
+        raw.mesh = trimesh.Trimesh(tri.reshape(-1, 3), np.arange(len(tri) * 3).reshape(-1, 3),
+                                   process=False)
+        if curves:
+            raw.notes.append(f"the drawing has 3-D faces; {len(curves)} 2-D curve(s) ignored")
+        return raw
+
+    if not curves:
+        hint = " (only ACIS solids)" if acis else ""
+        raise CadImportError(filename, f"holds no 3-D faces and no outlines{hint}",
+                             "export the part as 3-D faces/mesh, or as STEP or STL")
+    try:
+        raw.outline = _outline_from_curves(curves, filename, raw)
+    except CadImportError:
+        raise
+    except Exception as exc:  # shapely/ezdxf on odd curves
+        raise CadImportError(filename, f"its 2-D outline could not be traced ({exc})",
+                             "clean up the outline in CAD, or export the part in 3-D") from exc
+    if options.dxf_extrude_height is None:
+        n = len(raw.outline.polygons)
+        raise CadImportError(
+            filename,
+            f"is a 2-D drawing: {n} closed outline(s) but no 3-D faces",
+            "give the part's thickness (dxf_extrude_height) to extrude the outline, "
+            "or export the part in 3-D",
+        )
+    return raw
+
+
+def _collect(doc) -> tuple[list[np.ndarray], list, int, int]:
+    """Triangles of the 3-D entities, the 2-D curves, and counts of what cannot be used."""
     triangles: list[np.ndarray] = []
     curves = []
     acis = 0
@@ -71,34 +119,18 @@ def read_dxf(data: bytes, filename: str, options: ImportOptions) -> RawGeometry:
             curves.append(e)
         elif kind in _ACIS:
             acis += 1
+    return triangles, curves, acis, open_polylines
 
-    if acis:
-        raw.warnings.append(f"{acis} ACIS solid(s) (3DSOLID/BODY/REGION) cannot be read and were "
-                            "skipped; export those bodies as STEP or STL")
-    if open_polylines:
-        raw.notes.append(f"ignored {open_polylines} 3-D polyline(s) (wires, not surfaces)")
-    if triangles:
-        tri = np.stack(triangles)
-        raw.mesh = trimesh.Trimesh(tri.reshape(-1, 3), np.arange(len(tri) * 3).reshape(-1, 3),
-                                   process=False)
-        if curves:
-            raw.notes.append(f"the drawing has 3-D faces; {len(curves)} 2-D curve(s) ignored")
-        return raw
 
-    if not curves:
-        hint = " (only ACIS solids)" if acis else ""
-        raise CadImportError(filename, f"holds no 3-D faces and no outlines{hint}",
-                             "export the part as 3-D faces/mesh, or as STEP or STL")
-    raw.outline = _outline_from_curves(curves, filename, raw)
-    if options.dxf_extrude_height is None:
-        n = len(raw.outline.polygons)
-        raise CadImportError(
-            filename,
-            f"is a 2-D drawing: {n} closed outline(s) but no 3-D faces",
-            "give the part's thickness (dxf_extrude_height) to extrude the outline, "
-            "or export the part in 3-D",
-        )
-    return raw
+def _read_document(data: bytes):
+    """ASCII DXF from memory with the forgiving reader; binary DXF only through ezdxf's plain
+    file reader (the recover module does not read binary), via a temporary file."""
+    if not data.startswith(_BINARY_SENTINEL):
+        return recover.read(io.BytesIO(data))[0]
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "drawing.dxf"
+        path.write_bytes(data)
+        return ezdxf.readfile(str(path))
 
 
 def _mesh_builder(entity, *, polyface: bool):

@@ -121,6 +121,21 @@ def load_cad_path(path: str | Path, **kwargs) -> CadImport:
 
 def import_with_options(data: bytes, filename: str, options: ImportOptions) -> CadImport:
     """The pipeline behind `load_cad` (used directly when re-importing a saved cell)."""
+    try:
+        return _import(data, filename, options)
+    except CadImportError:
+        raise
+    except MemoryError as exc:
+        raise CadImportError(filename, "is too large to import in the available memory",
+                             "simplify the part in CAD or export it coarser") from exc
+    except Exception as exc:  # a library failing on odd geometry: still the file's fault
+        raise CadImportError(
+            filename, f"could not be imported ({type(exc).__name__}: {exc})",
+            "export the part again (e.g. as STEP or binary STL); if it persists, report it "
+            "with the file") from exc
+
+
+def _import(data: bytes, filename: str, options: ImportOptions) -> CadImport:
     if not isinstance(data, (bytes, bytearray, memoryview)):
         raise CadImportError(filename, f"expected the file's bytes, got {type(data).__name__}")
     data = bytes(data)
