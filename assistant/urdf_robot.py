@@ -405,6 +405,9 @@ class URDFRobot(Robot):
     locked joints such as gripper fingers, anything above the base) are merged into it, their
     shapes re-expressed in its frame. Collision meshes above `COLLISION_FACE_LIMIT` faces are
     replaced by their convex hull.
+
+    Build one with `from_file` / `from_string`; the constructor takes an already parsed
+    document and is what `with_tool` / `with_limits` use to share it (meshes load once).
     """
 
     def __init__(self, doc: _Document, *, base_link: str | None = None,
