@@ -1,0 +1,635 @@
+"""A Mitsubishi CR-series controller on localhost, driven by our kinematic model (RV-2AJ).
+
+It speaks the controller-communication text protocol on one TCP port (``1;1;JPOSF`` ->
+``QoKJ1;...``, see `melfa_protocol`) and serves Ethernet data-link ports (``COM2:``) that
+programs open with ``OPEN "COM2:" AS #1``. Uploaded programs run in a small MELFA BASIC
+interpreter; the arm moves in time at the model's joint speeds, refuses out-of-range targets
+with the real reply shape (``QeR2600``), stops before hidden obstacles (error 1010, replies
+then start with ``Qok``), and can be told to drop connections, answer late or garble.
+
+Run as a script for demos::
+
+    python -m assistant.links.emulators.melfa_emulator --port 10001 --datalink-port 10002
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import socket
+import socketserver
+import threading
+import time
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from assistant.collision import ObstacleView
+from assistant.links import melfa_protocol as mp
+from assistant.links.arm_config import matches_melfa_flags
+from assistant.links.emulators.arm import CollisionInfo, EmulatedArm, solve_wire_pose
+from assistant.links.emulators.cartesian import arc_poses, line_poses
+from assistant.links.emulators.faults import Faults, Received
+from assistant.links.emulators.melfa_program import (
+    Interpreter,
+    MelfaProgram,
+    ProgramError,
+    ProgramSyntaxError,
+)
+from assistant.links.melfa_protocol import DState, MelfaPose
+from assistant.robot_model import Robot
+
+Array = np.ndarray
+_POLL = 0.05  # seconds between checks of stop flags in blocking reads
+
+
+class _Conn:
+    """A client socket with a line buffer; closed by the owner on drop."""
+
+    def __init__(self, sock: socket.socket):
+        self.sock = sock
+        self.buf = b""
+        self.closed = False
+
+    def close(self) -> None:
+        self.closed = True
+        with contextlib.suppress(OSError):
+            self.sock.shutdown(socket.SHUT_RDWR)
+        self.sock.close()
+
+    def readline(self, stop: threading.Event) -> str | None:
+        """Next CR/LF-terminated line, or None on EOF / stop."""
+        while True:
+            self.buf = self.buf.lstrip(b"\r\n")
+            ends = [i for i in (self.buf.find(b"\r"), self.buf.find(b"\n")) if i >= 0]
+            if ends:
+                i = min(ends)
+                line, self.buf = self.buf[:i], self.buf[i + 1:]
+                return line.decode("ascii", errors="replace")
+            if stop.is_set() or self.closed:
+                return None
+            try:
+                chunk = self.sock.recv(4096)
+            except TimeoutError:
+                continue
+            except OSError:
+                return None
+            if not chunk:
+                return None
+            self.buf += chunk
+
+
+class DataLinkPort:
+    """An Ethernet data-link port (one COMn:): a listener whose newest client is the channel."""
+
+    def __init__(self, emulator: MelfaEmulator, com: int, host: str, port: int):
+        self.emu = emulator
+        self.com = com
+        self._listener = socket.create_server((host, port))
+        self._listener.settimeout(_POLL)
+        self.port = self._listener.getsockname()[1]
+        self._conn: _Conn | None = None
+        self._cond = threading.Condition()
+        self._closed = threading.Event()
+        self._thread = threading.Thread(target=self._accept_loop, name=f"melfa-com{com}",
+                                        daemon=True)
+        self._thread.start()
+
+    def _accept_loop(self) -> None:
+        while not self._closed.is_set():
+            try:
+                sock, _ = self._listener.accept()
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            sock.settimeout(_POLL)
+            with self._cond:
+                if self._conn is not None:
+                    self._conn.close()
+                self._conn = _Conn(sock)
+                self._cond.notify_all()
+
+    def wait_connection(self, abort: threading.Event) -> _Conn | None:
+        with self._cond:
+            while (self._conn is None or self._conn.closed) and not abort.is_set() \
+                    and not self._closed.is_set():
+                self._cond.wait(_POLL)
+            return self._conn if self._conn is not None and not self._conn.closed else None
+
+    def readline(self, abort: threading.Event) -> str:
+        conn = self.wait_connection(abort)
+        if conn is None:
+            return ""
+        line = conn.readline(abort)
+        if line is None:
+            if abort.is_set():
+                return ""
+            raise ProgramError(mp.ERR_DATALINK_LOST, f"COM{self.com}: connection closed")
+        self.emu._log(f"COM{self.com}", line)
+        return line
+
+    def write(self, text: str) -> None:
+        with self._cond:
+            conn = self._conn
+        if conn is None or conn.closed:
+            raise ProgramError(mp.ERR_DATALINK_LOST, f"COM{self.com}: not connected")
+        out, delay = self.emu.faults.take_reply(text)
+        if delay > 0:
+            time.sleep(delay)
+        try:
+            conn.sock.sendall((out + mp.TERMINATOR).encode("ascii", errors="replace"))
+        except OSError:
+            raise ProgramError(mp.ERR_DATALINK_LOST, f"COM{self.com}: send failed") from None
+
+    def drop(self) -> None:
+        with self._cond:
+            if self._conn is not None:
+                self._conn.close()
+            self._conn = None
+
+    def close(self) -> None:
+        self._closed.set()
+        self.drop()
+        self._listener.close()
+        self._thread.join(timeout=2.0)
+
+
+@dataclass
+class _RunningProgram:
+    name: str
+    interp: Interpreter
+    abort: threading.Event = field(default_factory=threading.Event)
+    thread: threading.Thread | None = None
+
+
+class MelfaEmulator:
+    """A CR-series controller emulator: command port + data-link ports + a moving model.
+
+    Args:
+        robot: the kinematic model the controller drives (the RV-2AJ in the thesis).
+        hidden_obstacles: obstacles only the emulator knows; the arm stops before them.
+        port: command port (0 = any free port; a real CR1 listens on 10000-10009).
+        datalink_ports: COM number -> TCP port for the data link (COM2 = OPT12 = 10002).
+        time_scale: robot seconds per wall second (tests run motions faster).
+        tick_s: servo cycle in wall seconds (7.1 ms on a CR1).
+        start_q: initial joints.
+        faults: shared `Faults` object (a new one if omitted).
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        *,
+        hidden_obstacles: Iterable[ObstacleView] = (),
+        host: str = "127.0.0.1",
+        port: int = 0,
+        datalink_ports: dict[int, int] | None = None,
+        time_scale: float = 1.0,
+        tick_s: float = 0.0071,
+        start_q: Array | None = None,
+        faults: Faults | None = None,
+    ):
+        self.robot = robot
+        self.joint_names = list(robot.joint_names)
+        self.host = host
+        self.faults = faults or Faults()
+        self.time_scale = float(time_scale)
+        self.arm = EmulatedArm(robot, hidden_obstacles=hidden_obstacles, time_scale=time_scale,
+                               tick_s=tick_s, start_q=start_q, faults=self.faults,
+                               on_collision=self._on_collision, on_drop=self._on_drop)
+        self._lock = threading.RLock()
+        self.operation_enabled = False
+        self.servo_on = False
+        self.error_code = 0
+        self.panel_ovrd = 100.0
+        self.hands: dict[int, bool] = {}
+        self.programs: dict[str, MelfaProgram] = {}
+        self._edit: MelfaProgram | None = None
+        self._running: _RunningProgram | None = None
+        self._direct = Interpreter(self)
+        self._direct_lock = threading.Lock()
+        self.received: list[Received] = []
+        self._recv_lock = threading.Lock()
+        self._conns: set[_Conn] = set()
+        self._closed = threading.Event()
+        self._port_req = port
+        self._dl_req = dict(datalink_ports or {mp.STREAM_COM: 0})
+        self._server: socketserver.ThreadingTCPServer | None = None
+        self._server_thread: threading.Thread | None = None
+        self.datalinks: dict[int, DataLinkPort] = {}
+
+    # ------------------------------------------------------------------ lifecycle
+    def start(self) -> MelfaEmulator:
+        emu = self
+
+        class Handler(socketserver.BaseRequestHandler):
+            def handle(self) -> None:
+                emu._serve(self.request)
+
+        class Server(socketserver.ThreadingTCPServer):
+            allow_reuse_address = True
+            daemon_threads = True
+
+        self._server = Server((self.host, self._port_req), Handler)
+        self._server_thread = threading.Thread(target=self._server.serve_forever,
+                                               kwargs={"poll_interval": _POLL},
+                                               name="melfa-command", daemon=True)
+        self._server_thread.start()
+        for com, p in self._dl_req.items():
+            self.datalinks[com] = DataLinkPort(self, com, self.host, p)
+        self.arm.start()
+        return self
+
+    def close(self) -> None:
+        self._closed.set()
+        self._stop_program()
+        self.arm.close()
+        if self._server is not None:
+            self._server.shutdown()
+            self._server.server_close()
+        for c in list(self._conns):
+            c.close()
+        for dl in self.datalinks.values():
+            dl.close()
+        if self._server_thread is not None:
+            self._server_thread.join(timeout=2.0)
+
+    def __enter__(self) -> MelfaEmulator:
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    @property
+    def port(self) -> int:
+        assert self._server is not None, "start() first"
+        return self._server.server_address[1]
+
+    def datalink_port(self, com: int = mp.STREAM_COM) -> int:
+        return self.datalinks[com].port
+
+    # ------------------------------------------------------------------ logs
+    def _log(self, channel: str, text: str) -> None:
+        with self._recv_lock:
+            self.received.append(Received(channel, time.monotonic(), text))
+
+    def received_texts(self, channel: str | None = None) -> list[str]:
+        with self._recv_lock:
+            return [r.text for r in self.received if channel is None or r.channel == channel]
+
+    # ------------------------------------------------------------------ command port
+    def _serve(self, sock: socket.socket) -> None:
+        sock.settimeout(_POLL)
+        conn = _Conn(sock)
+        with self._lock:
+            self._conns.add(conn)
+        try:
+            while not self._closed.is_set():
+                line = conn.readline(self._closed)
+                if line is None:
+                    return
+                self._log("command", line)
+                reply = self.handle(line)
+                out, delay = self.faults.take_reply(reply)
+                if delay > 0:
+                    time.sleep(delay)
+                if conn.closed:
+                    return
+                try:
+                    sock.sendall((out + mp.TERMINATOR).encode("ascii", errors="replace"))
+                except OSError:
+                    return
+                if line.split(";", 2)[-1].strip().upper() == "CLOSE":
+                    return
+        finally:
+            with self._lock:
+                self._conns.discard(conn)
+            conn.close()
+
+    def _ok(self, body: str = "") -> str:
+        return ("Qok" if self.error_code else "QoK") + body
+
+    def _refuse(self, code: int, extra: str = "") -> str:
+        return ("Qer" if self.error_code else "QeR") + f"{code:04d}" + extra
+
+    def handle(self, line: str) -> str:
+        """Answer one request line (public so tests can drive the controller directly)."""
+        try:
+            robot_no, slot, cmd = mp.parse_request(line)
+        except ValueError:
+            return self._refuse(mp.ERR_ILLEGAL_DATA)
+        if robot_no != 1:
+            return self._refuse(mp.ERR_ILLEGAL_DATA)
+        up = cmd.upper()
+        try:
+            return self._dispatch(cmd, up)
+        except ProgramSyntaxError as exc:
+            return self._refuse(exc.code, f";{exc.line or 0};{exc.pos}")
+        except ProgramError as exc:
+            return self._refuse(exc.code)
+        except (ValueError, IndexError):
+            return self._refuse(mp.ERR_ILLEGAL_DATA)
+
+    def _need_rights(self) -> None:
+        if not self.operation_enabled:
+            raise ProgramError(mp.ERR_NO_OPERATION_RIGHTS, "no operation rights")
+
+    def _dispatch(self, cmd: str, up: str) -> str:
+        if up.startswith("OPEN="):
+            return self._ok(f"{self.robot.name.split()[-1]};CR1-EMU;MELFA;cellteach emulator")
+        if up == "CLOSE":
+            return self._ok()
+        if up in ("CNTLON", "CNTLOFF"):
+            self.operation_enabled = up == "CNTLON"
+            return self._ok()
+        if up in ("SRVON", "SRVOFF"):
+            self._need_rights()
+            self.set_servo(up == "SRVON")
+            return self._ok()
+        if up == "RSTALRM":
+            with self._lock:
+                self.error_code = 0
+            return self._ok()
+        if up == "STOP":
+            self._stop_program()
+            self.arm.stop_all("stopped")
+            return self._ok()
+        if up == "SLOTINIT":
+            self._need_rights()
+            self._stop_program()
+            return self._ok()
+        if up.startswith("OVRD"):
+            if "=" in up:
+                self._need_rights()
+                self.panel_ovrd = float(np.clip(float(up.split("=", 1)[1]), 1, 100))
+            return self._ok(f"{int(self.panel_ovrd)}")
+        if up == "JPOSF":
+            vals = mp.to_wire_deg(self.arm.q, self.joint_names)
+            body = ";".join(f"{n};{v:.2f}" for n, v in zip(mp.WIRE_JOINTS, vals, strict=True))
+            return self._ok(f"{body};;****,****;{int(self.panel_ovrd)};0.00;00000000")
+        if up == "PPOSF":
+            pose = self.current_pose()
+            a, b, c = np.degrees(mp.matrix_to_melfa_abc(pose.T_base_tool[:3, :3]))
+            x, y, z = pose.T_base_tool[:3, 3] * 1000.0
+            body = ";".join(f"{n};{v:.2f}" for n, v in zip("XYZABC", (x, y, z, a, b, c),
+                                                           strict=True))
+            return self._ok(f"{body};;{pose.fl1},{pose.fl2};{int(self.panel_ovrd)};0.00;"
+                            "00000000")
+        if up == "DSTATE":
+            run = (0x80 if self.operation_enabled else 0) | (0x20 if self.servo_on else 0) | \
+                (0x40 if self._running is not None else 0)
+            line = self._running.interp.line if self._running is not None else 0
+            return self._ok(mp.format_dstate(DState(run, 0, self.error_code, line or 0)))
+        if up.startswith("ERRORMES"):
+            code = int(up[len("ERRORMES"):] or 0)
+            return self._ok(mp.ERROR_MESSAGES.get(code, "Unknown error number"))
+        if up.startswith("PDIR"):
+            return self._pdir(up[4:])
+        if up == "NEW":
+            self._need_rights()
+            self._edit = None
+            return self._ok()
+        if up.startswith("LOAD="):
+            self._need_rights()
+            name = mp.sanitize_program_name(cmd.split("=", 1)[1], max_len=12)
+            old = self.programs.get(name)
+            self._edit = MelfaProgram(name, dict(old.code), dict(old.positions)) if old \
+                else MelfaProgram(name)
+            return self._ok()
+        if up == "ECLR":
+            if self._edit is None:
+                raise ProgramError(mp.ERR_NO_PROGRAM, "no program being edited")
+            self._edit = MelfaProgram(self._edit.name)
+            return self._ok()
+        if up.startswith("EMDAT"):
+            if self._edit is None:
+                raise ProgramError(mp.ERR_NO_PROGRAM, "no program being edited")
+            for raw in cmd[5:].split("\v"):
+                self._edit.add_line(raw)
+            return self._ok()
+        if up == "SAVE":
+            self._need_rights()
+            if self._edit is None:
+                raise ProgramError(mp.ERR_NO_PROGRAM, "no program being edited")
+            self.programs[self._edit.name] = self._edit
+            return self._ok()
+        if up.startswith("RUN"):
+            self._need_rights()
+            name, _, _mode = cmd[3:].partition(";")
+            return self._run(mp.sanitize_program_name(name, max_len=12))
+        if up.startswith("EXEC"):
+            self._need_rights()
+            return self._exec(cmd[4:])
+        raise ProgramError(mp.ERR_UNKNOWN_COMMAND, cmd)
+
+    def _pdir(self, page: str) -> str:
+        names = sorted(self.programs)
+        n = int(page, 16) if page.strip() and page.strip() != "TOP" else 0
+        if n >= len(names):
+            return self._ok()
+        p = self.programs[names[n]]
+        return self._ok(f"{p.name}.MB4;0;{time.strftime('%y-%m-%d%H:%M:%S')};0;0;"
+                        f"{p.line_count}")
+
+    def _run(self, name: str) -> str:
+        if self.error_code:
+            return self._refuse(self.error_code)
+        if name not in self.programs:
+            raise ProgramError(mp.ERR_NO_PROGRAM, name)
+        if self._running is not None:
+            raise ProgramError(mp.ERR_ILLEGAL_DATA, "a program is running")
+        prog = self.programs[name]
+        run = _RunningProgram(name, Interpreter(self, prog))
+
+        def body() -> None:
+            try:
+                run.interp.run(run.abort)
+            except ProgramError as exc:
+                if not run.abort.is_set():
+                    with self._lock:
+                        self.error_code = exc.code
+            finally:
+                with self._lock:
+                    if self._running is run:
+                        self._running = None
+
+        run.thread = threading.Thread(target=body, name=f"melfa-run-{name}", daemon=True)
+        self._running = run
+        run.thread.start()
+        return self._ok()
+
+    def _stop_program(self) -> None:
+        run = self._running
+        if run is None:
+            return
+        run.abort.set()
+        if run.thread is not None and run.thread is not threading.current_thread():
+            run.thread.join(timeout=2.0)
+        with self._lock:
+            if self._running is run:
+                self._running = None
+
+    def _exec(self, stmt: str) -> str:
+        if self.error_code:
+            return self._refuse(self.error_code)
+        with self._direct_lock:
+            abort = threading.Event()
+            self._direct.execute(stmt, abort)
+        return self._ok()
+
+    # ------------------------------------------------------------------ events from the arm
+    def _on_collision(self, info: CollisionInfo) -> None:
+        with self._lock:
+            self.error_code = mp.ERR_COLLISION
+            run = self._running
+        if run is not None:
+            run.abort.set()
+
+    def _on_drop(self) -> None:
+        with self._lock:
+            conns = list(self._conns)
+        for c in conns:
+            c.close()
+        for dl in self.datalinks.values():
+            dl.drop()
+
+    # ------------------------------------------------------------------ Machine protocol
+    def current_q(self) -> Array:
+        return self.arm.q
+
+    def current_pose(self) -> MelfaPose:
+        q = self.arm.q
+        fl1, fl2 = mp.pose_flags(self.robot, q)
+        return MelfaPose(self.robot.fk(q), fl1, fl2)
+
+    def panel_override(self) -> float:
+        return self.panel_ovrd
+
+    def set_servo(self, on: bool) -> None:
+        self.servo_on = on
+        if not on:
+            self.arm.stop_all("stopped")
+
+    def set_hand(self, n: int, closed: bool) -> None:
+        self.hands[n] = closed
+
+    def sleep(self, robot_seconds: float, abort: threading.Event) -> None:
+        abort.wait(max(0.0, robot_seconds) / self.time_scale)
+
+    def datalink_open(self, com: int, abort: threading.Event) -> None:
+        if com not in self.datalinks:
+            raise ProgramError(mp.ERR_ILLEGAL_DATA, f"COM{com}: is not a data-link port")
+        self.datalinks[com].wait_connection(abort)
+
+    def datalink_readline(self, com: int, abort: threading.Event) -> str:
+        return self.datalinks[com].readline(abort)
+
+    def datalink_write(self, com: int, text: str) -> None:
+        self.datalinks[com].write(text)
+
+    def _joints_for(self, value: object, seed: Array) -> Array:
+        if isinstance(value, MelfaPose):
+            q, why = solve_wire_pose(
+                self.robot, value.T_base_tool, seed,
+                lambda s: matches_melfa_flags(self.robot, s, value.fl1, value.fl2))
+            if q is None:
+                raise ProgramError(mp.ERR_UNREACHABLE, why)
+            return q
+        if isinstance(value, float):
+            raise ProgramError(mp.ERR_ILLEGAL_DATA, "a move needs a position")
+        q = np.asarray(value, dtype=float)
+        if not self.robot.limits.contains(q):
+            raise ProgramError(mp.ERR_JOINT_RANGE, ", ".join(
+                self.robot.limits.violations(q, self.joint_names)))
+        return q
+
+    def _pose_of(self, value: object, seed: Array) -> Array:
+        if isinstance(value, MelfaPose):
+            return value.T_base_tool
+        return self.robot.fk(self._joints_for(value, seed))
+
+    def _cartesian(self, poses: list[Array], seed: Array) -> list[Array]:
+        out, q = [], seed
+        for T in poses:
+            q_new, why = solve_wire_pose(self.robot, T, q, lambda s: True,
+                                       project_tol_rad=np.pi)
+            if q_new is None or np.max(np.abs(q_new - q)) > 0.35:
+                raise ProgramError(mp.ERR_UNREACHABLE, why or "configuration flip on the path")
+            out.append(q_new)
+            q = q_new
+        return out
+
+    def move(self, targets: list[object], kind: str, speed: float, blend: bool,
+             abort: threading.Event) -> None:
+        if not self.servo_on:
+            raise ProgramError(mp.ERR_SERVO_OFF, "servo is off")
+        if self.error_code:
+            raise ProgramError(self.error_code, "controller in error")
+        start = self.arm.planned_end()
+        if kind == "MOV":
+            waypoints = [self._joints_for(targets[0], start)]
+        elif kind == "MVS":
+            T0 = self.robot.fk(start)
+            T1 = self._pose_of(targets[0], start)
+            waypoints = self._cartesian(line_poses(T0, T1), start)
+        else:
+            Ta, Tb, Tc = (self._pose_of(t, start) for t in targets)
+            poses = [] if np.linalg.norm(self.robot.fk(start)[:3, 3] - Ta[:3, 3]) < 1e-4 \
+                else line_poses(self.robot.fk(start), Ta)
+            try:
+                arc = arc_poses(Ta, Tb, Tc)
+            except ValueError as exc:
+                raise ProgramError(mp.ERR_ILLEGAL_DATA, str(exc)) from None
+            waypoints = self._cartesian(poses + arc, start)
+        motion = self.arm.enqueue(np.array(waypoints), speed, kind)
+        if blend:
+            # CNT: the program runs on while this move executes (one move of look-ahead).
+            self.arm.wait_queue_at_most(2, abort)
+            return
+        outcome = self.arm.wait(motion, abort=abort)
+        if outcome == "collision":
+            raise ProgramError(mp.ERR_COLLISION, "collision")
+        if outcome in ("dropped", "stopped") and not abort.is_set():
+            raise ProgramError(mp.ERR_ILLEGAL_DATA, f"move {outcome}")
+
+
+def _parse_box(text: str):
+    from assistant.collision import Obstacle
+    from assistant.robot_model import CollisionShape, ShapeKind
+    from assistant.transforms import make_T
+
+    v = [float(x) / 1000.0 for x in text.split(",")]
+    if len(v) != 6:
+        raise argparse.ArgumentTypeError("--hidden-box wants x,y,z,sx,sy,sz in mm")
+    return Obstacle(f"hidden_{text}", make_T(p=v[:3]),
+                    (CollisionShape(ShapeKind.BOX, tuple(v[3:])),))
+
+
+def main(argv: list[str] | None = None) -> None:
+    from assistant.rv2aj import RV2AJ
+
+    ap = argparse.ArgumentParser(description="MELFA CR-series controller emulator (RV-2AJ)")
+    ap.add_argument("--host", default="127.0.0.1")
+    ap.add_argument("--port", type=int, default=10001)
+    ap.add_argument("--datalink-port", type=int, default=10002, help="TCP port of COM2:")
+    ap.add_argument("--time-scale", type=float, default=1.0)
+    ap.add_argument("--hidden-box", type=_parse_box, action="append", default=[],
+                    help="hidden obstacle box x,y,z,sx,sy,sz in mm (repeatable)")
+    args = ap.parse_args(argv)
+    emu = MelfaEmulator(RV2AJ(), hidden_obstacles=args.hidden_box, host=args.host,
+                        port=args.port, datalink_ports={mp.STREAM_COM: args.datalink_port},
+                        time_scale=args.time_scale)
+    with emu:
+        print(f"MELFA emulator: commands on {args.host}:{emu.port}, COM2: data link on "
+              f"{args.host}:{emu.datalink_port()}; Ctrl-C to stop", flush=True)
+        try:
+            while True:
+                time.sleep(1.0)
+        except KeyboardInterrupt:
+            pass
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,111 @@
+"""How to reach the robot: the JSON-able settings a session stores, and the link they build.
+
+The set-up step of the workflow lets the operator choose the kind of link and its address;
+the session saves `LinkSettings.to_json()` and rebuilds the link with `make_link`. Defaults
+are the thesis' CR1 set-up (003 Appendix C): commands on 10001, the data link ``COM2:`` on
+10002 (OPT12), robot 1, slot 1, the 7.1 ms controller cycle.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterable
+from dataclasses import asdict, dataclass, fields
+from typing import Any, Literal
+
+from assistant.collision import ObstacleView
+from assistant.robot_link import RobotLink
+from assistant.robot_model import Robot
+
+LinkKind = Literal["simulated", "melfa", "kuka_rest"]
+KINDS: tuple[str, ...] = ("simulated", "melfa", "kuka_rest")
+
+
+class LinkSettingsError(ValueError):
+    """Settings that cannot work; the message names the field."""
+
+
+@dataclass(frozen=True)
+class LinkSettings:
+    kind: LinkKind = "simulated"
+    host: str = "127.0.0.1"
+    #: MELFA: controller-communication port; KUKA: the bridge's HTTP port.
+    port: int = 10001
+    #: MELFA: TCP port of the data link the streaming program opens as COM2:.
+    datalink_port: int = 10002
+    robot_number: int = 1
+    slot: int = 1
+    connect_timeout_s: float = 2.0
+    #: Longest wait for any reply (MELFA) / beyond a move's expected time (KUKA).
+    timeout_s: float = 1.0
+    stream_cycle_s: float = 0.0071
+    stream_window: int = 4
+    #: KUKA: how far on the arm the decimated PTP path may leave the planned one.
+    decimation_tol_m: float = 0.002
+    kuka_base_path: str = "/krl"
+    #: Simulated robot: robot seconds per wall second.
+    time_scale: float = 1.0
+    event_period_s: float = 0.05
+
+    def __post_init__(self) -> None:
+        if self.kind not in KINDS:
+            raise LinkSettingsError(f"kind must be one of {KINDS}, got {self.kind!r}")
+        for name in ("port", "datalink_port"):
+            v = getattr(self, name)
+            if not 0 <= v <= 65535:
+                raise LinkSettingsError(f"{name} {v} is not a TCP port")
+        if not 1 <= self.robot_number <= 3:
+            raise LinkSettingsError("robot_number must be 1, 2 or 3 (MELFA)")
+        if not 1 <= self.slot <= 33:
+            raise LinkSettingsError("slot must be 1-33 (MELFA)")
+        for name in ("connect_timeout_s", "timeout_s", "stream_cycle_s", "decimation_tol_m",
+                     "time_scale", "event_period_s"):
+            if not getattr(self, name) > 0:
+                raise LinkSettingsError(f"{name} must be > 0")
+        if self.stream_window < 1:
+            raise LinkSettingsError("stream_window must be >= 1")
+        if not self.host.strip():
+            raise LinkSettingsError("host is empty")
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+    @staticmethod
+    def from_json(data: dict[str, Any]) -> LinkSettings:
+        known = {f.name: f for f in fields(LinkSettings)}
+        unknown = sorted(set(data) - set(known))
+        if unknown:
+            raise LinkSettingsError(f"unknown link setting(s): {', '.join(unknown)}")
+        kw: dict[str, Any] = {}
+        for k, v in data.items():
+            typ = type(getattr(LinkSettings(), k))
+            try:
+                kw[k] = typ(v)
+            except (TypeError, ValueError):
+                raise LinkSettingsError(f"{k}: {v!r} is not a {typ.__name__}") from None
+        return LinkSettings(**kw)
+
+
+def make_link(settings: LinkSettings, robot: Robot,
+              hidden_obstacles: Iterable[ObstacleView] = ()) -> RobotLink:
+    """The link the settings describe. Hidden obstacles only exist for the simulated robot."""
+    if settings.kind == "simulated":
+        from assistant.links.simulated import SimulatedRobot
+
+        return SimulatedRobot(robot, hidden_obstacles=hidden_obstacles,
+                              time_scale=settings.time_scale,
+                              event_period_s=settings.event_period_s)
+    if settings.kind == "melfa":
+        from assistant.links.melfa import MelfaLink
+
+        return MelfaLink(robot, host=settings.host, port=settings.port,
+                         datalink_port=settings.datalink_port,
+                         robot_number=settings.robot_number, slot=settings.slot,
+                         connect_timeout_s=settings.connect_timeout_s,
+                         timeout_s=settings.timeout_s, stream_cycle_s=settings.stream_cycle_s,
+                         stream_window=settings.stream_window,
+                         event_period_s=settings.event_period_s)
+    from assistant.links.kuka_rest import KukaRestLink
+
+    return KukaRestLink(robot, host=settings.host, port=settings.port,
+                        base_path=settings.kuka_base_path, timeout_s=settings.timeout_s,
+                        decimation_tol_m=settings.decimation_tol_m)

@@ -1,0 +1,207 @@
+"""A robot that exists only in the model, with obstacles the planner does not know.
+
+`SimulatedRobot` moves along joint paths in (emulated) time at the robot's speed limits,
+emits MOVED events at a fixed rate and can be stopped from any thread. Its **hidden
+obstacles** stand for the parts of a real cell that no CAD model shows: before every step the
+swept arm is checked against them (FCL) and on contact the robot stops at the last free
+configuration and reports COLLISION_INDICATED - exactly what the operator's button does in
+the thesis workflow, so scripted sessions and tests exercise re-planning without a person.
+
+Deterministic: with a `VirtualClock` the same path gives the same events every run.
+"""
+
+from __future__ import annotations
+
+import itertools
+import re
+import threading
+from collections.abc import Iterable
+
+import numpy as np
+
+from assistant.collision import CollisionChecker, ObstacleView
+from assistant.links.arm_motion import PathFollower
+from assistant.links.timing import Clock, RealClock, time_parametrize, validate_path
+from assistant.robot_link import LinkError, LinkEvent, LinkEventKind, RobotLink
+from assistant.robot_model import Robot
+
+Array = np.ndarray
+
+
+class SimulatedRobot(RobotLink):
+    """The robot model moving in time, with hidden obstacles that trigger collision indications.
+
+    Args:
+        robot: the kinematic/collision model (shared, immutable).
+        hidden_obstacles: obstacles the planner does not know; touching one stops the arm.
+        known_obstacles: the cell the planner knows; checked only if `check_known` (a planner
+            bug would then show up as a collision instead of a crash into CAD).
+        time_scale: robot seconds per wall second when no `clock` is given.
+        clock: a `Clock`; `VirtualClock()` for deterministic tests without waiting.
+        start_q: initial joints (default: all zero, clipped into the limits).
+        event_period_s: MOVED events are emitted every this many robot seconds.
+    """
+
+    def __init__(
+        self,
+        robot: Robot,
+        *,
+        hidden_obstacles: Iterable[ObstacleView] = (),
+        known_obstacles: Iterable[ObstacleView] = (),
+        check_known: bool = False,
+        time_scale: float = 1.0,
+        clock: Clock | None = None,
+        start_q: Array | None = None,
+        event_period_s: float = 0.02,
+    ):
+        super().__init__()
+        if event_period_s <= 0.0:
+            raise ValueError("event_period_s must be > 0")
+        self.robot = robot
+        self.clock: Clock = clock if clock is not None else RealClock(time_scale)
+        self.event_period_s = float(event_period_s)
+        self._hidden = tuple(hidden_obstacles)
+        self._known = tuple(known_obstacles)
+        self._check_known = check_known
+        self._checker = self._make_checker()
+        q0 = np.zeros(robot.dof) if start_q is None else np.asarray(start_q, dtype=float)
+        self._q = np.clip(q0, robot.limits.lower, robot.limits.upper)
+        self._connected = False
+        self._stop = threading.Event()
+        self._indicate = threading.Event()
+        self._indicate_msg = ""
+        self._moving = threading.Lock()
+        self._programs: dict[str, dict[str, bytes]] = {}
+        self._upload_seq = itertools.count(1)
+
+    def _make_checker(self) -> CollisionChecker | None:
+        obstacles = list(self._hidden) + (list(self._known) if self._check_known else [])
+        if not obstacles:
+            return None
+        # Self-collision is the planner's business; the hidden world is what this checks.
+        return CollisionChecker(self.robot, obstacles, self_collision=False)
+
+    # ------------------------------------------------------------------ configuration
+    @property
+    def hidden_obstacles(self) -> tuple[ObstacleView, ...]:
+        return self._hidden
+
+    def set_hidden_obstacles(self, obstacles: Iterable[ObstacleView]) -> None:
+        """Replace the hidden world (e.g. a scripted session moves a box); not while moving."""
+        with self._moving:
+            self._hidden = tuple(obstacles)
+            self._checker = self._make_checker()
+
+    @property
+    def programs(self) -> dict[str, dict[str, bytes]]:
+        """Programs uploaded so far, by the unique name they were stored under."""
+        return dict(self._programs)
+
+    # ------------------------------------------------------------------ RobotLink
+    def connect(self) -> None:
+        self._connected = True
+
+    def close(self) -> None:
+        self.stop()
+        self._connected = False
+
+    @property
+    def connected(self) -> bool:
+        return self._connected
+
+    def current_joints(self) -> Array:
+        return self._q.copy()
+
+    def stop(self) -> None:
+        self._stop.set()
+
+    def indicate_collision(self, message: str = "operator pressed Collision!") -> None:
+        """The human button: stop now and report COLLISION_INDICATED at the current posture.
+
+        While moving, the motion loop reports it (with the path index); when idle the event
+        is emitted at once.
+        """
+        self._indicate_msg = message
+        if self._moving.acquire(blocking=False):
+            try:
+                self._emit(LinkEvent(LinkEventKind.COLLISION_INDICATED, self._q.copy(),
+                                     self.clock.now(), message, None, {"source": "operator"}))
+            finally:
+                self._moving.release()
+        else:
+            self._indicate.set()
+
+    def move_path(self, joint_path: Array, *, speed_scale: float = 1.0) -> LinkEvent:
+        path = validate_path(self.robot, joint_path)
+        if not self._connected:
+            raise LinkError("simulated robot is not connected; call connect() first")
+        # Cleared before taking the lock, so a stop or button press racing the start counts.
+        self._stop.clear()
+        self._indicate.clear()
+        if not self._moving.acquire(blocking=False):
+            raise LinkError("the robot is already moving")
+        try:
+            return self._run(path, speed_scale)
+        finally:
+            self._moving.release()
+
+    def upload_program(self, name: str, files: dict[str, bytes]) -> str:
+        """Stores the files under a unique name (base name + sequence number)."""
+        base = re.sub(r"[^A-Za-z0-9_]", "_", name).strip("_") or "program"
+        unique = f"{base}_{next(self._upload_seq):03d}"
+        while unique in self._programs:
+            unique = f"{base}_{next(self._upload_seq):03d}"
+        self._programs[unique] = {k: bytes(v) for k, v in files.items()}
+        return unique
+
+    # ------------------------------------------------------------------ motion loop
+    def _run(self, path: Array, speed_scale: float) -> LinkEvent:
+        # The robot first goes from where it is to the path's first point (index 0).
+        lead = 0 if np.allclose(path[0], self._q, atol=1e-9) else 1
+        full = path if lead == 0 else np.vstack([self._q[None], path])
+        timed = time_parametrize(full, self.robot.limits.velocity, speed_scale)
+        follower = PathFollower(timed, self._checker)
+
+        def index(seg: int) -> int:
+            return int(max(0, seg - lead))
+
+        start_hit = follower.check_start()
+        if start_hit is not None:
+            return self._finish_collision(follower.q, 0, start_hit.report, started=True)
+        while True:
+            if self._stop.is_set():
+                return self._finish(LinkEventKind.STOPPED, index(follower.segment),
+                                    "stopped on request")
+            if self._indicate.is_set():
+                return self._finish(LinkEventKind.COLLISION_INDICATED, index(follower.segment),
+                                    self._indicate_msg, {"source": "operator"})
+            adv = follower.advance(self.event_period_s)
+            self.clock.sleep(adv.used_s)
+            self._q = adv.q
+            if adv.collision is not None:
+                return self._finish_collision(adv.q, index(adv.segment), adv.collision.report)
+            if adv.finished:
+                return self._finish(LinkEventKind.REACHED, len(path) - 1, "reached")
+            self._emit(LinkEvent(LinkEventKind.MOVED, adv.q, self.clock.now(), "",
+                                 index(adv.segment)))
+
+    def _finish(self, kind: LinkEventKind, path_index: int, message: str,
+                details: dict | None = None) -> LinkEvent:
+        ev = LinkEvent(kind, self._q.copy(), self.clock.now(), message, path_index,
+                       details or {})
+        self._emit(ev)
+        return ev
+
+    def _finish_collision(self, q: Array, path_index: int, report, started: bool = False,
+                          ) -> LinkEvent:
+        contacts = report.contacts if report is not None else ()
+        details = {
+            "source": "hidden_obstacle",
+            "obstacles": sorted({c.other for c in contacts}),
+            "links": sorted({c.link for c in contacts}),
+            "started_in_contact": started,
+        }
+        what = report.describe() if report is not None else "contact"
+        self._q = np.asarray(q, dtype=float).copy()
+        return self._finish(LinkEventKind.COLLISION_INDICATED, path_index,
+                            f"collision indicated: {what}", details)
