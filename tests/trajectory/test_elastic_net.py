@@ -1,0 +1,184 @@
+"""Elastic net on the real RV-2AJ: straighter and shorter paths, never into forbidden space."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from traj_builders import TABLE, box, box_distance, densify, ik_path
+
+from assistant.collision import CollisionChecker
+from assistant.progress import Cancelled, Progress
+from assistant.trajectory.elastic_net import (
+    ElasticNetParams,
+    StopReason,
+    relax,
+    run_elastic_net,
+    turn_angles,
+)
+from assistant.trajectory.particles import Particles
+from assistant.trajectory.primitives import FitParams, PrimitiveKind, fit_primitives
+
+Z = 0.25  # working height of these tests (m), well inside the RV-2AJ's reach
+
+
+@pytest.fixture(scope="module")
+def free_checker(rv2aj):
+    return CollisionChecker(rv2aj, [TABLE])
+
+
+def _zigzag(rng, n=15):
+    y = np.linspace(-0.15, 0.15, n)
+    pts = np.stack([0.27 + rng.uniform(-0.03, 0.03, n), y + rng.uniform(-0.01, 0.01, n),
+                    Z + rng.uniform(-0.03, 0.03, n)], axis=1)
+    pts[0], pts[-1] = [0.27, -0.15, Z], [0.27, 0.15, Z]
+    return pts
+
+
+def _chord_distance(P):
+    a, b = P[0], P[-1]
+    u = (b - a) / np.linalg.norm(b - a)
+    X = P - a
+    return np.linalg.norm(X - np.outer(X @ u, u), axis=1)
+
+
+def test_noisy_zigzag_becomes_straight_and_shorter(rv2aj, free_checker, rng):
+    Q = ik_path(rv2aj, _zigzag(rng))
+    res = run_elastic_net(rv2aj, Q, validity=free_checker,
+                          params=ElasticNetParams(stage1_iterations=300, stage2_iterations=150))
+    P0, P = res.initial.points, res.particles.points
+    assert res.particles.tcp_length() < 0.8 * res.initial.tcp_length()
+    chord = np.linalg.norm(P[-1] - P[0])
+    assert res.particles.tcp_length() < chord * 1.001
+    assert _chord_distance(P).max() < 0.002 < _chord_distance(P0).max()
+    assert np.degrees(turn_angles(P)).max() < 2.0
+    # Start and goal are fixed; every particle is a real configuration that reaches its point.
+    assert np.array_equal(res.particles.joints[0], Q[0])
+    assert np.array_equal(res.particles.joints[-1], Q[-1])
+    assert np.allclose(rv2aj.batch_fk(res.particles.joints).positions, P, atol=1e-9)
+    assert free_checker.is_valid_batch(res.particles.joints).all()
+    # Neighbouring particles keep neighbouring arm configurations (no branch jumps).
+    assert np.abs(np.diff(res.particles.joints, axis=0)).max() < 0.3
+    # Spacing evened out.
+    sp = res.particles.spacing()
+    assert sp.max() / sp.min() < 1.1
+
+
+def test_wall_between_start_and_goal_is_never_crossed(rv2aj, free_checker):
+    """A plate between start and goal: the path must stay around its end, however hard the
+    shrink force pulls towards the straight line through it."""
+    wall_c, wall_s, margin = np.array([0.22, 0.0, Z]), np.array([0.16, 0.01, 0.3]), 0.03
+
+    def allowed(points):
+        return box_distance(points, wall_c, wall_s) >= margin
+
+    # Searched path: out to x = 0.40, around the wall's end (x = 0.30), back in.
+    s = np.linspace(0.0, 1.0, 14)
+    pts = np.stack([0.22 + 0.18 * np.sin(np.pi * s), -0.15 + 0.30 * s, np.full_like(s, Z)], 1)
+    Q = ik_path(rv2aj, pts)
+    assert allowed(rv2aj.batch_fk(Q).positions).all()
+    res = run_elastic_net(rv2aj, Q, allowed=allowed, validity=free_checker,
+                          params=ElasticNetParams(stage1_iterations=300, stage2_iterations=200))
+    P = res.particles.points
+    assert allowed(P).all()
+    assert res.rejected_moves > 0  # the wall really was in the way
+    dense = densify(P)
+    assert box_distance(dense, wall_c, wall_s).min() > 0.0
+    # It crosses y = 0 only beyond the wall's end, on the allowed side.
+    k = int(np.nonzero(np.diff(np.sign(P[:, 1])) != 0)[0][0])
+    f = -P[k, 1] / (P[k + 1, 1] - P[k, 1])
+    x_cross = P[k, 0] + f * (P[k + 1, 0] - P[k, 0])
+    assert x_cross > 0.30 + margin - 0.005
+    assert res.particles.tcp_length() < res.initial.tcp_length()
+
+
+def test_moves_that_put_the_arm_in_collision_are_rejected(rv2aj):
+    """No `allowed` callback at all: only the FCL validity check stands between the shrinking
+    net and a box lying on the straight line."""
+    obstacle = box("block", [0.27, 0.0, Z], [0.06, 0.06, 0.06])
+    checker = CollisionChecker(rv2aj, [TABLE, obstacle])
+    s = np.linspace(0.0, 1.0, 14)
+    pts = np.stack([0.27 + 0.15 * np.sin(np.pi * s), -0.15 + 0.30 * s, np.full_like(s, Z)], 1)
+    Q = ik_path(rv2aj, pts)
+    assert checker.is_valid_batch(Q).all()
+    params = ElasticNetParams(stage1_iterations=250, stage2_iterations=50)
+    res = run_elastic_net(rv2aj, Q, validity=checker, params=params)
+    assert checker.is_valid_batch(res.particles.joints).all()
+    assert res.rejected_moves > 0
+    # The same net without the check would have gone through the block.
+    blind = run_elastic_net(rv2aj, Q, params=params)
+    assert not checker.is_valid_batch(blind.particles.joints).all()
+
+
+def test_the_net_wraps_an_obstacle_in_a_line_an_arc_and_a_line(rv2aj, free_checker):
+    centre, radius = np.array([0.27, 0.0, Z]), 0.08
+
+    def allowed(points):
+        return np.linalg.norm(points - centre, axis=1) >= radius
+
+    s = np.linspace(0.0, 1.0, 12)
+    pts = np.stack([0.27 + 0.15 * np.sin(np.pi * s), -0.18 + 0.36 * s, np.full_like(s, Z)], 1)
+    res = run_elastic_net(rv2aj, ik_path(rv2aj, pts), allowed=allowed, validity=free_checker)
+    P = res.particles.points
+    assert allowed(P).all()
+    fit = fit_primitives(P, FitParams(tolerance=0.002))
+    assert [p.kind for p in fit.primitives] == [PrimitiveKind.LINE, PrimitiveKind.ARC,
+                                               PrimitiveKind.LINE]
+    arc = fit.primitives[1]
+    # The arc hugs the forbidden ball, bending around its centre.
+    assert radius - 0.005 < np.linalg.norm(arc.via - centre) < radius + 0.01
+    assert np.linalg.norm(arc.centre - centre) < 0.03
+
+
+def test_exploring_keeps_the_roads_clearance_final_pulls_taut(rv2aj, free_checker):
+    """Low shrink while exploring: the smoothed road keeps away from what is known to be
+    occupied; high shrink for the final path: it pulls tight around it."""
+    centre, radius = np.array([0.27, 0.0, Z]), 0.05
+
+    def allowed(points):
+        return np.linalg.norm(points - centre, axis=1) >= radius
+
+    s = np.linspace(0.0, 1.0, 12)
+    pts = np.stack([0.27 + 0.15 * np.sin(np.pi * s), -0.18 + 0.36 * s, np.full_like(s, Z)], 1)
+    Q = ik_path(rv2aj, pts)
+    budget = dict(stage1_iterations=100, stage2_iterations=100)
+    explore = run_elastic_net(rv2aj, Q, allowed=allowed, validity=free_checker,
+                              params=ElasticNetParams.exploring(**budget))
+    final = run_elastic_net(rv2aj, Q, allowed=allowed, validity=free_checker,
+                            params=ElasticNetParams.final(**budget))
+
+    def clearance(r):
+        return np.linalg.norm(r.particles.points - centre, axis=1).min() - radius
+
+    assert clearance(explore) > 0.05
+    assert 0.0 <= clearance(final) < 0.01
+    assert final.particles.tcp_length() < explore.particles.tcp_length()
+    assert explore.particles.tcp_length() < 0.99 * explore.initial.tcp_length()
+
+
+def test_stop_reasons(rv2aj):
+    # Evenly spaced points on a straight line: nothing to do, converges at once.
+    pts = np.stack([np.full(9, 0.28), np.linspace(-0.1, 0.1, 9), np.full(9, Z)], axis=1)
+    Q = ik_path(rv2aj, pts)
+    res = relax(rv2aj, Particles(rv2aj.batch_fk(Q).positions, Q))
+    assert res.stage1.stop == StopReason.CONVERGED and res.stage1.iterations < 5
+    # Nothing allowed: every move is rejected, the particles stay.
+    bent = pts.copy()
+    bent[4, 0] += 0.03
+    Qb = ik_path(rv2aj, bent)
+    res = relax(rv2aj, Particles(rv2aj.batch_fk(Qb).positions, Qb),
+                allowed=lambda p: np.zeros(len(p), dtype=bool))
+    assert res.stage1.stop == StopReason.BLOCKED and res.stage1.iterations == 1
+    assert np.array_equal(res.particles.joints, Qb)
+    # A budget too small to settle.
+    res = relax(rv2aj, Particles(rv2aj.batch_fk(Qb).positions, Qb),
+                params=ElasticNetParams(stage1_iterations=3, stage2_iterations=2))
+    assert res.stage1.stop == res.stage2.stop == StopReason.ITERATION_CAP
+    assert res.iterations == 5
+
+
+def test_cancel_stops_the_net(rv2aj, rng):
+    Q = ik_path(rv2aj, _zigzag(rng))
+    progress = Progress("net")
+    progress.cancel()
+    with pytest.raises(Cancelled):
+        run_elastic_net(rv2aj, Q, progress=progress)
