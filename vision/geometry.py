@@ -3,8 +3,8 @@ covariance, and the single-camera estimate from the ball's known size.
 
 A sphere does not image to a circle centred on the projection of its centre: off the optical
 axis it images to an ellipse whose centre lies slightly further out. `sphere_ray` undoes that
-(a few hundredths of a pixel here, but it costs nothing) and turns the blob's area into the
-cone half-angle, which gives the distance in single-camera mode.
+exactly (a few hundredths of a pixel for our ball, but it costs nothing) and turns the blob's
+area into the cone half-angle, which gives the distance in single-camera mode.
 """
 
 from __future__ import annotations
@@ -27,23 +27,55 @@ class SphereRay:
 
 
 def sphere_ray(model: CameraModel, center_px: np.ndarray, radius_px: float) -> SphereRay:
-    """Ray through the ball centre from a blob's area centroid and equivalent radius."""
+    """Ray through the ball centre from a blob's area centroid and equivalent radius.
+
+    A cone of half-angle a whose axis is theta off the optical axis cuts the normalised image
+    plane in an ellipse with centre offset rho = sin(t)cos(t) / (cos^2 t - sin^2 a) and area
+    pi sin^2(a) cos(a) / (cos^2 t - sin^2 a)^1.5; both are solved for (theta, a) here.
+    """
     n = model.normalized(np.asarray(center_px, dtype=float)[None])[0]
     rho_c = float(np.hypot(n[0], n[1]))
     phi = float(np.arctan2(n[1], n[0]))
+    area_n = np.pi * radius_px**2 / (model.K[0, 0] * model.K[1, 1])
     theta = float(np.arctan(rho_c))
-    # pixel solid angle ~ cos^3(theta) / f^2, and a cone's solid angle is 2 pi (1 - cos a)
-    solid = np.pi * (radius_px**2) / (model.K[0, 0] * model.K[1, 1]) * np.cos(theta) ** 3
-    alpha = float(np.arccos(np.clip(1.0 - solid / (2.0 * np.pi), -1.0, 1.0)))
-    if rho_c > 1e-9 and alpha > 0:
-        # ellipse centre radius = (tan(theta + a) + tan(theta - a)) / 2: solve for theta
-        for _ in range(3):
-            g = 0.5 * (np.tan(theta + alpha) + np.tan(theta - alpha))
-            dg = 0.5 * (1.0 / np.cos(theta + alpha) ** 2 + 1.0 / np.cos(theta - alpha) ** 2)
-            theta -= (g - rho_c) / dg
+    alpha = float(np.sqrt(area_n / np.pi)) * np.cos(theta) ** 1.5  # first guess
+    if alpha > 0:
+        for _ in range(4):
+            alpha = _solve_alpha(area_n, theta, alpha)
+            theta = _solve_theta(rho_c, alpha, theta)
     d_cam = np.array([np.sin(theta) * np.cos(phi), np.sin(theta) * np.sin(phi), np.cos(theta)])
     R = model.T_world_camera[:3, :3]
-    return SphereRay(model.position_world, R @ d_cam, alpha, d_cam[:2] / d_cam[2])
+    return SphereRay(model.position_world, R @ d_cam, float(alpha), d_cam[:2] / d_cam[2])
+
+
+def _ellipse_area(theta: float, alpha: float) -> float:
+    den = np.cos(theta) ** 2 - np.sin(alpha) ** 2
+    return float(np.pi * np.sin(alpha) ** 2 * np.cos(alpha) / max(den, 1e-12) ** 1.5)
+
+
+def _solve_alpha(area_n: float, theta: float, alpha: float) -> float:
+    for _ in range(3):
+        h = 1e-7 * max(alpha, 1e-6)
+        f0 = _ellipse_area(theta, alpha) - area_n
+        df = (_ellipse_area(theta, alpha + h) - _ellipse_area(theta, alpha - h)) / (2 * h)
+        if df <= 0:
+            break
+        alpha = float(np.clip(alpha - f0 / df, 1e-9, np.pi / 2 - 1e-6))
+    return alpha
+
+
+def _solve_theta(rho_c: float, alpha: float, theta: float) -> float:
+    s2 = np.sin(alpha) ** 2
+    for _ in range(3):
+        c2 = np.cos(theta) ** 2
+        g = np.sin(theta) * np.cos(theta) / (c2 - s2) - rho_c
+        h = 1e-7
+        g2 = np.sin(theta + h) * np.cos(theta + h) / (np.cos(theta + h) ** 2 - s2) - rho_c
+        dg = (g2 - g) / h
+        if dg <= 0:
+            break
+        theta -= g / dg
+    return float(theta)
 
 
 @dataclass(frozen=True)
