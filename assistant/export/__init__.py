@@ -1,0 +1,53 @@
+"""Program export: planned trajectory -> robot-neutral program -> controller dialects.
+
+Owns the neutral program (`program`), the dialects (`melfa`, `krl`, `rapid`, `urscript`,
+one module each behind the `Dialect` protocol), the controller rules (`rules`), arm
+configuration flags (`configuration`), the round-trip proof (`simulate`, `roundtrip`),
+downloads (`download`) and free-shape Bezier paths (`bezier`, `bezier_drawings`).
+Must not import `web`, `viser` or the planner: it consumes a `Trajectory`.
+Units inside are metres and radians; millimetres and degrees appear only in dialect text.
+"""
+
+from assistant.export.bezier import (
+    BezierChain,
+    BezierSampling,
+    CubicBezier,
+    de_casteljau,
+    sample_bezier_chain,
+    sample_fixed_dt,
+)
+from assistant.export.checks import check_program
+from assistant.export.configuration import ArmConfig, arm_configuration
+from assistant.export.dialect import Dialect, ProgramFile
+from assistant.export.download import DownloadFile, ExportResult, export_files
+from assistant.export.errors import ExportError
+from assistant.export.krl import KrlDialect
+from assistant.export.melfa import MelfaDialect
+from assistant.export.program import (
+    Comment,
+    Frame,
+    Gripper,
+    Move,
+    MoveKind,
+    NeutralProgram,
+    Position,
+    ProgramDefaults,
+    SetOutput,
+    Wait,
+    program_from_trajectory,
+)
+from assistant.export.rapid import RapidDialect
+from assistant.export.registry import DIALECT_NAMES, get_dialect
+from assistant.export.roundtrip import RoundTripReport, round_trip
+from assistant.export.simulate import simulate
+from assistant.export.urscript import URScriptDialect
+
+__all__ = [
+    "ArmConfig", "BezierChain", "BezierSampling", "Comment", "CubicBezier", "DIALECT_NAMES",
+    "Dialect", "DownloadFile", "ExportError", "ExportResult", "Frame", "Gripper",
+    "KrlDialect", "MelfaDialect", "Move", "MoveKind", "NeutralProgram", "Position",
+    "ProgramDefaults", "ProgramFile", "RapidDialect", "RoundTripReport", "SetOutput",
+    "URScriptDialect", "Wait", "arm_configuration", "check_program", "de_casteljau",
+    "export_files", "get_dialect", "program_from_trajectory", "round_trip", "sample_bezier_chain",
+    "sample_fixed_dt", "simulate",
+]

@@ -1,0 +1,215 @@
+"""The one interface every program dialect implements, and what they share.
+
+Modelled on trimesh's exchange modules: one module per dialect (`melfa`, `krl`, `rapid`,
+`urscript`), each a small class with `name`, `file_extensions`, `rules`, `write` and `read`;
+`get_dialect` picks one by name. Shared here: the file type, splitting a long program into
+parts with a main that calls them, frames, comments and the step labels that become comments.
+"""
+
+from __future__ import annotations
+
+import unicodedata
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, replace
+from typing import Protocol, runtime_checkable
+
+import numpy as np
+
+from assistant.export.errors import ExportError
+from assistant.export.program import Instruction, Move, MoveKind, NeutralProgram, Position
+from assistant.export.rules import DialectRules
+from assistant.robot_model import Robot
+from assistant.transforms import inv_T
+
+Array = np.ndarray
+
+
+@dataclass(frozen=True)
+class ProgramFile:
+    """One file of a program as the controller wants it (name, text, line ending, MIME)."""
+
+    name: str
+    text: str
+    mime: str = "text/plain"
+    newline: str = "\n"
+
+    @property
+    def data(self) -> bytes:
+        return self.text.replace("\n", self.newline).encode("ascii")
+
+
+@runtime_checkable
+class Dialect(Protocol):
+    """A robot programming language: writes a neutral program, reads back what it wrote."""
+
+    name: str
+    title: str
+    file_extensions: tuple[str, ...]
+    rules: DialectRules
+
+    def write(self, program: NeutralProgram, robot: Robot) -> list[ProgramFile]:
+        """Controller files for the program; `ExportError` for anything it would reject."""
+        ...
+
+    def read(self, files: Sequence[ProgramFile], robot: Robot) -> NeutralProgram:
+        """The neutral program back from files this dialect wrote (robot: axis map, flags)."""
+        ...
+
+
+# ------------------------------------------------------------------------------ text
+def ascii_text(text: str) -> str:
+    """Comments in controller files must be plain ASCII (arrows become "->")."""
+    text = text.replace("\u2192", "->").replace("\u2190", "<-").replace("\u00b0", " deg")
+    text = unicodedata.normalize("NFKD", text)
+    out = "".join(ch if 32 <= ord(ch) < 127 else ("" if unicodedata.combining(ch) else "?")
+                  for ch in text)
+    return " ".join(out.split())
+
+
+def step_changes(instructions: Sequence[Instruction]) -> Iterator[tuple[Instruction, str | None]]:
+    """Each instruction with the step label to announce before it (None: same step)."""
+    current: str | None = None
+    for ins in instructions:
+        step = getattr(ins, "step", None)
+        if step is not None and step != "" and step != current:
+            current = step
+            yield ins, step
+        else:
+            yield ins, None
+
+
+STEP_PREFIX = "step: "
+
+
+def parse_step_comment(text: str) -> str | None:
+    text = text.strip()
+    return text[len(STEP_PREFIX):].strip() if text.startswith(STEP_PREFIX) else None
+
+
+# ------------------------------------------------------------------------------ frames
+def pose_in_work(program: NeutralProgram, T_base_tool: Array) -> Array:
+    """A base-frame target re-expressed in the program's work frame (what controllers store)."""
+    return inv_T(np.asarray(program.work.T, dtype=float)) @ np.asarray(T_base_tool, float)
+
+
+def pose_in_base(T_base_work: Array, T_work_tool: Array) -> Array:
+    return np.asarray(T_base_work, dtype=float) @ np.asarray(T_work_tool, dtype=float)
+
+
+def position_pose(robot: Robot, p: Position) -> Array:
+    if p.T_base_tool is not None:
+        return np.asarray(p.T_base_tool, dtype=float)
+    if p.q is None:
+        raise ExportError(f"position {p.name!r} has neither a pose nor joints")
+    return robot.fk(p.q)
+
+
+# ------------------------------------------------------------------------------ parts
+@dataclass(frozen=True)
+class Part:
+    """A slice of the program written to its own file(s), called in order by a main."""
+
+    index: int  # 1-based; 0 when the program is not split
+    instructions: list[Instruction]
+    positions: list[Position]
+
+
+def split_into_parts(program: NeutralProgram, limit: int | None,
+                     needs: Callable[[Move, Position | None], list[Position]] | None = None
+                     ) -> list[Part]:
+    """Cut the instruction list so no part declares more than `limit` positions.
+
+    `needs(move, previous_target)` lists the positions a move's text refers to (MELFA's MVR
+    names its start point too). Spline moves longer than a part are cut into several splines
+    through the same points. One part (index 0) when everything fits.
+    """
+    def default_needs(m: Move, prev: Position | None) -> list[Position]:
+        return m.positions()
+
+    needs = needs or default_needs
+    instructions = list(program.instructions)
+    if limit is not None:
+        instructions = _cut_long_splines(instructions, limit)
+    parts: list[tuple[list[Instruction], dict[str, Position]]] = [([], {})]
+    prev: Position | None = None
+    for ins in instructions:
+        if isinstance(ins, Move):
+            want = {p.name: p for p in needs(ins, prev)}
+            cur_ins, cur_pos = parts[-1]
+            new = {k: v for k, v in want.items() if k not in cur_pos}
+            if limit is not None and len(cur_pos) + len(new) > limit and cur_ins:
+                parts.append(([], {}))
+                cur_ins, cur_pos = parts[-1]
+                new = want
+            if limit is not None and len(want) > limit:
+                raise ExportError(f"one move needs {len(want)} positions; the controller "
+                                  f"allows {limit} per file", step=ins.step)
+            cur_pos.update(new)
+            cur_ins.append(ins)
+            prev = ins.target
+        else:
+            parts[-1][0].append(ins)
+    if len(parts) == 1:
+        return [Part(0, parts[0][0], list(parts[0][1].values()))]
+    return [Part(i + 1, ins, list(pos.values())) for i, (ins, pos) in enumerate(parts)]
+
+
+def _cut_long_splines(instructions: list[Instruction], limit: int) -> list[Instruction]:
+    out: list[Instruction] = []
+    chunk = max(limit - 2, 1)
+    for ins in instructions:
+        if isinstance(ins, Move) and ins.kind == MoveKind.SPLINE and len(ins.through) + 1 > chunk:
+            pts = list(ins.through) + [ins.target]
+            for a in range(0, len(pts), chunk):
+                piece = pts[a:a + chunk]
+                last = a + chunk >= len(pts)
+                out.append(replace(ins, target=piece[-1], through=tuple(piece[:-1]),
+                                   blend_radius=ins.blend_radius if last else 0.0))
+        else:
+            out.append(ins)
+    return out
+
+
+def lower_splines(program: NeutralProgram) -> NeutralProgram:
+    """Spline moves as linear moves through their points, for controllers without splines.
+
+    Each inner point is blended with a radius of a quarter of its shorter neighbouring chord,
+    so blends never overlap and cut the corner by about the sampling's own chord error.
+    """
+    if not any(isinstance(i, Move) and i.kind == MoveKind.SPLINE for i in program.instructions):
+        return program
+    out: list[Instruction] = []
+    prev: Position | None = None
+    for ins in program.instructions:
+        if isinstance(ins, Move) and ins.kind == MoveKind.SPLINE:
+            pts = list(ins.through) + [ins.target]
+            xyz = [None if prev is None or prev.T_base_tool is None else prev.T_base_tool[:3, 3]]
+            xyz += [None if p.T_base_tool is None else p.T_base_tool[:3, 3] for p in pts]
+            for k, p in enumerate(pts):
+                if k == len(pts) - 1:
+                    r = ins.blend_radius
+                else:
+                    r = _corner_blend(xyz[k], xyz[k + 1], xyz[k + 2])
+                out.append(replace(ins, kind=MoveKind.LINEAR, target=p, through=(),
+                                   blend_radius=r))
+        else:
+            out.append(ins)
+        if isinstance(ins, Move):
+            prev = ins.target
+    return replace(program, instructions=out)
+
+
+def _corner_blend(a: Array | None, b: Array | None, c: Array | None) -> float:
+    if a is None or b is None or c is None:
+        return 0.0
+    shorter = min(float(np.linalg.norm(b - a)), float(np.linalg.norm(c - b)))
+    return round(0.25 * shorter, 4)  # whole 0.1 mm: survives every dialect's number format
+
+
+def flatten(programs: Sequence[NeutralProgram], name: str) -> NeutralProgram:
+    """Join parts read back from several files into one program (frames from the first)."""
+    first = programs[0]
+    out = NeutralProgram(name, [], first.tool, first.work)
+    for p in programs:
+        out.instructions += p.instructions
+    return out

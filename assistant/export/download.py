@@ -1,0 +1,116 @@
+"""What the session hands to the browser: files as bytes with names and MIME types.
+
+`export_files` checks the program (limits, reach, drivable paths), writes the dialect,
+reads it straight back to prove the text says what was planned (positions within the number
+format, same moves), and bundles multi-file programs (MELFA .MB4 + .POS, KRL .src + .dat,
+split programs) into a zip too. The zip is deterministic (fixed timestamps), so the same
+program gives the same bytes.
+"""
+
+from __future__ import annotations
+
+import io
+import zipfile
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from assistant.export.checks import check_program
+from assistant.export.dialect import Dialect, ProgramFile
+from assistant.export.errors import ExportError
+from assistant.export.program import NeutralProgram
+from assistant.export.registry import get_dialect
+from assistant.export.simulate import target_pose
+from assistant.robot_model import Robot
+
+#: Read-back positions must agree with the plan within the coarsest number format we write.
+VERIFY_POSITION = 1e-5  # m (MELFA: 0.005 mm rounding)
+VERIFY_ANGLE = np.radians(0.01)
+
+
+@dataclass(frozen=True)
+class DownloadFile:
+    name: str
+    data: bytes
+    mime: str
+
+
+@dataclass(frozen=True)
+class ExportResult:
+    """The files of one exported program and a zip of them when there are several."""
+
+    dialect: str
+    program_name: str
+    files: tuple[DownloadFile, ...]
+    zip: DownloadFile | None
+    primitives: int
+    primitive_counts: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def download(self) -> DownloadFile:
+        """The one thing to offer for download: the zip, or the single file."""
+        return self.zip if self.zip is not None else self.files[0]
+
+
+def export_files(program: NeutralProgram, dialect: str | Dialect, robot: Robot, *,
+                 check: bool = True, verify: bool = True) -> ExportResult:
+    """Program files ready for download.
+
+    Args:
+        program: the neutral program (e.g. from `program_from_trajectory`).
+        dialect: "melfa", "krl", "rapid", "urscript" or a configured dialect instance.
+        robot: the robot the program was planned for.
+        check: run `check_program` (limits, reach, drivable Cartesian paths) first.
+        verify: read the written files back and compare positions and moves.
+    Raises:
+        ExportError naming the step for anything a controller would reject or run
+        differently from the plan.
+    """
+    d = get_dialect(dialect)
+    if check:
+        check_program(program, robot)
+    files = d.write(program, robot)
+    if verify:
+        _verify(d, program, files, robot)
+    out = tuple(DownloadFile(f.name, f.data, _mime(f)) for f in files)
+    zipped = _zip(program.name, d, files) if len(files) > 1 else None
+    lowered = d.lower(program)
+    return ExportResult(d.name, program.name, out, zipped, lowered.primitive_count(),
+                        lowered.primitive_counts())
+
+
+def _mime(f: ProgramFile) -> str:
+    return f"{f.mime}; charset=us-ascii"
+
+
+def _zip(name: str, d: Dialect, files: list[ProgramFile]) -> DownloadFile:
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", zipfile.ZIP_DEFLATED) as z:
+        for f in files:
+            info = zipfile.ZipInfo(f.name, date_time=(2020, 1, 1, 0, 0, 0))
+            info.compress_type = zipfile.ZIP_DEFLATED
+            z.writestr(info, f.data)
+    return DownloadFile(f"{name}_{d.name}.zip", buf.getvalue(), "application/zip")
+
+
+def _verify(d: Dialect, program: NeutralProgram, files: list[ProgramFile],
+            robot: Robot) -> None:
+    back = d.read(files, robot)
+    planned = d.lower(program).moves()
+    got = back.moves()
+    if [m.kind for m in planned] != [m.kind for m in got]:
+        raise ExportError(f"{d.name}: the written program reads back with other moves")
+    for a, b in zip(planned, got, strict=True):
+        for pa, pb in zip(a.positions(), b.positions(), strict=True):
+            if pb.q is not None and pa.q is not None and pb.T_base_tool is None:
+                if not np.allclose(pa.q, pb.q, atol=VERIFY_ANGLE):
+                    raise ExportError(f"{d.name}: joints of {pa.name!r} do not read back",
+                                      step=a.step)
+                continue
+            Ta, Tb = target_pose(robot, pa), target_pose(robot, pb)
+            dp = float(np.linalg.norm(Ta[:3, 3] - Tb[:3, 3]))
+            c = (np.trace(Ta[:3, :3].T @ Tb[:3, :3]) - 1.0) / 2.0
+            da = float(np.arccos(np.clip(c, -1.0, 1.0)))
+            if dp > VERIFY_POSITION or da > VERIFY_ANGLE:
+                raise ExportError(f"{d.name}: {pa.name!r} reads back {dp * 1000:.4f} mm, "
+                                  f"{np.degrees(da):.4f} deg off", step=a.step)

@@ -1,0 +1,24 @@
+"""Dialects by name: one place that knows every program language we write."""
+
+from __future__ import annotations
+
+from assistant.export.dialect import Dialect
+from assistant.export.krl import KrlDialect
+from assistant.export.melfa import MelfaDialect
+from assistant.export.rapid import RapidDialect
+from assistant.export.urscript import URScriptDialect
+
+#: Default instance of each dialect (settings as in the modules' docstrings).
+DIALECT_NAMES = ("melfa", "krl", "rapid", "urscript")
+
+
+def get_dialect(dialect: str | Dialect) -> Dialect:
+    """A dialect instance by name ("melfa", "krl", "rapid", "urscript"), or the one given."""
+    if not isinstance(dialect, str):
+        return dialect
+    key = dialect.lower()
+    factories = {"melfa": MelfaDialect, "krl": KrlDialect, "rapid": RapidDialect,
+                 "urscript": URScriptDialect}
+    if key not in factories:
+        raise ValueError(f"unknown dialect {dialect!r}; choose one of {', '.join(DIALECT_NAMES)}")
+    return factories[key]()
