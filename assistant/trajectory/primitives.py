@@ -252,36 +252,44 @@ class _Fitter:
                 prim = self.fit(kind, O, t0, s, e)
                 if prim is None:
                     continue
-                score = (self.next_reach(prim), e, kind == PrimitiveKind.LINE)
+                score = (*self.next_reach(prim), e, kind == PrimitiveKind.LINE)
                 if best_score is None or score > best_score:
                     best, best_score = prim, score
         if best is None or best.last_node == self.n - 1:
             return best
-        return self.refine_end(best, best_score[0])
+        return self.refine_end(best, best_score[:2])
 
-    def next_reach(self, prim: Primitive) -> int:
-        """How far the best following primitive gets (n if `prim` already ends the path)."""
+    def next_reach(self, prim: Primitive) -> tuple[int, bool]:
+        """How far the best following primitive gets (n if `prim` ends the path), and
+        whether a line gets that far (a line reads better than a flat arc)."""
         e = prim.last_node
         if e == self.n - 1:
-            return self.n
-        return max((self.reach(k2, prim.end, _constraint(prim.kind, k2, prim.tangent_end), e)
-                    or e) for k2 in PrimitiveKind)
+            return self.n, True
+        r = {k2: (self.reach(k2, prim.end, _constraint(prim.kind, k2, prim.tangent_end), e)
+                  or e) for k2 in PrimitiveKind}
+        best = max(r.values())
+        return best, r[PrimitiveKind.LINE] == best
 
-    def refine_end(self, prim: Primitive, reach: int) -> Primitive:
+    def refine_end(self, prim: Primitive, reach: tuple[int, bool]) -> Primitive:
         """Slide the junction point along the primitive (the thesis' junction calculation).
 
         The end of a fitted primitive is the projection of its last node; the point where it
         should hand over to the next one (and with it the next one's start tangent) may lie
-        a little before or after. Shifts of up to one node spacing are tried, keeping the
+        a little before or after. Shifts of up to one node spacing are tried (for arcs in
+        steps that turn the end tangent by at most the tangent slack), keeping the
         primitive's own nodes within tolerance; the one that lets the next reach farthest
-        wins (ties: the unshifted one).
+        wins (ties: the smallest shift).
         """
         e = prim.last_node
         pts = self.nodes[prim.first_node + 1 : e + 1]
         spacing = float(np.linalg.norm(self.nodes[min(e + 1, self.n - 1)] - self.nodes[e]))
         best, best_reach = prim, reach
-        for k in (-4, -3, -2, -1, 1, 2, 3, 4):
-            cand = _shift_end(prim, k * spacing / 4.0)
+        step = spacing / 4.0
+        if prim.kind == PrimitiveKind.ARC:  # the end tangent turns by step / radius
+            step = min(step, prim.radius * self.p.tangent_slack)
+        k_max = min(12, max(1, int(np.ceil(spacing / max(step, 1e-9)))))
+        for k in sorted(range(-k_max, k_max + 1), key=abs)[1:]:
+            cand = _shift_end(prim, k * step)
             if cand is None or cand.distance(pts).max() > self.p.tolerance:
                 continue
             r = self.next_reach(cand)
