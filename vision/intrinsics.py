@@ -45,17 +45,23 @@ def _check_images(images: Sequence[np.ndarray]) -> tuple[int, int]:
 
 
 def _solve(obj: list[np.ndarray], img: list[np.ndarray], size: tuple[int, int],
-           used: list[int], n_images: int, min_views: int, max_rel_std: float
-           ) -> IntrinsicsResult:
+           used: list[int], n_images: int, min_views: int, max_rel_std: float,
+           fix_k3: bool, min_tilt_spread_deg: float) -> IntrinsicsResult:
     if len(obj) < min_views:
         raise CalibrationError(
             f"only {len(obj)} of {n_images} images show the board; need at least {min_views} "
             "(hold the whole board in view, at different angles)")
-    flags = 0
-    rms, K, dist, _, _, std_in, _, per_view = cv2.calibrateCameraExtended(
+    flags = cv2.CALIB_FIX_K3 if fix_k3 else 0
+    rms, K, dist, rvecs, _, std_in, _, per_view = cv2.calibrateCameraExtended(
         [o.astype(np.float32) for o in obj], [i.astype(np.float32) for i in img], size, None,
         None, flags=flags,
         criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-10))
+    normals = np.array([cv2.Rodrigues(r)[0][:, 2] for r in rvecs])
+    spread = np.degrees(np.arccos(np.clip(normals @ normals.T, -1.0, 1.0))).max()
+    if spread < min_tilt_spread_deg:
+        raise CalibrationError(
+            f"the views are degenerate: the board faces the same way in all of them (within "
+            f"{spread:.1f} degrees); tilt it by 20-40 degrees in different directions")
     std_in = np.asarray(std_in, float).ravel()
     f = 0.5 * (K[0, 0] + K[1, 1])
     rel = np.max(std_in[:4]) / f if np.all(np.isfinite(std_in[:4])) else np.inf
@@ -69,11 +75,15 @@ def _solve(obj: list[np.ndarray], img: list[np.ndarray], size: tuple[int, int],
 
 
 def calibrate_chessboard(images: Sequence[np.ndarray], spec: ChessboardSpec, *,
-                         min_views: int = 5, max_rel_std: float = 0.01) -> IntrinsicsResult:
+                         min_views: int = 5, max_rel_std: float = 0.01, fix_k3: bool = True,
+                         min_tilt_spread_deg: float = 10.0) -> IntrinsicsResult:
     """K and distortion from images of a chessboard (views without the full board are skipped).
 
-    Raises `CalibrationError` for too few usable views or a degenerate set (the standard
-    deviation of fx, fy, cx or cy above `max_rel_std` of the focal length).
+    Raises `CalibrationError` for too few usable views or a degenerate set: board normals all
+    within `min_tilt_spread_deg` of each other, or the standard deviation of fx, fy, cx or cy
+    above `max_rel_std` of the focal length. `fix_k3` (default) keeps the sixth-order radial
+    term at zero: with views that rarely reach the image corners it only adds wild
+    extrapolation there, which is OpenCV's own advice for ordinary lenses.
     """
     size = _check_images(images)
     obj, img, used = [], [], []
@@ -84,11 +94,13 @@ def calibrate_chessboard(images: Sequence[np.ndarray], spec: ChessboardSpec, *,
             obj.append(P)
             img.append(c)
             used.append(k)
-    return _solve(obj, img, size, used, len(images), min_views, max_rel_std)
+    return _solve(obj, img, size, used, len(images), min_views, max_rel_std, fix_k3,
+                  min_tilt_spread_deg)
 
 
 def calibrate_charuco(images: Sequence[np.ndarray], spec: CharucoSpec, *, min_views: int = 5,
-                      min_corners: int = 8, max_rel_std: float = 0.01) -> IntrinsicsResult:
+                      min_corners: int = 8, max_rel_std: float = 0.01, fix_k3: bool = True,
+                      min_tilt_spread_deg: float = 10.0) -> IntrinsicsResult:
     """K and distortion from ChArUco images; partial views count if >= `min_corners` corners."""
     size = _check_images(images)
     P = spec.object_points()
@@ -101,4 +113,5 @@ def calibrate_charuco(images: Sequence[np.ndarray], spec: CharucoSpec, *, min_vi
         obj.append(P[ids])
         img.append(px)
         used.append(k)
-    return _solve(obj, img, size, used, len(images), min_views, max_rel_std)
+    return _solve(obj, img, size, used, len(images), min_views, max_rel_std, fix_k3,
+                  min_tilt_spread_deg)

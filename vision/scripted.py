@@ -85,9 +85,9 @@ def board_poses(model: CameraModel, width_m: float, height_m: float, n: int, *, 
     f = model.focal_px
     for k in range(n):
         d = rng.uniform(*distance)
-        # board centre somewhere in the middle 60 % of the image
-        u = model.K[0, 2] + rng.uniform(-0.3, 0.3) * model.width
-        v = model.K[1, 2] + rng.uniform(-0.3, 0.3) * model.height
+        # board centre spread over the middle 70 % of the image
+        u = model.K[0, 2] + rng.uniform(-0.35, 0.35) * model.width
+        v = model.K[1, 2] + rng.uniform(-0.35, 0.35) * model.height
         centre_cam = np.array([(u - model.K[0, 2]) / f * d, (v - model.K[1, 2]) / f * d, d])
         tilt = np.radians(rng.uniform(min_tilt_deg, max_tilt_deg))
         axis_angle = 2 * np.pi * (k / n) + rng.uniform(-0.3, 0.3)
