@@ -35,8 +35,6 @@ from enum import Enum
 
 import numpy as np
 
-from assistant.transforms import axis_angle
-
 Array = np.ndarray
 
 
@@ -109,17 +107,17 @@ class ArcPrimitive:
 
     @property
     def tangent_start(self) -> Array:
-        return _unit(np.cross(self.normal, self.start - self.centre))
+        return _unit(_cross(self.normal, self.start - self.centre))
 
     @property
     def tangent_end(self) -> Array:
-        return _unit(np.cross(self.normal, self.end - self.centre))
+        return _unit(_cross(self.normal, self.end - self.centre))
 
     def point_at(self, u: Array | float) -> Array:
         """Points at fractions u in [0, 1] of the sweep."""
         a = np.asarray(u, dtype=float)[..., None] * self.sweep
         r0 = self.start - self.centre
-        return self.centre + np.cos(a) * r0 + np.sin(a) * np.cross(self.normal, r0)
+        return self.centre + np.cos(a) * r0 + np.sin(a) * _cross(self.normal, r0)
 
     def distance(self, points: Array) -> Array:
         """Distance of each point to the arc (not the full circle)."""
@@ -145,7 +143,7 @@ class ArcPrimitive:
         if phi_via > phi_end:  # via not between: the arc turns the other way
             n = -n
             phi_end = 2.0 * np.pi - phi_end
-        mid = centre + axis_angle(n, phi_end / 2.0) @ (start - centre)
+        mid = centre + _rotate_radius(start - centre, n, phi_end / 2.0)
         return ArcPrimitive(start, mid, end, centre, radius, n, float(phi_end), first_node,
                             last_node)
 
@@ -300,7 +298,7 @@ class _Fitter:
     def reach(self, kind: PrimitiveKind, O: Array, t0: Array | None, s: int) -> int | None:
         """Largest end node e for which a primitive from O covers nodes s+1..e (galloping)."""
         first = s + _min_nodes(kind)
-        if first > self.n - 1 or self.fit(kind, O, t0, s, first) is None:
+        if first > self.n - 1 or self.fit(kind, O, t0, s, first, True) is None:
             return None
         good, step = first, 1
         bad = None
@@ -308,24 +306,29 @@ class _Fitter:
             e = min(good + step, self.n - 1)
             if e == good:
                 return good
-            if self.fit(kind, O, t0, s, e) is None:
+            if self.fit(kind, O, t0, s, e, True) is None:
                 bad = e
                 break
             good, step = e, step * 2
         while bad - good > 1:
             mid = (good + bad) // 2
-            if self.fit(kind, O, t0, s, mid) is None:
+            if self.fit(kind, O, t0, s, mid, True) is None:
                 bad = mid
             else:
                 good = mid
         return good
 
     def fit(self, kind: PrimitiveKind, O: Array, t0: Array | None, s: int, e: int,
-            ) -> Primitive | None:
+            first_feasible: bool = False) -> Primitive | None:
+        """The primitive from O covering nodes s+1..e within tolerance, or None.
+
+        Several arc guesses may fit: the closest one is returned, or with `first_feasible`
+        (growth only asks whether one exists) the first found.
+        """
         pts = self.nodes[s + 1 : e + 1]
         if kind == PrimitiveKind.LINE:
             return self._line(O, t0, pts, s, e)
-        return self._arc(O, t0, pts, s, e)
+        return self._arc(O, t0, pts, s, e, first_feasible)
 
     # ------------------------------------------------------------ lines
     def _line(self, O: Array, t0: Array | None, pts: Array, s: int, e: int,
@@ -349,7 +352,7 @@ class _Fitter:
 
     # ------------------------------------------------------------ arcs
     def _arc(self, O: Array, t0: Array | None, pts: Array, s: int, e: int,
-             ) -> ArcPrimitive | None:
+             first_feasible: bool = False) -> ArcPrimitive | None:
         X = pts - O
         if len(X) < 2 or np.linalg.norm(X[-1]) < 1e-9:
             return None
@@ -361,6 +364,8 @@ class _Fitter:
             prim = self._arc_from(O, centre, normal, pts, s, e, tangent=t0)
             if prim is not None and (best is None or prim[1] < best[1]):
                 best = prim
+                if first_feasible:
+                    break
         return None if best is None else best[0]
 
     def _arc_candidates(self, O: Array, t0: Array | None, X: Array) -> list[tuple[Array, Array]]:
@@ -368,11 +373,11 @@ class _Fitter:
         out = []
         if t0 is None:
             _, _, Vt = np.linalg.svd(X, full_matrices=False)
-            n = Vt[2] if Vt.shape[0] > 2 else _unit(np.cross(X[0], X[-1]))
+            n = Vt[2] if Vt.shape[0] > 2 else _unit(_cross(X[0], X[-1]))
             if np.linalg.norm(n) < 0.5:
                 return out
             e1 = _unit(X[-1] - (X[-1] @ n) * n)
-            e2 = np.cross(n, e1)
+            e2 = _cross(n, e1)
             xy = np.stack([X @ e1, X @ e2], axis=1)
             c2, *_ = np.linalg.lstsq(2.0 * xy, (xy ** 2).sum(axis=1), rcond=None)
             out.append((O + c2[0] * e1 + c2[1] * e2, n))
@@ -382,8 +387,8 @@ class _Fitter:
             except ValueError:
                 pass
         else:
-            b1 = _unit(np.cross(t0, [1.0, 0.0, 0.0] if abs(t0[0]) < 0.9 else [0.0, 1.0, 0.0]))
-            b2 = np.cross(t0, b1)
+            b1 = _unit(_cross(t0, [1.0, 0.0, 0.0] if abs(t0[0]) < 0.9 else [0.0, 1.0, 0.0]))
+            b2 = _cross(t0, b1)
             Y = np.stack([X @ b1, X @ b2], axis=1)
             # Plane through O containing t0: its normal is the least-variance direction of the
             # nodes' components across t0.
@@ -398,12 +403,12 @@ class _Fitter:
                 kappa = float(2.0 * (xm * r2).sum() / denom) if denom > 0 else 0.0
                 if abs(kappa) < 1e-9:
                     continue
-                out.append((O + m / kappa, _unit(np.cross(t0, m / kappa))))
+                out.append((O + m / kappa, _unit(_cross(t0, m / kappa))))
                 # exact circle tangent at O through the last node
                 xl, rl = float(X[-1] @ m), float(X[-1] @ X[-1])
                 if abs(xl) > 1e-12:
                     k2 = 2.0 * xl / rl
-                    out.append((O + m / k2, _unit(np.cross(t0, m / k2))))
+                    out.append((O + m / k2, _unit(_cross(t0, m / k2))))
         return out
 
     def _arc_from(self, O: Array, centre: Array, normal: Array, pts: Array, s: int, e: int,
@@ -421,21 +426,21 @@ class _Fitter:
         V = np.vstack([r0, X - np.outer(X @ normal, normal)])
         # Unwrapped angle of each node about the normal: sum of the signed steps between
         # consecutive radius vectors (handles sweeps past pi and noise near the start).
-        cr = np.cross(V[:-1], V[1:]) @ normal
+        cr = _cross(V[:-1], V[1:]) @ normal
         dt = np.einsum("ij,ij->i", V[:-1], V[1:])
         phi = np.cumsum(np.arctan2(cr, dt))
         if phi[-1] < 0.0:
             normal, phi = -normal, -phi
         if tangent is not None:
-            t_start = _unit(np.cross(normal, r0))
+            t_start = _unit(_cross(normal, r0))
             if t_start @ tangent < np.cos(p.tangent_slack) - 1e-12:
                 return None
         slack = tol / radius
         if np.any(np.diff(phi) < -slack) or phi[-1] > p.max_sweep or phi[-1] <= 0.0:
             return None
         sweep = float(phi[-1])
-        end = centre + axis_angle(normal, sweep) @ r0
-        via = centre + axis_angle(normal, sweep / 2.0) @ r0
+        end = centre + _rotate_radius(r0, normal, sweep)
+        via = centre + _rotate_radius(r0, normal, sweep / 2.0)
         prim = ArcPrimitive(O.copy(), via, end, centre, radius, normal, sweep, s, e)
         dev = float(prim.distance(pts).max())
         if dev > tol:
@@ -457,18 +462,18 @@ def sample_primitive(prim: Primitive, max_step: float) -> tuple[Array, Array]:
 def circle_through(a: Array, b: Array, c: Array) -> tuple[Array, float, Array]:
     """Centre, radius and unit normal (a->b->c right-handed) of the circle through 3 points."""
     ab, ac = b - a, c - a
-    n = np.cross(ab, ac)
+    n = _cross(ab, ac)
     nn = float(n @ n)
     if nn < 1e-18 * max(1e-30, float(ab @ ab) * float(ac @ ac)):
         raise ValueError("the three points are collinear")
-    centre = a + (np.cross(n, ab) * float(ac @ ac) + np.cross(ac, n) * float(ab @ ab)) / (2 * nn)
+    centre = a + (_cross(n, ab) * float(ac @ ac) + _cross(ac, n) * float(ab @ ab)) / (2 * nn)
     return centre, float(np.linalg.norm(centre - a)), n / np.sqrt(nn)
 
 
 def _angles_about(r0: Array, V: Array, normal: Array) -> Array:
     """Angle in [0, 2 pi) from r0 to each row of V, right-handed about `normal`."""
     x = V @ r0
-    y = V @ np.cross(normal, r0)
+    y = V @ _cross(normal, r0)
     return np.mod(np.arctan2(y, x), 2.0 * np.pi)
 
 
@@ -496,8 +501,8 @@ def _shift_end(prim: Primitive, delta: float) -> Primitive | None:
     if sweep <= 1e-9:
         return None
     r0 = prim.start - prim.centre
-    return ArcPrimitive(prim.start, prim.centre + axis_angle(prim.normal, sweep / 2.0) @ r0,
-                        prim.centre + axis_angle(prim.normal, sweep) @ r0, prim.centre,
+    return ArcPrimitive(prim.start, prim.centre + _rotate_radius(r0, prim.normal, sweep / 2),
+                        prim.centre + _rotate_radius(r0, prim.normal, sweep), prim.centre,
                         prim.radius, prim.normal, sweep, prim.first_node, prim.last_node)
 
 
@@ -520,6 +525,22 @@ def _within_cone(d: Array, axis: Array, angle: float) -> Array:
     if not perp.any():
         return axis
     return np.cos(angle) * axis + np.sin(angle) * perp
+
+
+def _cross(a: Array, b: Array) -> Array:
+    """Cross product of 3-vectors (or rows), without np.cross's axis handling overhead."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if a.ndim == 1 and b.ndim == 1:
+        return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
+                         a[0] * b[1] - a[1] * b[0]])
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
+def _rotate_radius(r0: Array, normal: Array, angle: float) -> Array:
+    """r0 (perpendicular to the unit normal) turned by angle about it."""
+    return np.cos(angle) * r0 + np.sin(angle) * _cross(normal, r0)
 
 
 def _unit(v: Array) -> Array:
