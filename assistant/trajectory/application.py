@@ -1,8 +1,9 @@
 """Application paths (where the tool works) into motions the exporter and the robot can use.
 
 Lines and arcs are used as taught (LINEAR; CIRCULAR through the taught via point). Cubic
-Bezier chains are sampled by chord error (`bezier_sampling`) into LINEAR moves, or kept as
-one SPLINE move through the samples for dialects that have splines. The tool keeps the path's
+Bezier chains are sampled by chord error (the export package's `bezier` sampler, so the
+program and the plan cut curves identically) into LINEAR moves, or kept as one SPLINE move
+through the samples for dialects that have splines. The tool keeps the path's
 fixed orientation; a 5-axis robot (RV-2AJ) cannot hold an orientation whose approach vector
 leaves its arm plane, so each point's orientation is projected into the plane there, and the
 largest correction is reported - the operator sees it, nothing is substituted silently.
@@ -20,11 +21,11 @@ from enum import Enum
 
 import numpy as np
 
+from assistant.export.bezier import de_casteljau, sample_bezier_chain
 from assistant.mission import ApplicationPath, PathSegment, SegmentKind
 from assistant.motion import Motion, MotionKind, ToolAction, Trajectory, Waypoint
 from assistant.robot_model import Robot
 from assistant.trajectory.assemble import PathVerifier, TrajectoryReport, verify
-from assistant.trajectory.bezier_sampling import evaluate, sample_cubic_bezier
 from assistant.trajectory.cartesian_follow import follow_poses, poses_from
 from assistant.trajectory.primitives import ArcPrimitive, sample_primitive
 from assistant.transforms import rotation_angle
@@ -192,10 +193,10 @@ def _pieces(path: ApplicationPath, T_bw: Array, params: ApplicationParams,
             pieces.append(_Piece(MotionKind.CIRCULAR, si, pts, via_index=k))
         else:
             ctrl = np.array(P)
-            samp = sample_cubic_bezier(ctrl, params.bezier_tolerance, segment_index=si)
+            samp = sample_bezier_chain([ctrl], params.bezier_tolerance)
             worst = max(worst, samp.max_deviation)
             if params.bezier_mode == BezierMode.SPLINE:
-                pts, idx = _spline_points(ctrl, samp.params - si, params.step)
+                pts, idx = _spline_points(ctrl, samp.t, params.step)
                 pieces.append(_Piece(MotionKind.SPLINE, si, pts, through_indices=idx))
             else:
                 for a, b in zip(samp.points[:-1], samp.points[1:], strict=True):
@@ -220,12 +221,12 @@ def _spline_points(ctrl: Array, ts: Array, step: float) -> tuple[Array, tuple[in
     fine = [0.0]
     idx = []
     for k, (a, b) in enumerate(zip(ts[:-1], ts[1:], strict=True)):
-        chord = float(np.linalg.norm(evaluate(ctrl, b) - evaluate(ctrl, a)))
+        chord = float(np.linalg.norm(de_casteljau(ctrl, b) - de_casteljau(ctrl, a)))
         n = max(1, int(np.ceil(chord / step)))
         fine += list(np.linspace(a, b, n + 1)[1:])
         if k < len(ts) - 2:
             idx.append(len(fine) - 1)
-    return evaluate(ctrl, np.array(fine)), tuple(idx)
+    return de_casteljau(ctrl, np.array(fine)), tuple(idx)
 
 
 def reversed_path(path: ApplicationPath) -> ApplicationPath:

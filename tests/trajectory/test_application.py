@@ -7,6 +7,7 @@ import pytest
 from traj_builders import TABLE, box
 
 from assistant.collision import CollisionChecker
+from assistant.export.bezier import de_casteljau
 from assistant.mission import ApplicationPath, PathSegment, SegmentKind
 from assistant.motion import MotionKind, ToolAction, ToolActionKind
 from assistant.trajectory.application import (
@@ -15,7 +16,6 @@ from assistant.trajectory.application import (
     application_motions,
     reversed_path,
 )
-from assistant.trajectory.bezier_sampling import evaluate
 from assistant.trajectory.primitives import ArcPrimitive
 from assistant.transforms import make_T, rot_x, rot_z
 
@@ -65,7 +65,7 @@ def test_path_becomes_motions_at_its_orientation(rv2aj):
     tcp = np.array([rv2aj.fk(q)[:3, 3] for q in arc.joint_path])
     assert full_arc.distance(tcp).max() < 1e-9
     # Bezier chord ends lie on the curve.
-    curve = evaluate(np.array(BEZ), np.linspace(0, 1, 4001))
+    curve = de_casteljau(np.array(BEZ), np.linspace(0, 1, 4001))
     for m in out.motions[2:]:
         assert np.linalg.norm(curve - m.target.position, axis=1).min() < 1e-4
     # Tool actions and speed.
@@ -84,7 +84,7 @@ def test_spline_mode_keeps_one_move_through_the_samples(rv2aj):
     assert [m.kind for m in out.motions] == [MotionKind.LINEAR, MotionKind.CIRCULAR,
                                              MotionKind.SPLINE]
     assert len(spline.through) >= 3
-    curve = evaluate(np.array(BEZ), np.linspace(0, 1, 4001))
+    curve = de_casteljau(np.array(BEZ), np.linspace(0, 1, 4001))
     tcp = np.array([rv2aj.fk(q)[:3, 3] for q in spline.joint_path])
     d = np.min(np.linalg.norm(tcp[:, None] - curve[None], axis=2), axis=1)
     assert d.max() < 1e-4  # the dense path is the curve itself
