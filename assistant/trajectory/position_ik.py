@@ -34,7 +34,8 @@ class PositionIKParams:
     max_step: float = 0.2
     #: Largest accepted distance from the seed (rad, per joint): beyond it a move is a jump.
     max_joint_jump: float = 0.25
-    #: Gain of the null-space pull towards the reference configuration (0 = none).
+    #: Fraction of the way (first order, once per call) the joints a position leaves free
+    #: are pulled towards the reference configuration (0 = none).
     nullspace_gain: float = 0.5
     #: Finite-difference step for the Jacobian (rad).
     fd_step: float = 1e-7
@@ -77,12 +78,17 @@ class BatchPositionIK:
         lam2 = p.damping ** 2
         err = np.full(n, np.inf)
         active = np.ones(n, dtype=bool)
-        for _ in range(p.max_iterations):
+        pull = reference is not None and p.nullspace_gain > 0.0
+        for it in range(p.max_iterations):
             idx = np.nonzero(active)[0]
             P, J = self.jacobians(Q[idx])
             e = targets[idx] - P
             err[idx] = np.linalg.norm(e, axis=1)
+            # The first step always runs with a reference: it carries the null-space pull
+            # (once per call), even for points already on target.
             done = err[idx] <= p.tolerance
+            if it == 0 and pull:
+                done[:] = False
             active[idx[done]] = False
             if not active.any():
                 break
@@ -91,7 +97,7 @@ class BatchPositionIK:
             JJt = J @ J.transpose(0, 2, 1) + lam2 * np.eye(3)[None]
             Jt = J.transpose(0, 2, 1)
             dq = np.einsum("nij,nj->ni", Jt, np.linalg.solve(JJt, e[..., None])[..., 0])
-            if reference is not None and p.nullspace_gain > 0.0:
+            if it == 0 and pull:
                 z = p.nullspace_gain * (reference[idx] - Q[idx])
                 Jz = np.einsum("nij,nj->ni", J, z)
                 z -= np.einsum("nij,nj->ni", Jt, np.linalg.solve(JJt, Jz[..., None])[..., 0])
