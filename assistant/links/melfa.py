@@ -362,14 +362,19 @@ class MelfaLink(RobotLink):
         self._stream_ready = True
 
     def _stop_stream(self) -> None:
-        """Stop the streaming program (if any) and close the data link."""
-        if self._dl is not None:
-            with contextlib.suppress(OSError):
-                self._dl.close()
-        self._dl, self._dl_buf = None, b""
-        if self._stream_ready:
-            self.command("STOP")
-        self._stream_ready = False
+        """Stop the streaming program (if any), then close the data link.
+
+        In this order: a data link closed under a running INPUT is a controller alarm.
+        """
+        try:
+            if self._stream_ready:
+                self.command("STOP")
+        finally:
+            if self._dl is not None:
+                with contextlib.suppress(OSError):
+                    self._dl.close()
+            self._dl, self._dl_buf = None, b""
+            self._stream_ready = False
 
     def _stream(self, path: Array, speed_scale: float) -> LinkEvent:
         self._last_q = self._read_joints()

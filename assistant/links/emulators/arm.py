@@ -86,6 +86,9 @@ class EmulatedArm:
         self._moved_total = 0.0
         self._drop_base: float | None = None
         self.last_collision: CollisionInfo | None = None
+        #: Set by a collision: new motions end at once with outcome "collision" until
+        #: `clear_fault()` (the alarm reset), as on a controller in error.
+        self._faulted = False
 
     # ------------------------------------------------------------------ lifecycle
     def start(self) -> None:
@@ -129,9 +132,22 @@ class EmulatedArm:
         W = np.atleast_2d(np.asarray(waypoints, dtype=float))
         m = Motion(W, float(np.clip(speed, 1e-3, 1.0)), tag)
         with self._cond:
+            if self._faulted:
+                m.outcome = "collision"
+                m.done.set()
+                return m
             self._queue.append(m)
             self._cond.notify_all()
         return m
+
+    @property
+    def faulted(self) -> bool:
+        with self._cond:
+            return self._faulted
+
+    def clear_fault(self) -> None:
+        with self._cond:
+            self._faulted = False
 
     def stop_all(self, outcome: str = "stopped") -> None:
         with self._cond:
@@ -207,6 +223,7 @@ class EmulatedArm:
                 info = CollisionInfo(adv.q.copy(), tuple(adv.contact_names()),
                                      adv.describe_contact())
                 self.last_collision = info
+                self._faulted = True
                 self._halt("collision")
                 return info
             if adv.finished:

@@ -240,6 +240,8 @@ class KukaBridgeEmulator:
     def _execute(self, endpoint: str, q: dict[str, str], body: bytes, ctype: str) -> str:
         s = int(q["s"]) if "s" in q else None
         t = int(q["t"]) if "t" in q else None
+        if endpoint in ("base", "ptp", "linmov", "circ", "uploadfile"):
+            self.arm.clear_fault()  # the last collision was reported; a new command may move
         if endpoint in ("getpos",):
             return kp.reply_json(kp.STATUS_OK, self._position())
         if endpoint == "gettcp":

@@ -144,6 +144,7 @@ class DataLinkPort:
             raise ProgramError(mp.ERR_DATALINK_LOST, f"COM{self.com}: send failed") from None
 
     def drop(self) -> None:
+        """Close the channel's connection; unread data on it is discarded."""
         with self._cond:
             if self._conn is not None:
                 self._conn.close()
@@ -351,6 +352,7 @@ class MelfaEmulator:
         if up == "RSTALRM":
             with self._lock:
                 self.error_code = 0
+            self.arm.clear_fault()
             return self._ok()
         if up == "STOP":
             self._stop_program()
@@ -441,6 +443,9 @@ class MelfaEmulator:
         if self._running is not None:
             raise ProgramError(mp.ERR_ILLEGAL_DATA, "a program is running")
         prog = self.programs[name]
+        # A new program run opens its ports afresh: nothing left over from an earlier client.
+        for dl in self.datalinks.values():
+            dl.drop()
         run = _RunningProgram(name, Interpreter(self, prog))
 
         def body() -> None:
@@ -587,6 +592,8 @@ class MelfaEmulator:
         if blend:
             # CNT: the program runs on while this move executes (one move of look-ahead).
             self.arm.wait_queue_at_most(2, abort)
+            if motion.outcome == "collision":
+                raise ProgramError(mp.ERR_COLLISION, "collision")
             return
         outcome = self.arm.wait(motion, abort=abort)
         if outcome == "collision":
