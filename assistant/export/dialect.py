@@ -8,6 +8,7 @@ parts with a main that calls them, frames, comments and the step labels that bec
 
 from __future__ import annotations
 
+import textwrap
 import unicodedata
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, replace
@@ -81,6 +82,19 @@ def step_changes(instructions: Sequence[Instruction]) -> Iterator[tuple[Instruct
 STEP_PREFIX = "step: "
 
 
+def comment_lines(lead: str, text: str, max_line: int) -> list[str]:
+    """A free comment as one or more comment lines, each within the controller's limit."""
+    width = max(max_line - len(lead), 10)
+    return [lead + part for part in textwrap.wrap(ascii_text(text), width) or [""]]
+
+
+def step_line(lead: str, step: str, max_line: int) -> str:
+    """The comment announcing a mission step; long labels are shortened with "..."."""
+    text = STEP_PREFIX + ascii_text(step)
+    width = max(max_line - len(lead), 10)
+    return lead + (text if len(text) <= width else text[: width - 3] + "...")
+
+
 def parse_step_comment(text: str) -> str | None:
     text = text.strip()
     return text[len(STEP_PREFIX):].strip() if text.startswith(STEP_PREFIX) else None
@@ -112,6 +126,8 @@ class Part:
     index: int  # 1-based; 0 when the program is not split
     instructions: list[Instruction]
     positions: list[Position]
+    #: Where the robot is when the part begins (the previous part's last target).
+    start: Position | None = None
 
 
 def split_into_parts(program: NeutralProgram, limit: int | None,
@@ -131,6 +147,7 @@ def split_into_parts(program: NeutralProgram, limit: int | None,
     if limit is not None:
         instructions = _cut_long_splines(instructions, limit)
     parts: list[tuple[list[Instruction], dict[str, Position]]] = [([], {})]
+    starts: list[Position | None] = [None]
     prev: Position | None = None
     for ins in instructions:
         if isinstance(ins, Move):
@@ -139,6 +156,7 @@ def split_into_parts(program: NeutralProgram, limit: int | None,
             new = {k: v for k, v in want.items() if k not in cur_pos}
             if limit is not None and len(cur_pos) + len(new) > limit and cur_ins:
                 parts.append(([], {}))
+                starts.append(prev)
                 cur_ins, cur_pos = parts[-1]
                 new = want
             if limit is not None and len(want) > limit:
@@ -151,7 +169,8 @@ def split_into_parts(program: NeutralProgram, limit: int | None,
             parts[-1][0].append(ins)
     if len(parts) == 1:
         return [Part(0, parts[0][0], list(parts[0][1].values()))]
-    return [Part(i + 1, ins, list(pos.values())) for i, (ins, pos) in enumerate(parts)]
+    return [Part(i + 1, ins, list(pos.values()), starts[i])
+            for i, (ins, pos) in enumerate(parts)]
 
 
 def _cut_long_splines(instructions: list[Instruction], limit: int) -> list[Instruction]:
@@ -173,8 +192,10 @@ def _cut_long_splines(instructions: list[Instruction], limit: int) -> list[Instr
 def lower_splines(program: NeutralProgram) -> NeutralProgram:
     """Spline moves as linear moves through their points, for controllers without splines.
 
-    Each inner point is blended with a radius of a quarter of its shorter neighbouring chord,
-    so blends never overlap and cut the corner by about the sampling's own chord error.
+    Each inner point is blended over a distance r of at most a quarter of its shorter chord
+    (blends never overlap) and small enough that the blend stays within `CORNER_DEVIATION`
+    of the point: a blend tangent to both chords at distance r from a corner that turns by
+    theta passes r tan(theta / 4) from it. Sharp corners are thus kept, gentle ones blended.
     """
     if not any(isinstance(i, Move) and i.kind == MoveKind.SPLINE for i in program.instructions):
         return program
@@ -199,11 +220,22 @@ def lower_splines(program: NeutralProgram) -> NeutralProgram:
     return replace(program, instructions=out)
 
 
+#: How far a blend between the linear moves of a lowered spline may pass from its point (m).
+CORNER_DEVIATION = 1e-4
+
+
 def _corner_blend(a: Array | None, b: Array | None, c: Array | None) -> float:
     if a is None or b is None or c is None:
         return 0.0
-    shorter = min(float(np.linalg.norm(b - a)), float(np.linalg.norm(c - b)))
-    return round(0.25 * shorter, 4)  # whole 0.1 mm: survives every dialect's number format
+    u, v = b - a, c - b
+    lu, lv = float(np.linalg.norm(u)), float(np.linalg.norm(v))
+    if lu < 1e-9 or lv < 1e-9:
+        return 0.0
+    turn = float(np.arccos(np.clip(u @ v / (lu * lv), -1.0, 1.0)))
+    r = 0.25 * min(lu, lv)
+    if turn > 1e-9:
+        r = min(r, CORNER_DEVIATION / np.tan(turn / 4.0))
+    return float(np.floor(r * 1e4) / 1e4)  # whole 0.1 mm: survives every number format
 
 
 def flatten(programs: Sequence[NeutralProgram], name: str) -> NeutralProgram:

@@ -29,9 +29,9 @@ import numpy as np
 
 from assistant.export.configuration import ArmConfig, JointRange, arm_configuration, axis_slots
 from assistant.export.dialect import (
-    STEP_PREFIX,
     ProgramFile,
     ascii_text,
+    comment_lines,
     flatten,
     lower_splines,
     parse_step_comment,
@@ -40,6 +40,7 @@ from assistant.export.dialect import (
     position_pose,
     split_into_parts,
     step_changes,
+    step_line,
 )
 from assistant.export.errors import ExportError
 from assistant.export.program import (
@@ -209,7 +210,7 @@ class KrlDialect:
                 if in_spline:
                     lines.append("  ENDSPLINE")
                     in_spline = False
-                lines.append(f"  ; {STEP_PREFIX}{ascii_text(step)}")
+                lines.append(step_line("  ; ", step, self.rules.max_line))
             if isinstance(ins, Move):
                 lines += self._settings(ins, state)
                 if ins.kind == MoveKind.SPLINE:
@@ -229,7 +230,7 @@ class KrlDialect:
             elif isinstance(ins, Wait):
                 lines.append(f"  WAIT SEC {format_compact(ins.seconds, 3, step=ins.step)}")
             elif isinstance(ins, Comment):
-                lines.append(f"  ; {ascii_text(ins.text)}")
+                lines += comment_lines("  ; ", ins.text, self.rules.max_line)
         if in_spline:
             lines.append("  ENDSPLINE")
         src = ProgramFile(f"{name}.src", self._head(name, robot, lines), newline="\r\n")

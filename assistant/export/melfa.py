@@ -46,15 +46,16 @@ from assistant.export.configuration import (
     turn_count,
 )
 from assistant.export.dialect import (
-    STEP_PREFIX,
     ProgramFile,
     ascii_text,
+    comment_lines,
     flatten,
     lower_splines,
     parse_step_comment,
     position_pose,
     split_into_parts,
     step_changes,
+    step_line,
 )
 from assistant.export.errors import ExportError
 from assistant.export.program import (
@@ -202,10 +203,10 @@ class MelfaDialect:
         if not program.tool.is_identity:
             lines.append(f"TOOL {self._pose_text(program.tool.T, 'tool')}")
         state = _State()
-        prev: Position | None = None
+        prev: Position | None = part.start
         for ins, step in step_changes(part.instructions):
             if step is not None:
-                lines.append(f"' {STEP_PREFIX}{ascii_text(step)}")
+                lines.append(step_line("' ", step, self.rules.max_line - 6))
             if isinstance(ins, Move):
                 lines += self._move(ins, prev, names, state)
                 prev = ins.target
@@ -216,7 +217,7 @@ class MelfaDialect:
             elif isinstance(ins, Wait):
                 lines.append(f"DLY {format_compact(ins.seconds, 2, what='wait', step=ins.step)}")
             elif isinstance(ins, Comment):
-                lines.append(f"' {ascii_text(ins.text)}")
+                lines += comment_lines("' ", ins.text, self.rules.max_line - 6)
         lines.append("END")
         pos_lines = [self._declaration(p, names[p.name], robot, program) for p in part.positions]
         ext = self.file_extensions[0]

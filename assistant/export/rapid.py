@@ -37,9 +37,9 @@ from assistant.export.configuration import (
     quadrant,
 )
 from assistant.export.dialect import (
-    STEP_PREFIX,
     ProgramFile,
     ascii_text,
+    comment_lines,
     lower_splines,
     parse_step_comment,
     pose_in_base,
@@ -47,6 +47,7 @@ from assistant.export.dialect import (
     position_pose,
     split_into_parts,
     step_changes,
+    step_line,
 )
 from assistant.export.errors import ExportError
 from assistant.export.program import (
@@ -210,7 +211,7 @@ class RapidDialect:
         hands = {i.hand for i in part.instructions if isinstance(i, Gripper)}
         for ins, step in step_changes(part.instructions):
             if step is not None:
-                lines.append(f"        ! {STEP_PREFIX}{ascii_text(step)}")
+                lines.append(step_line("        ! ", step, self.rules.max_line))
             if isinstance(ins, Move):
                 lines.append("        " + self._motion(ins, names, data))
             elif isinstance(ins, Gripper):
@@ -224,7 +225,7 @@ class RapidDialect:
             elif isinstance(ins, Wait):
                 lines.append(f"        WaitTime {format_compact(ins.seconds, 3, step=ins.step)};")
             elif isinstance(ins, Comment):
-                lines.append(f"        ! {ascii_text(ins.text)}")
+                lines += comment_lines("        ! ", ins.text, self.rules.max_line)
         return lines
 
     def _motion(self, m: Move, names: dict[str, str], data: _Data) -> str:

@@ -15,7 +15,7 @@ import numpy as np
 
 from assistant.export.dialect import Dialect, ProgramFile
 from assistant.export.errors import ExportError
-from assistant.export.program import Move, NeutralProgram
+from assistant.export.program import Comment, Move, NeutralProgram
 from assistant.export.registry import get_dialect
 from assistant.export.simulate import simulate
 from assistant.robot_model import Robot
@@ -63,8 +63,9 @@ def round_trip(program: NeutralProgram, dialect: str | Dialect, robot: Robot, *,
 
 
 def _instruction_diffs(a: NeutralProgram, b: NeutralProgram) -> list[str]:
-    ia = [i for i in a.instructions if not isinstance(i, Move)]
-    ib = [i for i in b.instructions if not isinstance(i, Move)]
+    """Gripper, output and wait instructions in order (comments do not execute)."""
+    ia = [i for i in a.instructions if not isinstance(i, Move | Comment)]
+    ib = [i for i in b.instructions if not isinstance(i, Move | Comment)]
     out = []
     strip = [type(i).__name__ + repr(_key(i)) for i in ia]
     back = [type(i).__name__ + repr(_key(i)) for i in ib]

@@ -8,8 +8,9 @@ The thesis gives no coordinates; these are chosen inside the RV-2AJ's reach with
 pointing down (J5 within +-90 deg), the arm in front of the base with the elbow up.
 
 `drawing_trajectory`: a Bezier drawing (source 000) on a calibrated paper plane: joint move
-above the first point, pen down, the drawing as one spline (or linear moves) through the
-adaptively sampled points, pen up.
+above the first point, pen down, the drawing, pen up. The chain is cut at its corners (joints
+that are not G1): a straight run becomes one linear move, a curved run one spline through
+its adaptively sampled points (or linear moves through them), so no spline rounds a corner.
 """
 
 from __future__ import annotations
@@ -100,26 +101,42 @@ def drawing_trajectory(robot: Robot, chain: BezierChain, *, T_base_paper: Array 
     """Pen down, the chain (sampled to `tolerance`), pen up; positions D1, D2, ... on paper."""
     T = paper_frame() if T_base_paper is None else T_base_paper
     chain3 = chain.transformed(T)
-    samp = sample_bezier_chain(chain3.segments, tolerance)
     up = T[:3, 2] * lift
     R = T[:3, :3] @ R_DOWN
-    start = waypoint(robot, "HOME", samp.points[0] + up + T[:3, 2] * 0.05, R)
-    above = waypoint(robot, "ABOVE", samp.points[0] + up, R, seed=start.q)
-    prev = above.q
-    pts: list[Waypoint] = []
-    for k, p in enumerate(samp.points):
-        wp = waypoint(robot, f"D{k + 1}", p, R, seed=prev)
-        pts.append(wp)
-        prev = wp.q
-    lift_wp = waypoint(robot, "LIFT", samp.points[-1] + up, R, seed=prev)
+    first = chain3.segments[0].start
+    start = waypoint(robot, "HOME", first + up + T[:3, 2] * 0.05, R)
+    above = waypoint(robot, "ABOVE", first + up, R, seed=start.q)
+    down = waypoint(robot, "D1", first, R, seed=above.q)
     label = f"draw {name}"
     motions = [Motion(MotionKind.JOINT, above, label="approach", speed=0.5),
-               Motion(MotionKind.LINEAR, pts[0], label="pen down", speed=0.02)]
-    if spline:
-        motions.append(Motion(MotionKind.SPLINE, pts[-1], through=tuple(pts[1:-1]),
-                              label=label, speed=draw_speed))
-    else:
-        motions += [Motion(MotionKind.LINEAR, wp, label=label, speed=draw_speed)
-                    for wp in pts[1:]]
+               Motion(MotionKind.LINEAR, down, label="pen down", speed=0.02)]
+    prev = down.q
+    k = 1
+    for run in corner_runs(chain3):
+        samp = sample_bezier_chain(run, tolerance)
+        pts: list[Waypoint] = []
+        for p in samp.points[1:]:
+            k += 1
+            wp = waypoint(robot, f"D{k}", p, R, seed=prev)
+            pts.append(wp)
+            prev = wp.q
+        if len(pts) == 1 or not spline:
+            motions += [Motion(MotionKind.LINEAR, wp, label=label, speed=draw_speed)
+                        for wp in pts]
+        else:
+            motions.append(Motion(MotionKind.SPLINE, pts[-1], through=tuple(pts[:-1]),
+                                  label=label, speed=draw_speed))
+    lift_wp = waypoint(robot, "LIFT", chain3.segments[-1].end + up, R, seed=prev)
     motions.append(Motion(MotionKind.LINEAR, lift_wp, label="pen up", speed=0.05))
     return Trajectory(start, motions)
+
+
+def corner_runs(chain: BezierChain, angle: float = np.radians(1.0)) -> list[list]:
+    """The chain's segments grouped into runs without corners (tangent turn <= angle)."""
+    corners = set(chain.c1_defects(angle, geometric=True))
+    runs: list[list] = [[chain.segments[0]]]
+    for j in range(1, len(chain.segments)):
+        if j in corners:
+            runs.append([])
+        runs[-1].append(chain.segments[j])
+    return runs

@@ -23,14 +23,15 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from assistant.export.dialect import (
-    STEP_PREFIX,
     ProgramFile,
     ascii_text,
+    comment_lines,
     lower_splines,
     parse_step_comment,
     pose_in_work,
     position_pose,
     step_changes,
+    step_line,
 )
 from assistant.export.errors import ExportError
 from assistant.export.program import (
@@ -115,7 +116,7 @@ class URScriptDialect:
         lines += decl
         for ins, step in step_changes(program.instructions):
             if step is not None:
-                lines.append(f"  # {STEP_PREFIX}{ascii_text(step)}")
+                lines.append(step_line("  # ", step, self.rules.max_line))
             if isinstance(ins, Move):
                 lines.append("  " + self._motion(ins, names))
             elif isinstance(ins, Gripper):
@@ -127,7 +128,7 @@ class URScriptDialect:
             elif isinstance(ins, Wait):
                 lines.append(f"  sleep({format_compact(ins.seconds, 3, step=ins.step)})")
             elif isinstance(ins, Comment):
-                lines.append(f"  # {ascii_text(ins.text)}")
+                lines += comment_lines("  # ", ins.text, self.rules.max_line)
         lines += ["end", f"{name}()"]
         f = ProgramFile(f"{name}.script", "\n".join(lines) + "\n")
         check_lines(f.text, self.rules, f.name)

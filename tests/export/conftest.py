@@ -1,0 +1,47 @@
+"""Fixtures for the export tests: the thesis scenario and a Bezier drawing on the RV-2AJ."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from assistant.export import NeutralProgram, program_from_trajectory
+from assistant.export.bezier_drawings import drawing
+from assistant.export.samples import drawing_trajectory, thesis_trajectory
+
+
+@pytest.fixture(scope="session")
+def thesis_program(rv2aj) -> NeutralProgram:
+    return program_from_trajectory(thesis_trajectory(rv2aj), rv2aj, name="thesis")
+
+
+@pytest.fixture(scope="session")
+def drawing_program(rv2aj) -> NeutralProgram:
+    """Screen 9 (straight sides, a curved top), sampled to 0.1 mm, drawn as one spline."""
+    traj = drawing_trajectory(rv2aj, drawing(9), tolerance=1e-4, name="screen")
+    return program_from_trajectory(traj, rv2aj, name="screen")
+
+
+@pytest.fixture(scope="session")
+def ur5():
+    """A UR5 from example-robot-data through URDFRobot, or skip (the test extra is missing)."""
+    try:
+        from assistant.urdf_robot import URDFRobot
+    except ImportError:  # pragma: no cover - another module not there yet
+        pytest.skip("assistant.urdf_robot is not available")
+    import site
+
+    for sp in site.getsitepackages():
+        share = Path(sp) / "cmeel.prefix" / "share"
+        urdf = share / "example-robot-data" / "robots" / "ur_description" / "urdf" / \
+            "ur5_robot.urdf"
+        if urdf.exists():
+            from assistant.robot_model import Tool
+
+            T = np.eye(4)
+            T[2, 3] = 0.1
+            return URDFRobot.from_file(urdf, package_dirs=[share], load_visual=False,
+                                       tool=Tool("gripper", T))
+    pytest.skip("example-robot-data (UR5 URDF) is not installed")
