@@ -562,12 +562,40 @@ def test_gltf_that_is_not_json_is_refused():
 
 
 def test_big_convex_mesh_gets_its_hull():
-    sphere = trimesh.creation.icosphere(subdivisions=4, radius=0.1)  # 5120 faces
-    result = load_cad(_export(sphere, "ply"), "ball.ply", proxy_max_faces=1000)
-    assert len(result.mesh.faces) == 5120  # display keeps every triangle
-    assert result.proxy.kind == "convex_hull"
-    assert result.proxy.deviation_m < 1e-6  # the hull of a convex mesh is the mesh
+    block = trimesh.creation.box(extents=(0.3, 0.2, 0.1))
+    for _ in range(4):
+        block = block.subdivide()  # 3072 faces, as a scanner or a fine export would give
+    result = load_cad(_export(block, "ply"), "block.ply", proxy_max_faces=1000)
+    assert len(result.mesh.faces) == 3072  # display keeps every triangle
+    assert result.proxy.kind == "convex_hull" and result.proxy.faces == 12
+    assert result.proxy.deviation_m < 1e-9
     assert len(result.collision) == 1 and result.collision[0].kind == ShapeKind.MESH
+
+
+def test_finely_tessellated_round_part_gets_a_small_conservative_hull():
+    sphere = trimesh.creation.icosphere(subdivisions=5, radius=0.1)  # 20480 faces
+    result = load_cad(_export(sphere, "stl"), "ball.stl", units="m", proxy_max_faces=2000,
+                      proxy_tolerance_m=0.005)
+    hull = result.collision[0].mesh
+    assert result.proxy.kind == "convex_hull" and len(hull.faces) <= 2000
+    assert 0.0 < result.proxy.deviation_m <= 0.005
+    # Conservative: every point of the part is inside the proxy ...
+    n, p0 = hull.face_normals, hull.triangles[:, 0]
+    outside = (result.mesh.vertices @ n.T - np.einsum("ij,ij->i", n, p0)).max()
+    assert outside <= 1e-9
+    # ... and the proxy reaches no farther out than the reported deviation (exact sphere).
+    assert np.linalg.norm(hull.vertices, axis=1).max() - 0.1 <= result.proxy.deviation_m + 1e-6
+
+
+def test_tight_tolerance_keeps_the_closest_candidate_and_warns():
+    torus = trimesh.creation.torus(0.2, 0.05, major_sections=48, minor_sections=24)  # 2304 faces
+    result = load_cad(_export(torus, "stl"), "ring.stl", units="m", proxy_max_faces=500,
+                      proxy_tolerance_m=0.0001)
+    tried = dict(result.proxy.tried)
+    assert {"convex_hull", "convex_decomposition"} <= set(tried)
+    assert result.proxy.deviation_m == min(tried.values())
+    assert tried[result.proxy.kind] == result.proxy.deviation_m
+    assert any("no collision proxy within 0.1 mm" in w for w in result.warnings)
 
 
 def test_big_concave_mesh_gets_a_closer_proxy_and_a_measured_deviation():

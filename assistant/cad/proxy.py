@@ -24,6 +24,7 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
+from assistant.cad.raw import merge_meshes
 from assistant.robot_model import CollisionShape, ShapeKind
 
 Array = np.ndarray
@@ -65,7 +66,7 @@ def collision_proxy(
     tree = cKDTree(_dense_samples(mesh))
     tried: list[_Candidate] = []
 
-    hull = mesh.convex_hull
+    hull = _hull(mesh, max_faces, tolerance_m)
     tried.append(_Candidate("convex_hull", (hull,), _deviation(mesh, samples, tree, (hull,))))
     if tried[-1].deviation_m > tolerance_m:
         parts = _decompose(mesh)
@@ -102,6 +103,24 @@ def _dense_samples(mesh: trimesh.Trimesh) -> Array:
     return np.vstack([pts, mesh.vertices, mesh.triangles_center])
 
 
+def _hull(mesh: trimesh.Trimesh, max_faces: int, tolerance_m: float) -> trimesh.Trimesh:
+    """The convex hull; if it alone has more than `max_faces` triangles (a finely tessellated
+    round part), a coarser convex polytope that still contains every point: qhull merges
+    nearly coplanar facets (post-merge 'C' at a quarter of the tolerance keeps all points
+    inside the merged planes) and the polytope is the intersection of those planes. It is
+    measured like every other candidate."""
+    hull = mesh.convex_hull
+    if len(hull.faces) <= max_faces:
+        return hull
+    from scipy.spatial import ConvexHull, HalfspaceIntersection
+
+    merged = ConvexHull(hull.vertices, qhull_options=f"Qt C{tolerance_m / 4.0:.6g}")
+    planes = np.unique(np.round(merged.equations, 12), axis=0)
+    corners = HalfspaceIntersection(planes, hull.vertices.mean(axis=0)).intersections
+    coarse = trimesh.convex.convex_hull(corners)
+    return coarse if len(coarse.faces) < len(hull.faces) else hull
+
+
 def _decompose(mesh: trimesh.Trimesh) -> tuple[trimesh.Trimesh, ...]:
     try:
         parts = mesh.convex_decomposition(maxConvexHulls=32, resolution=100_000,
@@ -121,7 +140,11 @@ def _decimate(mesh: trimesh.Trimesh, max_faces: int) -> trimesh.Trimesh | None:
 def _inside_convex(points: Array, part: trimesh.Trimesh, tol: float) -> Array:
     n = part.face_normals
     offs = np.einsum("ij,ij->i", n, part.triangles[:, 0])
-    return np.all(points @ n.T - offs <= tol, axis=1)
+    inside = np.ones(len(points), dtype=bool)
+    step = max(1, 2_000_000 // max(1, len(points)))  # bound the (points x faces) block
+    for k in range(0, len(n), step):
+        inside &= np.all(points @ n[k:k + step].T - offs[k:k + step] <= tol, axis=1)
+    return inside
 
 
 def _inside(points: Array, part: trimesh.Trimesh, convex: bool, tol: float) -> Array:
@@ -149,16 +172,18 @@ def _deviation(mesh: trimesh.Trimesh, samples: Array, tree: cKDTree,
     missed = 0.0
     if not covered.all():
         out = samples[~covered]
+        if len(out) > _EXACT_CANDIDATES:
+            # Same screening as below: the nearest dense proxy sample bounds the distance.
+            approx, _ = cKDTree(_dense_samples(merge_meshes(parts))).query(out)
+            out = out[np.argsort(approx)[-_EXACT_CANDIDATES:]]
         d = np.full(len(out), np.inf)
         for p in parts:
             d = np.minimum(d, trimesh.proximity.closest_point(p, out)[1])
         missed = float(d.max())
 
-    pts = np.vstack([
-        np.vstack([trimesh.sample.sample_surface(p, max(256, SAMPLES // len(parts)),
-                                                 seed=_SEED)[0], p.vertices])
-        for p in parts
-    ])
+    union = merge_meshes(parts)
+    on_proxy, _ = trimesh.sample.sample_surface(union, 5 * SAMPLES, seed=_SEED)
+    pts = np.vstack([on_proxy, union.vertices])
     if mesh.is_watertight:
         pts = pts[~mesh.contains(pts)]
     excess = 0.0
