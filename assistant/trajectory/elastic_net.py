@@ -81,6 +81,11 @@ class ElasticNetParams:
     #: Largest move of one particle in one iteration (m): keeps IK local and moves checkable.
     max_move: float = 0.005
     epsilon: float = 1e-10
+    #: Mean movement per iteration (m) below which a stage counts as settled. The thesis'
+    #: epsilon sits below the noise floor that IK back-projection leaves (~1e-7 m), so
+    #: without this a stage would always run to its cap; at 1 um the slowest shrink mode
+    #: has at most ~0.1 mm left to go, far inside the primitive tolerance. 0 = off.
+    settle: float = 1e-6
     stage1_iterations: int = 400
     stage2_iterations: int = 400
     #: Also require the midpoints of a moved particle's two edges to be allowed.
@@ -100,6 +105,7 @@ class ElasticNetParams:
 
 class StopReason(str, Enum):
     CONVERGED = "converged"  # mean movement below epsilon
+    SETTLED = "settled"  # mean movement below `settle` (the IK's noise floor is near)
     BLOCKED = "blocked"  # every proposed move was rejected
     ITERATION_CAP = "iteration_cap"
     NOTHING_TO_DO = "nothing_to_do"  # fewer than three particles
@@ -230,6 +236,8 @@ class _Net:
                 return StageReport(it, StopReason.BLOCKED, 0.0)
             if self.E < self.p.epsilon:
                 return StageReport(it, StopReason.CONVERGED, float(self.E))
+            if self.E < self.p.settle:
+                return StageReport(it, StopReason.SETTLED, float(self.E))
         return StageReport(budget, StopReason.ITERATION_CAP, float(self.E))
 
     def iterate(self, stage: int, lam: float) -> tuple[float, int, int]:
