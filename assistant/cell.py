@@ -186,8 +186,9 @@ class CellObject:
         object.__setattr__(self, "role", role)
         color = DEFAULT_COLORS[role] if self.color is None else _check_color(self.color)
         object.__setattr__(self, "color", color)
-        object.__setattr__(self, "T_world_object",
-                           check_transform(self.T_world_object, f"pose of {self.name!r}"))
+        T = check_transform(self.T_world_object, f"pose of {self.name!r}")
+        T.setflags(write=False)  # shared between threads: a new pose is a new object
+        object.__setattr__(self, "T_world_object", T)
         object.__setattr__(self, "collision", tuple(self.collision))
         if not self.collision:
             raise CellError(f"object {self.name!r} has no collision geometry")

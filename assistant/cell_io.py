@@ -5,6 +5,7 @@ by their sha256, which the JSON records and loading verifies) and re-imported on
 same options and units, so no derived mesh can drift from its file. Only JSON and the CAD
 readers ever see the data: no pickle, no eval. Saving writes to a temporary name and renames,
 so an interrupted save leaves the previous cell intact.
+Owns the cell file format only (the session's own file may embed it); must not import the UI.
 """
 
 from __future__ import annotations

@@ -4,6 +4,7 @@ The thesis' four-point method measures four known locations of a part with the r
 pointer; here any N >= 3 point pairs give the rigid least-squares pose (Kabsch, no scale), and
 the residuals tell the operator how well the model matches what was measured — a wrong point
 order or a mis-measured corner shows up as one large per-point error.
+Depends on the cell model only; must not import the UI, vision or planning.
 """
 
 from __future__ import annotations

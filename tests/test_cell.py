@@ -119,6 +119,8 @@ def test_set_object_pose_replaces_the_object_and_refuses_bad_poses():
         with pytest.raises(CellError, match=match):
             cell.set_object_pose("box", bad)
     assert cell.objects["box"] is after
+    with pytest.raises(ValueError, match="read-only"):
+        after.T_world_object[0, 3] = 5.0  # poses change only through the cell
     with pytest.raises(CellError, match="no object named 'nope'"):
         cell.set_object_pose("nope", np.eye(4))
 
