@@ -159,7 +159,8 @@ def test_late_replies_past_the_timeout(start):
     assert not link.connected
     emu.faults.clear()
     link.connect()
-    assert link.move_path(np.array([HOME])).kind == LinkEventKind.REACHED
+    ev = link.move_path(np.array([HOME]))
+    assert ev.kind == LinkEventKind.REACHED, ev.message
 
 
 def test_garbage_replies_are_quoted_never_a_crash(start):

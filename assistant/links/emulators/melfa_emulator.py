@@ -130,14 +130,14 @@ class DataLinkPort:
         self.emu._log(f"COM{self.com}", line)
         return line
 
-    def write(self, text: str) -> None:
+    def write(self, text: str, abort: threading.Event) -> None:
         with self._cond:
             conn = self._conn
         if conn is None or conn.closed:
             raise ProgramError(mp.ERR_DATALINK_LOST, f"COM{self.com}: not connected")
         out, delay = self.emu.faults.take_reply(text)
-        if delay > 0:
-            time.sleep(delay)
+        if delay > 0 and abort.wait(delay):
+            return  # the program was stopped while the reply was held back
         try:
             conn.sock.sendall((out + mp.TERMINATOR).encode("ascii", errors="replace"))
         except OSError:
@@ -531,8 +531,8 @@ class MelfaEmulator:
     def datalink_readline(self, com: int, abort: threading.Event) -> str:
         return self.datalinks[com].readline(abort)
 
-    def datalink_write(self, com: int, text: str) -> None:
-        self.datalinks[com].write(text)
+    def datalink_write(self, com: int, text: str, abort: threading.Event) -> None:
+        self.datalinks[com].write(text, abort)
 
     def _joints_for(self, value: object, seed: Array) -> Array:
         if isinstance(value, MelfaPose):

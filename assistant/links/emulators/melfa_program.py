@@ -127,7 +127,7 @@ class Machine(Protocol):
 
     def datalink_readline(self, com: int, abort: threading.Event) -> str: ...
 
-    def datalink_write(self, com: int, text: str) -> None: ...
+    def datalink_write(self, com: int, text: str, abort: threading.Event) -> None: ...
 
     def sleep(self, robot_seconds: float, abort: threading.Event) -> None: ...
 
@@ -214,7 +214,7 @@ class Interpreter:
         if kw == "INPUT":
             return self._input(rest, abort)
         if kw == "PRINT":
-            return self._print(rest)
+            return self._print(rest, abort)
         if kw in ("MOV", "MVS", "MVR"):
             return self._move(kw, rest, abort)
         m = re.fullmatch(r"([A-Za-z][A-Za-z0-9_]*)\s*=\s*(.+)", stmt.strip())
@@ -270,7 +270,7 @@ class Interpreter:
                                    self.line) from None
         return None
 
-    def _print(self, rest: str) -> None:
+    def _print(self, rest: str, abort: threading.Event) -> None:
         parts = split_top_level(rest)
         com = self._channel(parts[0])
         out = []
@@ -284,7 +284,7 @@ class Interpreter:
                 out.append(v)
             else:
                 out.append(mp.format_joint_literal(np.asarray(v), self.m.joint_names))
-        self.m.datalink_write(com, ",".join(out))
+        self.m.datalink_write(com, ",".join(out), abort)
         return None
 
     def _move(self, kw: str, rest: str, abort: threading.Event) -> None:
