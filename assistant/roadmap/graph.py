@@ -1,0 +1,132 @@
+"""The search graph: joint positions stored in cells, edges between neighbouring cells.
+
+Nodes are joint positions (the valid positions a leaf offers, plus the start and goal
+postures); the A* never searches cell centres (thesis §8.5.6: joint positions give exact
+distances, decoupled from the cell size). Every node of a cell connects to every node of the
+cell itself and of its 26 neighbours, except across a *corner squeeze*: a diagonal step whose
+face neighbours along two (or three) of its axes include at least two blocked cells passes
+between them, which the arm's volume forbids (thesis Fig. 23).
+
+Cost of an edge u -> v: the arm-radius-weighted Euclidean joint distance ||W (q_v - q_u)||
+(W = arm radii, so it approximates how far the arm travels, metres) plus the occupancy penalty
+of v's cell. Edges longer than `max_edge` (joint part) are left out. The heuristic ||W (q -
+q_goal)|| is consistent because the penalty is >= 0.
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+
+import numpy as np
+
+Array = np.ndarray
+
+#: The cell itself and its 26 neighbours.
+OFFSETS27 = np.array(list(itertools.product((-1, 0, 1), repeat=3)), dtype=np.int64)
+_FACES = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]])
+
+
+def _face_matrix() -> Array:
+    """(27, 6) 0/1: which face steps a move is made of (for the squeeze rule)."""
+    M = np.zeros((27, 6), dtype=np.int64)
+    for i, o in enumerate(OFFSETS27):
+        if np.count_nonzero(o) < 2:
+            continue
+        for a in range(3):
+            if o[a]:
+                M[i, 2 * a + (0 if o[a] > 0 else 1)] = 1
+    return M
+
+
+_FACE_OF_MOVE = _face_matrix()
+
+
+@dataclass
+class JointGraph:
+    """Nodes grouped by cell (CSR over flat cell ids) and the cell masks of the search."""
+
+    shape: tuple[int, int, int]
+    node_q: Array  # (n, dof)
+    node_cell: Array  # (n,) flat cell of each node, ascending
+    cell_start: Array  # (n_cells + 1,) nodes of cell c: cell_start[c]:cell_start[c + 1]
+    searchable: Array  # (n_cells,) bool
+    squeeze_blocked: Array  # (n_cells,) bool: cells a diagonal step may not squeeze between
+    penalty: Array  # (n_cells,) float: cost added when entering the cell
+    weights: Array  # (dof,)
+    max_edge: float = np.inf
+
+    @staticmethod
+    def build(shape: tuple[int, int, int], cells: Array, offsets: Array, Q: Array,
+              searchable: Array, squeeze_blocked: Array, penalty: Array, weights: Array,
+              extra: list[tuple[int, Array]] = (), max_edge: float = np.inf,
+              ) -> tuple[JointGraph, list[int]]:
+        """Graph over the positions of the searchable cells, plus `extra` (cell, q) nodes
+        (start, goal). Returns the graph and the node ids of the extras."""
+        n_cells = int(np.prod(shape))
+        searchable = np.asarray(searchable, bool).reshape(-1).copy()
+        counts = np.diff(offsets)
+        keep_cell = searchable[cells]
+        node_cell = np.repeat(cells, counts)
+        keep = np.repeat(keep_cell, counts)
+        node_cell, node_q = node_cell[keep], np.asarray(Q)[keep]
+        extra_cells = np.array([c for c, _ in extra], dtype=np.int64)
+        if len(extra):
+            node_cell = np.r_[node_cell, extra_cells]
+            node_q = np.vstack([node_q, np.array([q for _, q in extra], dtype=float)])
+            searchable[extra_cells] = True
+        order = np.argsort(node_cell, kind="stable")
+        node_cell, node_q = node_cell[order], node_q[order]
+        where = np.empty(len(order), dtype=np.int64)
+        where[order] = np.arange(len(order))
+        extra_ids = [int(where[len(order) - len(extra) + i]) for i in range(len(extra))]
+        cell_start = np.zeros(n_cells + 1, dtype=np.int64)
+        np.cumsum(np.bincount(node_cell, minlength=n_cells), out=cell_start[1:])
+        g = JointGraph(tuple(shape), node_q, node_cell, cell_start, searchable,
+                       np.asarray(squeeze_blocked, bool).reshape(-1),
+                       np.asarray(penalty, float).reshape(-1), np.asarray(weights, float),
+                       float(max_edge))
+        return g, extra_ids
+
+    @property
+    def n_nodes(self) -> int:
+        return len(self.node_cell)
+
+    def neighbour_cells(self, cell: int) -> Array:
+        """Searchable cells one step from `cell` (itself included), squeeze rule applied."""
+        nx, ny, nz = self.shape
+        i, j, k = cell // (ny * nz), (cell // nz) % ny, cell % nz
+        ijk = np.array([i, j, k]) + OFFSETS27
+        inside = np.all((ijk >= 0) & (ijk < np.array(self.shape)), axis=1)
+        faces = np.array([i, j, k]) + _FACES
+        f_in = np.all((faces >= 0) & (faces < np.array(self.shape)), axis=1)
+        f_flat = (faces[:, 0] * ny + faces[:, 1]) * nz + faces[:, 2]
+        f_blocked = np.zeros(6, dtype=np.int64)
+        f_blocked[f_in] = self.squeeze_blocked[f_flat[f_in]]
+        squeezed = (_FACE_OF_MOVE @ f_blocked) >= 2
+        ok = inside & ~squeezed
+        flat = (ijk[ok, 0] * ny + ijk[ok, 1]) * nz + ijk[ok, 2]
+        return flat[self.searchable[flat]]
+
+    def nodes_of(self, cells: Array) -> Array:
+        s, e = self.cell_start[cells], self.cell_start[cells + 1]
+        lens = e - s
+        return np.repeat(s - np.r_[0, np.cumsum(lens)[:-1]], lens) + np.arange(lens.sum())
+
+    def distance(self, q: Array, Q: Array) -> Array:
+        """Weighted joint distance from q to each row of Q (metres of arm travel)."""
+        d = (np.asarray(Q) - q) * self.weights
+        return np.sqrt(np.einsum("ij,ij->i", d, d))
+
+    def successors(self, u: int) -> tuple[Array, Array]:
+        """(node ids, edge costs u -> v) of u's neighbours."""
+        vs = self.nodes_of(self.neighbour_cells(int(self.node_cell[u])))
+        vs = vs[vs != u]
+        d = self.distance(self.node_q[u], self.node_q[vs])
+        ok = d <= self.max_edge
+        vs, d = vs[ok], d[ok]
+        return vs, d + self.penalty[self.node_cell[vs]]
+
+    def cost(self, u: int, v: int) -> float:
+        d = float(self.distance(self.node_q[u], self.node_q[v][None])[0])
+        return d + float(self.penalty[self.node_cell[v]])

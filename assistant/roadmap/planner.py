@@ -1,0 +1,365 @@
+"""`RoadmapPlanner`: world model + Voronoi roads + lazy A* behind three calls.
+
+    world = WorldModel(robot, cad_obstacles, WorldConfig())
+    planner = RoadmapPlanner(robot, CollisionChecker(robot, cad_obstacles), world)
+    report = planner.build(progress)           # one-time: table (cached), CAD, roads
+    plan = planner.plan(q_start, q_goal)        # RoadmapPlan: joint path or a reason
+    update = planner.add_collision(q_stopped)   # operator indication: fusion + local update
+
+A query adds the start and goal leaves as brushfire sources of their own (an incremental update
+of the base roads, so roads form around them), then searches the joint positions of the road
+cells plus the start's and goal's regions (thesis §8.5.6). If the roads happen not to connect
+them although the free space does (cell-based Voronoi roads can break in 3-D), the search is
+repeated over all free cells and the plan says so (`searched`).
+
+The joint path is what the elastic net / primitive fitter consumes. Table joints that cannot
+move the geometry (J6 with a straight tool) are interpolated between the start and goal values
+along the path instead of jumping to the table's fixed value.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+from enum import Enum
+
+import numpy as np
+
+from assistant.progress import Progress
+from assistant.roadmap.astar import REASON_BUDGET, SearchBudget, SearchResult, lazy_astar
+from assistant.roadmap.graph import JointGraph
+from assistant.roadmap.grid_ops import components26
+from assistant.roadmap.sources import SourceLabels, label_sources, relabel
+from assistant.roadmap.voronoi import ROAD, VoronoiMap, build_voronoi, update_voronoi
+from assistant.robot_model import Robot
+from assistant.validity import ValidityChecker
+from assistant.world.model import WorldBuildReport, WorldChange, WorldModel
+
+Array = np.ndarray
+
+
+class PlanFailure(str, Enum):
+    START_INVALID = "start_invalid"
+    GOAL_UNREACHABLE = "goal_unreachable"
+    GOAL_IN_OBSTACLE = "goal_in_obstacle"
+    NO_PATH_REGIONS = "no_path_regions"
+    NO_PATH = "no_path"
+    BUDGET = "budget"
+
+
+@dataclass(frozen=True)
+class RoadmapConfig:
+    """Search parameters. Defaults are ours unless noted (the thesis' values were lost)."""
+
+    #: Reset radius (cells) around a changed source cell before the local re-extension
+    #: (thesis d_min; the road keeps ~d_min / 2 from a new obstacle).
+    d_min: int = 3
+    #: Cost (m of arm travel) per unit occupancy probability of an entered cell.
+    occupancy_penalty: float = 0.2
+    #: Longest edge (m of weighted joint distance); longer jumps are left out of the graph.
+    max_edge: float = 0.35
+    budget: SearchBudget = field(default_factory=SearchBudget)
+    #: 1 = optimal A*; > 1 = weighted A* (cost within that factor of the optimum). 1.5 cuts
+    #: expansions and edge checks ~5x on the thesis cell; the elastic net shortens the path
+    #: afterwards anyway.
+    heuristic_weight: float = 1.5
+    #: Search all free cells if the roads do not connect start and goal.
+    fallback_to_free_cells: bool = True
+
+
+@dataclass(frozen=True)
+class RoadmapBuildReport:
+    world: WorldBuildReport
+    roadmap_seconds: float
+    road_cells: int
+    regions: int
+
+    @property
+    def total_seconds(self) -> float:
+        return self.world.total_seconds + self.roadmap_seconds
+
+
+@dataclass(frozen=True)
+class RoadmapPlan:
+    """A joint path start -> goal, or the reason there is none."""
+
+    ok: bool
+    reason: str
+    failure: PlanFailure | None = None
+    joint_path: list[Array] = field(default_factory=list)
+    #: Leaf (i, j, k) of each path node's TCP.
+    cells: list[tuple[int, int, int]] = field(default_factory=list)
+    cost: float = float("inf")
+    expansions: int = 0
+    edge_checks: int = 0
+    rejected_edges: int = 0
+    #: "roads" (road cells + start/goal regions), "free cells" (fallback), "direct" or "".
+    searched: str = ""
+    timings: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class CollisionUpdate:
+    """What an operator indication changed."""
+
+    world: WorldChange
+    roadmap_changed: Array  # flat leaf ids whose brushfire values changed
+    region_cells: int
+    rounds: int
+    rebuilt: bool
+    seconds: float
+
+
+class _EdgeCheck:
+    """The checker's continuous check plus "not near a recorded collision posture"."""
+
+    def __init__(self, checker: ValidityChecker, world: WorldModel):
+        self.checker = checker
+        self.world = world
+
+    def first_invalid_fraction(self, q0: Array, q1: Array) -> float | None:
+        if self.world.collisions:
+            step = self.world.config.indication.joint_radius / 2.0
+            travel = float(np.sum(np.abs(q1 - q0) * self.world.weights))
+            n = max(1, int(np.ceil(travel / step)))
+            f = np.arange(n + 1) / n
+            near = self.world.near_recorded_collision(q0 + f[:, None] * (q1 - q0))
+            if near.any():
+                return float(f[int(np.argmax(near))])
+        return self.checker.first_invalid_fraction(q0, q1)
+
+    def first_invalid_fractions(self, Q0: Array, Q1: Array) -> list[float | None]:
+        """Several edges in one batched validity call, sampled exactly as the checker's own
+        motion check (`motion_samples`); falls back to one call per edge otherwise."""
+        samples = getattr(self.checker, "motion_samples", None)
+        if samples is None:
+            return [self.first_invalid_fraction(a, b) for a, b in zip(Q0, Q1, strict=True)]
+        ns = [int(samples(a, b)) for a, b in zip(Q0, Q1, strict=True)]
+        fr = [np.arange(n + 1) / n for n in ns]
+        Q = np.concatenate([a + f[:, None] * (b - a) for a, b, f in zip(Q0, Q1, fr, strict=True)])
+        ok = self.checker.is_valid_batch(Q)
+        if self.world.collisions:
+            ok &= ~self.world.near_recorded_collision(Q)
+        out: list[float | None] = []
+        start = 0
+        for f in fr:
+            seg = ok[start:start + len(f)]
+            out.append(None if seg.all() else float(f[int(np.argmin(seg))]))
+            start += len(f)
+        return out
+
+
+class RoadmapPlanner:
+    """Plans joint paths through the Voronoi roads of a `WorldModel` (module docstring).
+
+    `checker` must know the same obstacles as the world's CAD (it verifies the edges the search
+    uses); hidden obstacles reach the planner only through `add_collision`.
+    """
+
+    def __init__(self, robot: Robot, checker: ValidityChecker, world: WorldModel,
+                 config: RoadmapConfig | None = None):
+        self.robot = robot
+        self.checker = checker
+        self.world = world
+        self.config = config or RoadmapConfig()
+        self.labels: SourceLabels | None = None
+        self.voronoi: VoronoiMap | None = None
+        self._edge = _EdgeCheck(checker, world)
+
+    # ---------------------------------------------------------------- build
+    def build(self, progress: Progress | None = None) -> RoadmapBuildReport:
+        """World model (table from cache if possible, CAD, valid positions) + base roads."""
+        progress = progress or Progress("roadmap")
+        wrep = self.world.build(progress.sub(0.0, 0.9))
+        t0 = time.perf_counter()
+        progress.update(0.9, "Voronoi roads")
+        w = self.world
+        self.labels = label_sources(w.occupied(), w.object_ids(), w.object_names(),
+                                    w.reachable(), w.has_valid())
+        self.voronoi = build_voronoi(self.labels.source, w.reachable())
+        dt = time.perf_counter() - t0
+        progress.update(1.0, "roadmap ready", force=True)
+        return RoadmapBuildReport(wrep, dt, int(self.voronoi.roads().sum()),
+                                  len(self.labels.names))
+
+    def _need(self) -> tuple[SourceLabels, VoronoiMap]:
+        if self.labels is None or self.voronoi is None:
+            raise RuntimeError("build the roadmap first (RoadmapPlanner.build)")
+        return self.labels, self.voronoi
+
+    # ---------------------------------------------------------------- updates
+    def add_collision(self, q: Array, progress: Progress | None = None) -> CollisionUpdate:
+        """The operator flagged a collision at posture q: fuse it, update the roads locally."""
+        labels, vmap = self._need()
+        t0 = time.perf_counter()
+        change = self.world.indicate_collision(q, progress)
+        w = self.world
+        self.labels = relabel(labels, w.occupied(), w.object_ids(), w.object_names(),
+                              w.reachable(), w.has_valid())
+        upd = update_voronoi(vmap, self.labels.source, d_min=self.config.d_min)
+        self.voronoi = upd.vmap
+        return CollisionUpdate(change, np.flatnonzero(upd.changed), upd.region_cells,
+                               upd.rounds, upd.rebuilt, time.perf_counter() - t0)
+
+    # ---------------------------------------------------------------- queries
+    def plan(self, q_start: Array, q_goal: Array, progress: Progress | None = None,
+             ) -> RoadmapPlan:
+        """Joint path from q_start to q_goal through the roads (see RoadmapPlan)."""
+        labels, base = self._need()
+        t0 = time.perf_counter()
+        timings: dict[str, float] = {}
+        w = self.world
+        q_s = np.asarray(q_start, dtype=float).reshape(-1)
+        q_g = np.asarray(q_goal, dtype=float).reshape(-1)
+        pre = self._check_terminals(q_s, q_g)
+        if pre is not None:
+            return pre
+        sc, gc = w.tcp_cell(q_s), w.tcp_cell(q_g)
+        direct = self._weighted(q_s, q_g)
+        if (sc == gc or direct <= self.config.max_edge) and \
+                self._edge.first_invalid_fraction(q_s, q_g) is None:
+            timings["total"] = time.perf_counter() - t0
+            return self._plan_from([q_s, q_g], None, "direct", timings, direct)
+        # Roads around start and goal: incremental update of the base map.
+        t1 = time.perf_counter()
+        src, s_lab, g_lab = labels.with_terminals(sc, gc)
+        vmap = update_voronoi(base, src, d_min=self.config.d_min).vmap
+        timings["roadmap_update"] = time.perf_counter() - t1
+        free = w.free().reshape(-1).copy()
+        free[[sc, gc]] = True
+        comp, _ = components26(free.reshape(w.grid.shape))
+        comp = comp.reshape(-1)
+        if comp[sc] != comp[gc]:
+            timings["total"] = time.perf_counter() - t0
+            return RoadmapPlan(False, "no path: start and goal are in different free regions",
+                               PlanFailure.NO_PATH_REGIONS, timings=timings)
+        lab = vmap.label.reshape(-1)
+        on_roads = (lab == ROAD) | (lab == s_lab) | (lab == g_lab)
+        res, graph = self._search(q_s, q_g, sc, gc, on_roads & free, progress, timings)
+        searched = "roads"
+        if (not res.found and res.reason != REASON_BUDGET
+                and self.config.fallback_to_free_cells):
+            res2, graph = self._search(q_s, q_g, sc, gc, free, progress, timings)
+            searched = "free cells"
+            res = SearchResult(res2.found, res2.reason, res2.nodes, res2.cost,
+                               res.expansions + res2.expansions,
+                               res.edge_checks + res2.edge_checks,
+                               res.rejected_edges + res2.rejected_edges,
+                               res.seconds + res2.seconds, res2.budget_detail)
+        timings["total"] = time.perf_counter() - t0
+        if not res.found:
+            if res.reason == REASON_BUDGET:
+                return RoadmapPlan(False, f"budget exhausted ({res.budget_detail})",
+                                   PlanFailure.BUDGET, expansions=res.expansions,
+                                   edge_checks=res.edge_checks,
+                                   rejected_edges=res.rejected_edges, timings=timings)
+            return RoadmapPlan(False, "no path: no collision-free connection through the free "
+                               f"cells ({res.rejected_edges} edges rejected)",
+                               PlanFailure.NO_PATH, expansions=res.expansions,
+                               edge_checks=res.edge_checks, rejected_edges=res.rejected_edges,
+                               timings=timings)
+        path = [graph.node_q[n].copy() for n in res.nodes]
+        return self._plan_from(path, res, searched, timings, res.cost)
+
+    # ---------------------------------------------------------------- helpers
+    def _weighted(self, a: Array, b: Array) -> float:
+        return float(np.linalg.norm((b - a) * self._weights()))
+
+    def _weights(self) -> Array:
+        """Arm radii, zero for table joints that cannot move the geometry (J6 with a straight
+        tool): their value does not matter to the roads, only to the final orientation."""
+        w = self.world.weights.copy()
+        w[self._free_joints()] = 0.0
+        return w
+
+    def _free_joints(self) -> Array:
+        table, positions = self.world.table, self.world.positions
+        assert table is not None and positions is not None
+        levels = positions.validator.link_level
+        out = np.zeros(self.robot.dof, dtype=bool)
+        for j in range(self.robot.dof):
+            # joint j moves link j + 1 (and everything beyond); irrelevant if it is the last
+            # joint, fixed in the table and the last link does not depend on it
+            if table.counts[j] == 1 and j == self.robot.dof - 1 and levels[j + 1] == j:
+                out[j] = True
+        return out
+
+    def _check_terminals(self, q_s: Array, q_g: Array) -> RoadmapPlan | None:
+        w, robot = self.world, self.robot
+        for q, what in ((q_s, "start"), (q_g, "goal")):
+            if q.shape != (robot.dof,):
+                raise ValueError(f"{what} must have {robot.dof} joint values")
+        if not robot.limits.contains(q_g):
+            v = ", ".join(robot.limits.violations(q_g, robot.joint_names))
+            return RoadmapPlan(False, f"unreachable goal: {v}", PlanFailure.GOAL_UNREACHABLE)
+        if w.tcp_cell(q_g) < 0:
+            return RoadmapPlan(False, "unreachable goal: its TCP lies outside the world model",
+                               PlanFailure.GOAL_UNREACHABLE)
+        if not robot.limits.contains(q_s) or w.tcp_cell(q_s) < 0:
+            return RoadmapPlan(False, "start outside the joint limits or the world model",
+                               PlanFailure.START_INVALID)
+        if not self.checker.is_valid(q_s):
+            return RoadmapPlan(False, f"start posture is in collision{self._why(q_s)}",
+                               PlanFailure.START_INVALID)
+        if not self.checker.is_valid(q_g):
+            return RoadmapPlan(False, f"goal inside an obstacle{self._why(q_g)}",
+                               PlanFailure.GOAL_IN_OBSTACLE)
+        gc = w.tcp_cell(q_g)
+        p = float(w.occupancy().reshape(-1)[gc])
+        if p >= w.threshold:
+            return RoadmapPlan(False, f"goal inside an obstacle: its cell is occupied "
+                               f"(P = {p:.2f})", PlanFailure.GOAL_IN_OBSTACLE)
+        if w.near_recorded_collision(q_g[None])[0]:
+            return RoadmapPlan(False, "goal inside an obstacle: next to a recorded collision",
+                               PlanFailure.GOAL_IN_OBSTACLE)
+        return None
+
+    def _why(self, q: Array) -> str:
+        check = getattr(self.checker, "check", None)
+        if check is None:
+            return ""
+        try:
+            return f" ({check(q).describe()})"
+        except Exception:  # a test double may not report details
+            return ""
+
+    def _search(self, q_s: Array, q_g: Array, sc: int, gc: int, searchable: Array,
+                progress: Progress | None, timings: dict[str, float],
+                ) -> tuple[SearchResult, JointGraph]:
+        w = self.world
+        t0 = time.perf_counter()
+        cells, offsets, Q = w.cell_positions()
+        occ = w.occupancy().reshape(-1)
+        squeeze = (w.occupied() | (w.reachable() & ~w.has_valid())).reshape(-1)
+        graph, (s_id, g_id) = JointGraph.build(
+            w.grid.shape, cells, offsets, Q, searchable, squeeze,
+            self.config.occupancy_penalty * occ, self._weights(),
+            extra=[(sc, q_s), (gc, q_g)], max_edge=self.config.max_edge)
+        timings["graph"] = timings.get("graph", 0.0) + time.perf_counter() - t0
+        t1 = time.perf_counter()
+        res = lazy_astar(graph, s_id, g_id, self._edge, self.config.budget, progress,
+                         heuristic_weight=self.config.heuristic_weight)
+        timings["search"] = timings.get("search", 0.0) + time.perf_counter() - t1
+        return res, graph
+
+    def _plan_from(self, path: list[Array], res: SearchResult | None, searched: str,
+                   timings: dict[str, float], cost: float) -> RoadmapPlan:
+        path = self._interpolate_free_joints(path)
+        P = self.robot.batch_fk(np.array(path)).positions
+        ijk = self.world.grid.ijk_of_points(P)
+        cells = [tuple(int(v) for v in c) for c in ijk]
+        return RoadmapPlan(
+            True, "found", None, path, cells, float(cost),
+            res.expansions if res else 0, res.edge_checks if res else 1,
+            res.rejected_edges if res else 0, searched, timings)
+
+    def _interpolate_free_joints(self, path: list[Array]) -> list[Array]:
+        free = self._free_joints()
+        if not free.any() or len(path) < 3:
+            return path
+        P = np.array(path)
+        seg = np.linalg.norm(np.diff(P[:, ~free] * self.world.weights[~free], axis=0), axis=1)
+        s = np.r_[0.0, np.cumsum(seg)]
+        s = s / s[-1] if s[-1] > 0 else np.linspace(0.0, 1.0, len(P))
+        P[:, free] = P[0, free] + s[:, None] * (P[-1, free] - P[0, free])
+        return [p for p in P]

@@ -1,0 +1,144 @@
+"""The joint positions each leaf offers the search: the first K valid ones in diversity order.
+
+The table holds ~5 M positions for the RV-2AJ (median ~900 per leaf); the A* connects every
+position of a cell to every position of its neighbours, so it wants a few, well spread ones
+(thesis §8.5.6: too many make the search slow, too few make it fail). Checking all 5 M
+against CAD would take a minute, so validity is resolved lazily per leaf: walk the leaf's
+list in diversity order (`reachability` module), check a batch, keep the first K valid, and
+check more (doubling batches) only for leaves that still have fewer than K. Leaves whose
+whole list is checked without a valid position are blocked; leaves still short after the
+round budget are reported as unresolved (and treated as blocked if they have none).
+
+Per position a state byte (unknown / valid / invalid by CAD / invalid by an indication) is
+kept, so an operator indication can invalidate positions and the affected leaves refill.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from assistant.progress import Progress
+from assistant.world.chain_levels import ChainValidator
+from assistant.world.reachability import ReachabilityTable
+
+Array = np.ndarray
+
+UNKNOWN, VALID, INVALID_CAD, INVALID_INDICATED = 0, 1, 2, 3
+
+
+@dataclass(frozen=True)
+class SelectionConfig:
+    """How many positions a cell keeps for the search and how hard to look for them."""
+
+    #: K: positions kept per leaf (ours; the thesis only says "at least a few per cell").
+    per_cell: int = 12
+    #: Positions checked per leaf in the first round; doubles each round.
+    first_batch: int = 24
+    #: Rounds before a leaf counts as unresolved.
+    max_rounds: int = 7
+
+
+@dataclass(frozen=True)
+class FillReport:
+    leaves: int
+    checked: int
+    exhausted_blocked: int
+    unresolved: int
+
+
+class CellPositions:
+    """Per-position validity state and the selected positions per leaf."""
+
+    def __init__(self, table: ReachabilityTable, validator: ChainValidator,
+                 config: SelectionConfig | None = None):
+        self.table = table
+        self.validator = validator
+        self.config = config or SelectionConfig()
+        n_leaves = len(table.leaves)
+        self.state = np.zeros(table.n_positions, dtype=np.int8)
+        self.examined = np.zeros(n_leaves, dtype=np.int64)  # prefix length checked per leaf
+        self.selected = np.zeros(table.n_positions, dtype=bool)
+        self.n_selected = np.zeros(n_leaves, dtype=np.int64)
+        self.checked_total = 0
+
+    # ---------------------------------------------------------------- filling
+    def fill(self, slots: Array, progress: Progress | None = None) -> FillReport:
+        """Make each leaf slot hold K valid positions if its list has them (see module doc)."""
+        t = self.table
+        cfg = self.config
+        slots = np.unique(np.asarray(slots, dtype=np.int64))
+        counts = np.diff(t.offsets)
+        checked = 0
+        batch = cfg.first_batch
+        for rnd in range(cfg.max_rounds):
+            self._reselect(slots)
+            need = slots[(self.n_selected[slots] < cfg.per_cell)
+                         & (self.examined[slots] < counts[slots])]
+            if not len(need):
+                break
+            take = np.minimum(batch, counts[need] - self.examined[need])
+            start = t.offsets[need] + self.examined[need]
+            p = np.repeat(start - np.r_[0, np.cumsum(take)[:-1]], take) + np.arange(take.sum())
+            todo = p[self.state[p] == UNKNOWN]
+            if len(todo):
+                sub = (progress.sub(rnd / cfg.max_rounds, (rnd + 1) / cfg.max_rounds)
+                       if progress is not None else None)
+                ok = self.validator.validate(t.positions[todo], sub)
+                self.state[todo] = np.where(ok, VALID, INVALID_CAD)
+                checked += len(todo)
+            self.examined[need] += take
+            batch *= 2
+        self._reselect(slots)
+        self.checked_total += checked
+        exhausted = (self.examined[slots] >= counts[slots]) & (self.n_selected[slots] == 0)
+        unresolved = (self.examined[slots] < counts[slots]) & (self.n_selected[slots] == 0)
+        return FillReport(len(slots), checked, int(exhausted.sum()), int(unresolved.sum()))
+
+    def _reselect(self, slots: Array) -> None:
+        """Selected = the first K valid positions of the examined prefix of each slot."""
+        t = self.table
+        if not len(slots):
+            return
+        lens = self.examined[slots]
+        starts = t.offsets[slots]
+        p = np.repeat(starts - np.r_[0, np.cumsum(lens)[:-1]], lens) + np.arange(lens.sum())
+        owner = np.repeat(np.arange(len(slots)), lens)
+        ok = self.state[p] == VALID
+        # rank of each valid position within its slot
+        csum = np.cumsum(ok)
+        before = np.r_[0, csum][np.r_[0, np.cumsum(lens)][:-1]]
+        rank = csum - before[owner] - 1
+        keep = ok & (rank < self.config.per_cell)
+        # The old selection lies inside the examined prefix (it only grows): clear, then set.
+        self.selected[p] = False
+        self.selected[p[keep]] = True
+        self.n_selected[slots] = np.bincount(owner[keep], minlength=len(slots))
+
+    # ---------------------------------------------------------------- updates
+    def invalidate(self, position_index: Array) -> Array:
+        """Mark positions (indices into table.positions) invalid by an indication; returns the
+        affected leaf slots (refill them with `fill`)."""
+        pi = np.asarray(position_index, dtype=np.int64)
+        if not len(pi):
+            return pi
+        self.state[pi] = INVALID_INDICATED
+        slots = np.searchsorted(self.table.offsets, pi, side="right") - 1
+        return np.unique(slots)
+
+    # ---------------------------------------------------------------- views
+    def has_valid(self) -> Array:
+        """Dense bool grid: the leaf offers at least one valid joint position."""
+        m = np.zeros(self.table.grid.n_cells, dtype=bool)
+        m[self.table.leaves[self.n_selected > 0]] = True
+        return m.reshape(self.table.grid.shape)
+
+    def selected_csr(self) -> tuple[Array, Array, Array]:
+        """(cells, offsets, joint-grid ids): the selected positions of every leaf that has some,
+        grouped by flat cell id (ascending), in diversity order within a cell."""
+        p = np.flatnonzero(self.selected)
+        slot = np.searchsorted(self.table.offsets, p, side="right") - 1
+        cells, first = np.unique(slot, return_index=True)
+        offsets = np.r_[first, len(p)].astype(np.int64)
+        return self.table.leaves[cells], offsets, self.table.positions[p]

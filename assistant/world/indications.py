@@ -1,0 +1,104 @@
+"""Operator collision indications: a posture where the arm touched something becomes evidence.
+
+The operator is the collision sensor (SPEC §1). Where the contact was is unknown - somewhere on
+the arm at posture q - so an indication gives two kinds of evidence:
+
+* Cells: the leaves the arm's moving links occupy at q (points sampled along each collision
+  shape's axis, at most half a leaf apart, plus the TCP) receive an occupancy observation
+  from the "button" source. The thesis stored the posture only in the TCP cell; marking the
+  arm's cells as well keeps the TCP roads out of the region where the arm was stopped.
+  Links before `first_link` (base, turret) are skipped: they never move into anything.
+* Postures: table joint positions whose arm lies within `joint_radius` of the stopped arm
+  (arm-radius-weighted L1 joint distance, an upper bound on how far any arm point moves; fixed
+  table joints such as J6 are ignored) become invalid, and the planner rejects edges that pass
+  that close to a recorded posture.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from assistant.robot_model import Robot, ShapeKind
+from assistant.world.octree import OctreeGrid
+from assistant.world.reachability import ReachabilityTable
+
+Array = np.ndarray
+
+
+@dataclass(frozen=True)
+class IndicationConfig:
+    """Defaults are ours (the thesis gives no figures)."""
+
+    #: First link index whose cells are marked (0 base, 1 turret, 2 upper arm, ...).
+    first_link: int = 2
+    #: Observation value of the marked cells.
+    value: float = 1.0
+    #: Radius (m of arm travel) around the stopped posture in which postures become invalid.
+    joint_radius: float = 0.04
+
+
+def arm_points(robot: Robot, q: Array, first_link: int, spacing: float) -> Array:
+    """Points (base frame) on the links' collision shapes at q: along capsule/cylinder axes
+    every <= `spacing`, sphere/box/mesh centres and box corners, plus the TCP."""
+    frames = robot.link_poses(np.asarray(q, dtype=float))
+    pts = [robot.fk(q)[:3, 3][None]]
+    for k in range(first_link, len(robot.links)):
+        F = frames[k]
+        for s in robot.links[k].collision:
+            T = F @ s.T_link_shape
+            if s.kind in (ShapeKind.CAPSULE, ShapeKind.CYLINDER):
+                h = s.size[1] / 2.0
+                n = max(2, int(np.ceil(2 * h / spacing)) + 1)
+                local = np.zeros((n, 3))
+                local[:, 2] = np.linspace(-h, h, n)
+            elif s.kind == ShapeKind.BOX:
+                e = np.asarray(s.size) / 2.0
+                local = np.array([[0.0, 0.0, 0.0]] + [[x, y, z] for x in (-e[0], e[0])
+                                                      for y in (-e[1], e[1])
+                                                      for z in (-e[2], e[2])])
+            elif s.kind == ShapeKind.MESH and s.mesh is not None:
+                local = np.asarray(s.mesh.vertices, dtype=float)
+            else:
+                local = np.zeros((1, 3))
+            pts.append(local @ T[:3, :3].T + T[:3, 3])
+    return np.concatenate(pts)
+
+
+def indicated_cells(robot: Robot, grid: OctreeGrid, q: Array,
+                    config: IndicationConfig) -> Array:
+    """Flat ids (unique) of the leaves the arm occupies at q, inside the octree."""
+    flat = grid.flat_of_points(arm_points(robot, q, config.first_link, grid.leaf / 2.0))
+    return np.unique(flat[flat >= 0])
+
+
+def joint_distance(table: ReachabilityTable, weights: Array, Q: Array, q: Array) -> Array:
+    """Arm-radius-weighted L1 distance over the table's varying joints."""
+    varying = table.counts > 1
+    d = np.abs(np.asarray(Q)[:, varying] - np.asarray(q)[varying]) * weights[varying]
+    return d.sum(axis=1)
+
+
+def nearby_positions(table: ReachabilityTable, weights: Array, q: Array, tcp: Array,
+                     radius: float) -> Array:
+    """Indices into `table.positions` of the positions within `radius` of q.
+
+    A position that close has its TCP within `radius` of q's TCP (the weights bound point
+    motion), so only the leaves around the TCP need looking at.
+    """
+    grid = table.grid
+    c = grid.ijk_of_points(np.asarray(tcp)[None])[0]
+    r = int(np.ceil(radius / grid.leaf)) + 1
+    rng = [np.arange(c[a] - r, c[a] + r + 1) for a in range(3)]
+    ijk = np.stack(np.meshgrid(*rng, indexing="ij"), axis=-1).reshape(-1, 3)
+    ijk = ijk[grid.inside(ijk)]
+    slots = table.slot_of_leaf(grid.flat_of_ijk(ijk))
+    slots = slots[slots >= 0]
+    if not len(slots):
+        return np.zeros(0, dtype=np.int64)
+    lens = np.diff(table.offsets)[slots]
+    starts = table.offsets[slots]
+    p = np.repeat(starts - np.r_[0, np.cumsum(lens)[:-1]], lens) + np.arange(lens.sum())
+    d = joint_distance(table, weights, table.joints(table.positions[p]), q)
+    return p[d <= radius]

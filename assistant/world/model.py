@@ -1,0 +1,293 @@
+"""`WorldModel`: the octree, fusion, reachability table and valid joint positions of one cell.
+
+Building (`build`) loads or computes the reachability table, rasterises the CAD obstacles into
+leaves (CAD observations through the fusion), and finds the valid joint positions per free
+leaf (every link checked against CAD with FCL, see `chain_levels`). Afterwards the world
+changes only through observations: `indicate_collision` (the operator's button) and
+`observe` (sensors, camera). Each returns what changed, so the roadmap can update locally.
+
+Planners read dense grid views: `occupancy()` (fused P per leaf from the octree), `occupied()`,
+`reachable()`, `has_valid()`, `object_ids()`, and the selected positions `cell_positions()`.
+A leaf is *free* for the roadmap if it has a valid joint position and P < threshold.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from assistant.collision import ObstacleView
+from assistant.progress import Progress
+from assistant.robot_model import Robot
+from assistant.world.cell_positions import CellPositions, SelectionConfig
+from assistant.world.chain_levels import ChainValidator
+from assistant.world.fusion import FusionConfig, FusionUpdate, OccupancyFusion, Source
+from assistant.world.indications import (
+    IndicationConfig,
+    indicated_cells,
+    joint_distance,
+    nearby_positions,
+)
+from assistant.world.octree import LinearOctree, OctreeGrid
+from assistant.world.rasterise import rasterise_obstacles
+from assistant.world.reachability import (
+    ReachabilityConfig,
+    ReachabilityTable,
+    cache_dir,
+    load_or_build,
+    table_key,
+)
+
+Array = np.ndarray
+
+#: object_ids() value for cells occupied by non-CAD evidence (button, sensors, camera).
+OBSERVED_ID = -1
+
+
+@dataclass(frozen=True)
+class WorldConfig:
+    """Octree geometry (thesis: 2 m cube, 62.5 mm leaves, centred on the robot base) and the
+    parameters of the parts."""
+
+    size: float = 2.0
+    leaf: float = 0.0625
+    #: Octree centre in the robot base frame (world -> octree is this translation).
+    centre: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    reach: ReachabilityConfig = field(default_factory=ReachabilityConfig)
+    fusion: FusionConfig = field(default_factory=FusionConfig)
+    selection: SelectionConfig = field(default_factory=SelectionConfig)
+    indication: IndicationConfig = field(default_factory=IndicationConfig)
+    #: Cache folder for the reachability table (None: $CELLTEACH_CACHE or ~/.cache/cellteach).
+    cache: str | None = None
+    use_cache: bool = True
+    self_collision: bool = True
+
+    def grid(self) -> OctreeGrid:
+        return OctreeGrid.for_leaf(self.size, self.leaf, self.centre)
+
+
+@dataclass(frozen=True)
+class WorldBuildReport:
+    table_seconds: float
+    table_from_cache: bool
+    cad_cells_seconds: float
+    positions_seconds: float
+    positions_checked: int
+    leaves_reachable: int
+    leaves_free: int
+    leaves_occupied: int
+    leaves_blocked_by_arm: int
+    leaves_unresolved: int
+
+    @property
+    def total_seconds(self) -> float:
+        return self.table_seconds + self.cad_cells_seconds + self.positions_seconds
+
+
+@dataclass(frozen=True)
+class WorldChange:
+    """What one observation changed (flat leaf ids)."""
+
+    observed_cells: Array
+    occupancy_flipped: Array  # binary occupancy changed
+    validity_changed: Array  # the leaf gained/lost its last valid joint position
+    positions_invalidated: int = 0
+
+    @property
+    def changed_cells(self) -> Array:
+        return np.union1d(self.occupancy_flipped, self.validity_changed)
+
+
+@dataclass(frozen=True)
+class RecordedCollision:
+    """A posture the operator flagged (kept for edge checks and for saving the session)."""
+
+    q: Array
+    cells: Array
+
+
+class WorldModel:
+    """See the module docstring. Not thread-safe: one planner thread owns it."""
+
+    def __init__(self, robot: Robot, cad: Iterable[ObstacleView] = (),
+                 config: WorldConfig | None = None):
+        self.robot = robot
+        self.config = config or WorldConfig()
+        self.grid = self.config.grid()
+        self.cad = list(cad)
+        self.octree = LinearOctree(self.grid)
+        self.fusion = OccupancyFusion(self.config.fusion)
+        self.table: ReachabilityTable | None = None
+        self.positions: CellPositions | None = None
+        self.cad_cells: dict[str, Array] = {}
+        self.collisions: list[RecordedCollision] = []
+        self.weights = robot.arm_radii()
+        self._object_ids = np.zeros(self.grid.n_cells, dtype=np.int32)
+
+    @property
+    def built(self) -> bool:
+        return self.positions is not None
+
+    @property
+    def threshold(self) -> float:
+        return self.config.fusion.threshold
+
+    # ---------------------------------------------------------------- build
+    def build(self, progress: Progress | None = None) -> WorldBuildReport:
+        """Table (cached) + CAD cells + valid joint positions; raises `Cancelled`, leaving the
+        model as it was."""
+        progress = progress or Progress("world model")
+        t0 = time.perf_counter()
+        key = table_key(self.robot, self.grid, self.config.reach)
+        cached = (self.config.use_cache
+                  and (cache_dir(self.config.cache) / "reachability" / f"{key}.npz").exists())
+        table = load_or_build(self.robot, self.grid, self.config.reach, progress.sub(0.0, 0.4),
+                              cache=self.config.cache, use_cache=self.config.use_cache)
+        t1 = time.perf_counter()
+        progress.update(0.4, "rasterising CAD")
+        cad_cells = rasterise_obstacles(self.grid, self.cad)
+        t2 = time.perf_counter()
+        validator = ChainValidator(self.robot, self.cad, table,
+                                   self_collision=self.config.self_collision)
+        positions = CellPositions(table, validator, self.config.selection)
+        # Commit nothing until the expensive, cancellable part is done.
+        fusion = OccupancyFusion(self.config.fusion)
+        octree = LinearOctree(self.grid)
+        object_ids = np.zeros(self.grid.n_cells, dtype=np.int32)
+        for i, (name, cells) in enumerate(cad_cells.items()):
+            del name
+            if len(cells):
+                upd = fusion.observe(Source.CAD, self.grid.codes_of_flat(cells).astype(np.int64),
+                                     1.0)
+                octree.set_leaves(upd.cells.astype(np.uint64), upd.after)
+                fresh = object_ids[cells] == 0
+                object_ids[cells[fresh]] = i + 1
+        occupied = octree.to_dense().reshape(-1) >= self.threshold
+        slots = np.flatnonzero(~occupied[table.leaves])
+        fill = positions.fill(slots, progress.sub(0.45, 1.0, "valid joint positions"))
+        t3 = time.perf_counter()
+        self.table, self.positions, self.cad_cells = table, positions, cad_cells
+        self.fusion, self.octree, self._object_ids = fusion, octree, object_ids
+        self.collisions = []
+        free = self.free().sum()
+        progress.update(1.0, "world model ready", force=True)
+        return WorldBuildReport(
+            table_seconds=t1 - t0, table_from_cache=cached, cad_cells_seconds=t2 - t1,
+            positions_seconds=t3 - t2, positions_checked=fill.checked,
+            leaves_reachable=len(table.leaves), leaves_free=int(free),
+            leaves_occupied=int(occupied.sum()),
+            leaves_blocked_by_arm=fill.exhausted_blocked, leaves_unresolved=fill.unresolved)
+
+    def _need(self) -> tuple[ReachabilityTable, CellPositions]:
+        if self.table is None or self.positions is None:
+            raise RuntimeError("build the world model first (WorldModel.build)")
+        return self.table, self.positions
+
+    # ---------------------------------------------------------------- grid views
+    def occupancy(self) -> Array:
+        """Dense float32 grid of fused occupancy probabilities P."""
+        return self.octree.to_dense()
+
+    def occupied(self) -> Array:
+        return self.occupancy() >= self.threshold
+
+    def reachable(self) -> Array:
+        return self._need()[0].reachable()
+
+    def has_valid(self) -> Array:
+        return self._need()[1].has_valid()
+
+    def free(self) -> Array:
+        """Leaves the roadmap may use: a valid joint position and P < threshold."""
+        return self.has_valid() & ~self.occupied()
+
+    def object_ids(self) -> Array:
+        """Dense int32 grid: i + 1 for leaves of CAD object i (in `cad` order), OBSERVED_ID for
+        leaves occupied by other evidence, 0 elsewhere."""
+        ids = self._object_ids.copy()
+        occ = self.occupied().reshape(-1)
+        ids[occ & (ids == 0)] = OBSERVED_ID
+        return ids.reshape(self.grid.shape)
+
+    def object_names(self) -> list[str]:
+        return [ob.name for ob in self.cad]
+
+    def cell_positions(self) -> tuple[Array, Array, Array]:
+        """(cells, offsets, Q): selected valid joint positions (rad) grouped by flat leaf id."""
+        table, positions = self._need()
+        cells, offsets, ids = positions.selected_csr()
+        return cells, offsets, table.joints(ids)
+
+    def tcp_cell(self, q: Array) -> int:
+        """Flat leaf id of the TCP at q, -1 outside the octree."""
+        return int(self.grid.flat_of_points(self.robot.fk(np.asarray(q, dtype=float))[:3, 3])[0])
+
+    # ---------------------------------------------------------------- observations
+    def _apply(self, source: Source, cells: Array, values: Array | float) -> FusionUpdate:
+        codes = self.grid.codes_of_flat(cells).astype(np.int64)
+        upd = self.fusion.observe(source, codes, values)
+        self.octree.set_leaves(upd.cells.astype(np.uint64), upd.after)
+        return upd
+
+    def observe(self, source: Source | str, points_base: Array, values: Array | float,
+                progress: Progress | None = None) -> WorldChange:
+        """Occupancy observations (o in [0, 1]) at points from a sensor or the camera."""
+        table, positions = self._need()
+        flat = self.grid.flat_of_points(points_base)
+        vals = np.broadcast_to(np.asarray(values, dtype=float), flat.shape)
+        keep = flat >= 0
+        flat, vals = flat[keep], vals[keep]
+        if not len(flat):
+            empty = np.zeros(0, dtype=np.int64)
+            return WorldChange(empty, empty, empty)
+        upd = self._apply(Source(source), flat, vals)
+        flipped = self.grid.flat_of_codes(upd.flipped.astype(np.uint64))
+        # Leaves that became free may need their positions (never filled while occupied).
+        changed_valid = self._refill(flipped, progress)
+        return WorldChange(np.unique(flat), np.unique(flipped), changed_valid)
+
+    def indicate_collision(self, q: Array, progress: Progress | None = None) -> WorldChange:
+        """The operator pressed the collision button with the arm at q (see `indications`)."""
+        table, positions = self._need()
+        q = np.asarray(q, dtype=float)
+        cfg = self.config.indication
+        cells = indicated_cells(self.robot, self.grid, q, cfg)
+        upd = self._apply(Source.BUTTON, cells, cfg.value)
+        flipped = self.grid.flat_of_codes(upd.flipped.astype(np.uint64))
+        tcp = self.robot.fk(q)[:3, 3]
+        near = nearby_positions(table, self.weights, q, tcp, cfg.joint_radius)
+        slots = positions.invalidate(near)
+        before = positions.n_selected[slots] > 0
+        occupied = self.occupied().reshape(-1)
+        free_slots = slots[~occupied[table.leaves[slots]]]
+        positions.fill(free_slots, progress)
+        after = positions.n_selected[slots] > 0
+        lost = table.leaves[slots[before != after]]
+        self.collisions.append(RecordedCollision(q.copy(), cells))
+        return WorldChange(cells, np.unique(flipped), np.unique(lost), len(near))
+
+    def _refill(self, flat_cells: Array, progress: Progress | None) -> Array:
+        table, positions = self._need()
+        slots = table.slot_of_leaf(flat_cells)
+        slots = slots[slots >= 0].astype(np.int64)
+        if not len(slots):
+            return np.zeros(0, dtype=np.int64)
+        before = positions.n_selected[slots] > 0
+        occupied = self.occupied().reshape(-1)
+        positions.fill(slots[~occupied[table.leaves[slots]]], progress)
+        after = positions.n_selected[slots] > 0
+        return np.unique(table.leaves[slots[before != after]])
+
+    def near_recorded_collision(self, Q: Array) -> Array:
+        """Bool per row of Q: within the indication radius of a recorded collision posture."""
+        Q = np.atleast_2d(np.asarray(Q, dtype=float))
+        out = np.zeros(len(Q), dtype=bool)
+        if not self.collisions or self.table is None:
+            return out
+        for rc in self.collisions:
+            out |= joint_distance(self.table, self.weights, Q, rc.q) <= \
+                self.config.indication.joint_radius
+        return out
