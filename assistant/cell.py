@@ -244,12 +244,14 @@ class CellObject:
 
 @dataclass(frozen=True, eq=False)
 class CollisionObjectView:
-    """What the collision checker needs of one object, in the robot base frame."""
+    """What the collision checker needs of one object, in the robot base frame
+    (`assistant.collision.ObstacleView`)."""
 
     name: str
     role: ObjectRole
     T_base_object: Array
-    shapes: tuple[CollisionShape, ...]
+    #: Collision shapes in the object frame (as `CellObject.collision`).
+    collision: tuple[CollisionShape, ...]
 
 
 @functools.lru_cache(maxsize=8)

@@ -99,7 +99,7 @@ def test_poses_in_the_base_frame():
     assert [v.name for v in views] == ["box", "ball"]
     assert views[0].role == ObjectRole.OBSTACLE
     np.testing.assert_allclose(views[0].T_base_object, T)
-    assert views[1].shapes[0].kind == ShapeKind.SPHERE
+    assert views[1].collision[0].kind == ShapeKind.SPHERE
 
 
 def test_set_object_pose_replaces_the_object_and_refuses_bad_poses():
@@ -162,3 +162,18 @@ def test_cell_constructor_validates_its_contents():
         Cell(objects={"b": box})
     with pytest.raises(CellError, match="robot base pose"):
         Cell(T_world_base=np.zeros((4, 4)))
+
+
+def test_the_collision_checker_consumes_the_cell_view():
+    # The contract with assistant.collision: a box over the arm's stretched-up flange
+    # (0, 0, 782 mm in the base frame) collides; the same box moved aside does not. The base is
+    # moved and turned in the world so that the world -> base conversion matters.
+    from assistant.collision import CollisionChecker
+
+    T_world_base = _T(1.0, 2.0, 0.5, 90.0)
+    cell = Cell(T_world_base=T_world_base)
+    cell.add_object(CellObject.box("hood", (0.1, 0.1, 0.05), T_world_base @ _T(z=0.8)))
+    q_up = np.zeros(5)
+    assert not CollisionChecker(cell.robot(), cell.collision_objects_in_base()).is_valid(q_up)
+    cell.set_object_pose("hood", T_world_base @ _T(x=0.6, z=0.8))
+    assert CollisionChecker(cell.robot(), cell.collision_objects_in_base()).is_valid(q_up)
