@@ -9,6 +9,7 @@ version) and for IK, and it is why an arbitrary 6-DoF orientation is generally u
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import itertools
 import json
@@ -224,7 +225,7 @@ class RV2AJ(Robot):
             out[3, 2] = z
         return BatchPoses(out[3].T, out[:3].transpose(2, 0, 1))
 
-    @property
+    @functools.cached_property
     def _batch_consts(self) -> tuple[Array, Array, Array, Array | None]:
         R_ft = self.T_flange_tool[:3, :3]
         p_ft = self.T_flange_tool[:3, 3]
