@@ -3,12 +3,12 @@
 Each REST command is one exact-stop PTP, so sending every point of a planned joint path
 would stop the arm hundreds of times. A synchronous PTP between two configurations moves
 along the straight joint-space segment between them, so we keep only the vertices that a
-straight segment cannot replace within a tolerance (Ramer-Douglas-Peucker in joint space).
+straight segment cannot replace within a tolerance (Ramer-Douglas-Peucker in joint space,
+comparing points at equal fractions of the path length, so out-and-back paths survive).
 
 The distance is measured where it matters, on the arm: a joint deviation dq moves no point
 of the arm by more than sum_i r_i |dq_i| (`Robot.arm_radii`). The executed path therefore
-stays within `tol_m` of the checked one everywhere on the arm (the distance from a straight
-segment to the chord is convex along it, so checking vertices suffices). The planner's
+stays within `tol_m` of the checked one everywhere on the arm. The planner's
 clearance must exceed `tol_m`; the default (2 mm) is well below the planner's margins.
 """
 
@@ -20,16 +20,21 @@ Array = np.ndarray
 
 
 def arm_deviation(points: Array, a: Array, b: Array, radii: Array) -> Array:
-    """Weighted distance of each point to the joint segment a-b (arm-motion bound, metres)."""
-    d = b - a
-    w = radii
-    denom = float(np.sum((w * d) ** 2))
-    rel = points - a[None]
-    if denom <= 1e-18:
-        s = np.zeros(len(points))
-    else:
-        s = np.clip((rel * w[None] ** 2) @ d / denom, 0.0, 1.0)
-    off = rel - s[:, None] * d[None]
+    """How far (bound on any arm point, metres) each vertex is from the chord a -> b.
+
+    `points` is the sub-path from a to b, a and b included. Each vertex is compared with the
+    chord point at the same fraction of the path's length (weighted by the arm radii), so a
+    path that runs out and back along one line is not mistaken for a straight one. Within a
+    segment both curves are linear in that fraction, so the deviation between vertices is
+    never larger than at the vertices.
+    """
+    w = np.asarray(radii, dtype=float)
+    P = np.asarray(points, dtype=float)
+    steps = np.abs(np.diff(P, axis=0)) @ w
+    length = np.concatenate([[0.0], np.cumsum(steps)])
+    total = float(length[-1])
+    s = length / total if total > 1e-15 else np.zeros(len(P))
+    off = P - (a[None] + s[:, None] * (b - a)[None])
     return np.abs(off) @ w
 
 
@@ -47,10 +52,10 @@ def decimate_joint_path(path: Array, radii: Array, tol_m: float) -> Array:
         i, j = stack.pop()
         if j - i < 2:
             continue
-        dev = arm_deviation(P[i + 1:j], P[i], P[j], r)
+        dev = arm_deviation(P[i:j + 1], P[i], P[j], r)
         k = int(np.argmax(dev))
         if dev[k] > tol_m:
-            m = i + 1 + k
+            m = i + k
             keep[m] = True
             stack += [(i, m), (m, j)]
     return np.nonzero(keep)[0]
