@@ -102,8 +102,9 @@ class BlobDetector:
         `window` restricts the search (a locked track's prediction); blobs cut by the window
         edge or the image edge are dropped, since their centre would be biased. `radius_range`
         narrows the size filter when the distance to the ball is known; only then are blobs
-        that fail the shape test split by opening (a ball merged with a red bar it passes in
-        front of), since without a known size that turns square stickers into "balls".
+        that fail the shape test split by opening (a ball merged with a red bar or patch it
+        passes in front of), since without a known size that turns square stickers into
+        "balls".
         """
         h, w = image_bgr.shape[:2]
         x0, y0, x1, y1 = (0, 0, w, h) if window is None else window
@@ -113,33 +114,74 @@ class BlobDetector:
         hsv = cv2.cvtColor(roi, cv2.COLOR_BGR2HSV)
         raw = self.profile.mask(hsv)
         mask = self._clean(raw)
-        n, labels, stats, _ = cv2.connectedComponentsWithStats(mask, connectivity=8)
-        if n <= 1:
-            return []
         r_lo, r_hi = self.params.min_radius_px, self.params.max_radius_px
         if radius_range is not None:
             r_lo, r_hi = max(r_lo, radius_range[0]), min(r_hi, radius_range[1])
-        area_lo, area_hi = 0.6 * np.pi * r_lo**2, 1.5 * np.pi * r_hi**2
+        split = radius_range is not None
+        found = self._blobs(mask, hsv, raw, x0, y0, r_lo, r_hi, split)
+        if not found and split:
+            # the ball may touch a patch of its own colour (it passes in front of a red box):
+            # a 5x5 median or closing can bridge the gap, so look again with a 3x3 median
+            # only; then open with a disc a little over half the expected radius to cut a
+            # real neck. The ball survives whole; the patch is cut off by the window edge.
+            retry = [cv2.medianBlur(raw, 3)]
+            if r_lo >= 3.0:
+                k = int(round(0.9 * r_lo))
+                kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1, 2 * k + 1))
+                retry.append(cv2.morphologyEx(mask, cv2.MORPH_OPEN, kernel))
+            for alt in retry:
+                found = self._blobs(alt, hsv, raw, x0, y0, r_lo, r_hi, False)
+                if found:
+                    break
+        found.sort(key=lambda d: -d.score)
+        return found[: self.params.max_candidates]
+
+    def _blobs(self, mask: np.ndarray, hsv: np.ndarray, raw: np.ndarray, x0: int, y0: int,
+               r_lo: float, r_hi: float, split: bool) -> list[Detection]:
+        # outer contours, not connectedComponentsWithStats: the same blobs at a fraction of
+        # the cost on a sparse mask (0.1 ms vs 2-5 ms at 640x480 on one core)
+        contours, _ = cv2.findContours(mask, cv2.RETR_EXTERNAL, cv2.CHAIN_APPROX_SIMPLE)
         rh, rw = mask.shape
         found: list[Detection] = []
-        for i in range(1, n):
-            bx, by, bw, bh, area = stats[i]
-            if not area_lo <= area <= area_hi:
+        for contour in contours:
+            bx, by, bw, bh = cv2.boundingRect(contour)
+            if max(bw, bh) < 1.4 * r_lo or min(bw, bh) > 2.0 * r_hi * 1.6 + 2:
                 continue
             if bx == 0 or by == 0 or bx + bw >= rw or by + bh >= rh:
                 continue  # touches the window / image edge
-            component = labels[by:by + bh, bx:bx + bw] == i
+            if not self._plausible(contour, r_lo, r_hi, split):
+                continue
+            component = np.zeros((bh, bw), np.uint8)
+            cv2.drawContours(component, [contour], -1, 1, cv2.FILLED, offset=(-bx, -by))
             value = hsv[by:by + bh, bx:bx + bw, 2]
             raw_in = raw[by:by + bh, bx:bx + bw] > 0
-            det = self._measure(component, value, raw_in, bx + x0, by + y0)
+            det = self._measure(component > 0, value, raw_in, bx + x0, by + y0)
             if det is not None and self._accept(det, r_lo, r_hi):
                 found.append(det)
-            elif det is not None and radius_range is not None and det.radius_px >= r_lo:
-                found.extend(d for d in self._split(component, value, raw_in, bx + x0,
+            elif det is not None and split and det.radius_px >= r_lo:
+                found.extend(d for d in self._split(component > 0, value, raw_in, bx + x0,
                                                     by + y0, r_lo)
                              if self._accept(d, r_lo, r_hi))
-        found.sort(key=lambda d: -d.score)
-        return found[: self.params.max_candidates]
+        return found
+
+    def _plausible(self, contour: np.ndarray, r_lo: float, r_hi: float, split: bool) -> bool:
+        """Cheap tests on the outline polygon before any pixel is looked at: size, and a
+        loose version of the roundness tests (a blob merged with a bar may still be split)."""
+        m = cv2.moments(contour)
+        a = m["m00"]  # polygon through boundary pixel centres: ~pi (r - 0.5)^2 for a disc
+        if a <= 0:
+            return r_lo <= 1.0
+        if not np.pi * max(r_lo - 1.0, 0.0) ** 2 * 0.6 <= a <= 1.5 * np.pi * r_hi**2:
+            return False
+        if split:
+            return True
+        mu20, mu02, mu11 = m["mu20"] / a, m["mu02"] / a, m["mu11"] / a
+        common = np.sqrt((mu20 - mu02) ** 2 + 4 * mu11**2)
+        l1, l2 = 0.5 * (mu20 + mu02 + common), 0.5 * (mu20 + mu02 - common)
+        if l1 <= 0 or np.sqrt(max(l2, 0.0) / l1) < self.params.min_axis_ratio - 0.1:
+            return False
+        _, r_enc = cv2.minEnclosingCircle(contour)
+        return a / (np.pi * (r_enc + 0.5) ** 2) >= 0.6 * self.params.min_fill
 
     def _accept(self, det: Detection, r_lo: float, r_hi: float) -> bool:
         p = self.params
