@@ -138,7 +138,7 @@ def test_stop_from_another_thread_aborts_the_running_ptp(start):
     def stopper():
         # After the first PTP, once the second one is under way on the bridge: stop.
         first.wait(10.0)
-        while not emu.arm.moving and not done.is_set():
+        while emu.arm.q[0] < Q_A[0] + 0.01 and not done.is_set():
             done.wait(0.002)
         link.stop()
 
