@@ -119,9 +119,12 @@ class _EdgeCheck:
 
     def first_invalid_fraction(self, q0: Array, q1: Array) -> float | None:
         if self.world.collisions:
-            step = self.world.config.indication.joint_radius / 2.0
-            travel = float(np.sum(np.abs(q1 - q0) * self.world.weights))
-            n = max(1, int(np.ceil(travel / step)))
+            table = self.world.table
+            assert table is not None
+            varying = table.counts > 1
+            # half a grid step per sample: no posture box is jumped over
+            steps = np.abs(q1 - q0)[varying] / (0.5 * table.step[varying])
+            n = max(1, int(np.ceil(steps.max(initial=0.0))))
             f = np.arange(n + 1) / n
             near = self.world.near_recorded_collision(q0 + f[:, None] * (q1 - q0))
             if near.any():

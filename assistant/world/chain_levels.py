@@ -30,6 +30,8 @@ from assistant.world.reachability import ReachabilityTable
 Array = np.ndarray
 
 UNKNOWN, VALID, INVALID = 0, 1, 2
+#: Penetration (m) the exact pre-test needs before it calls a contact certain without FCL.
+_SURE_MARGIN = 1e-5
 #: Prefix spaces larger than this keep their cache in a dict instead of a dense int8 array.
 _DENSE_LIMIT = 1 << 27
 
@@ -292,6 +294,8 @@ class ChainValidator:
         does not prove goes to the checkers as usual.
         """
         links, centres, radii = self._balls[L]
+        # Demand a clear overlap: touching (distance == radius) is left to FCL.
+        radii = radii - _SURE_MARGIN
         hit = np.zeros(len(Q), dtype=bool)
         if not len(radii) or not (self._boxes or self._obstacle_balls[1].size):
             return hit

@@ -8,10 +8,9 @@ the arm at posture q - so an indication gives two kinds of evidence:
   from the "button" source. The thesis stored the posture only in the TCP cell; marking the
   arm's cells as well keeps the TCP roads out of the region where the arm was stopped.
   Links before `first_link` (base, turret) are skipped: they never move into anything.
-* Postures: table joint positions whose arm lies within `joint_radius` of the stopped arm
-  (arm-radius-weighted L1 joint distance, an upper bound on how far any arm point moves; fixed
-  table joints such as J6 are ignored) become invalid, and the planner rejects edges that pass
-  that close to a recorded posture.
+* Postures: table joint positions within `joint_steps` grid steps of q in every joint (the
+  grid cell around the stopped posture, widened; fixed table joints such as J6 are ignored)
+  become invalid, and the planner rejects edges that pass through that box.
 """
 
 from __future__ import annotations
@@ -35,8 +34,10 @@ class IndicationConfig:
     first_link: int = 2
     #: Observation value of the marked cells.
     value: float = 1.0
-    #: Radius (m of arm travel) around the stopped posture in which postures become invalid.
-    joint_radius: float = 0.04
+    #: Half-width, in table grid steps per joint, of the box of postures around the stopped
+    #: one that become invalid (1 = the grid cell around q; 1.5 also takes the next ring
+    #: where it is close).
+    joint_steps: float = 1.5
 
 
 def arm_points(robot: Robot, q: Array, first_link: int, spacing: float) -> Array:
@@ -73,23 +74,24 @@ def indicated_cells(robot: Robot, grid: OctreeGrid, q: Array,
     return np.unique(flat[flat >= 0])
 
 
-def joint_distance(table: ReachabilityTable, weights: Array, Q: Array, q: Array) -> Array:
-    """Arm-radius-weighted L1 distance over the table's varying joints."""
+def near_posture(table: ReachabilityTable, Q: Array, q: Array, joint_steps: float) -> Array:
+    """Bool per row of Q: within `joint_steps` grid steps of q in every varying table joint."""
     varying = table.counts > 1
-    d = np.abs(np.asarray(Q)[:, varying] - np.asarray(q)[varying]) * weights[varying]
-    return d.sum(axis=1)
+    d = np.abs(np.asarray(Q)[:, varying] - np.asarray(q)[varying])
+    return np.all(d <= joint_steps * table.step[varying] + 1e-12, axis=1)
 
 
 def nearby_positions(table: ReachabilityTable, weights: Array, q: Array, tcp: Array,
-                     radius: float) -> Array:
-    """Indices into `table.positions` of the positions within `radius` of q.
+                     joint_steps: float) -> Array:
+    """Indices into `table.positions` of the positions near q (`near_posture`).
 
-    A position that close has its TCP within `radius` of q's TCP (the weights bound point
-    motion), so only the leaves around the TCP need looking at.
+    Their TCPs lie within sum_i weights_i * joint_steps * step_i of q's TCP (the weights, arm
+    radii, bound point motion), so only the leaves around the TCP need looking at.
     """
     grid = table.grid
+    reach = float(np.sum(weights * joint_steps * table.step))
     c = grid.ijk_of_points(np.asarray(tcp)[None])[0]
-    r = int(np.ceil(radius / grid.leaf)) + 1
+    r = int(np.ceil(reach / grid.leaf)) + 1
     rng = [np.arange(c[a] - r, c[a] + r + 1) for a in range(3)]
     ijk = np.stack(np.meshgrid(*rng, indexing="ij"), axis=-1).reshape(-1, 3)
     ijk = ijk[grid.inside(ijk)]
@@ -100,5 +102,4 @@ def nearby_positions(table: ReachabilityTable, weights: Array, q: Array, tcp: Ar
     lens = np.diff(table.offsets)[slots]
     starts = table.offsets[slots]
     p = np.repeat(starts - np.r_[0, np.cumsum(lens)[:-1]], lens) + np.arange(lens.sum())
-    d = joint_distance(table, weights, table.joints(table.positions[p]), q)
-    return p[d <= radius]
+    return p[near_posture(table, table.joints(table.positions[p]), q, joint_steps)]

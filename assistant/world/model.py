@@ -28,7 +28,7 @@ from assistant.world.fusion import FusionConfig, FusionUpdate, OccupancyFusion, 
 from assistant.world.indications import (
     IndicationConfig,
     indicated_cells,
-    joint_distance,
+    near_posture,
     nearby_positions,
 )
 from assistant.world.octree import LinearOctree, OctreeGrid
@@ -258,7 +258,7 @@ class WorldModel:
         upd = self._apply(Source.BUTTON, cells, cfg.value)
         flipped = self.grid.flat_of_codes(upd.flipped.astype(np.uint64))
         tcp = self.robot.fk(q)[:3, 3]
-        near = nearby_positions(table, self.weights, q, tcp, cfg.joint_radius)
+        near = nearby_positions(table, self.weights, q, tcp, cfg.joint_steps)
         slots = positions.invalidate(near)
         before = positions.n_selected[slots] > 0
         occupied = self.occupied().reshape(-1)
@@ -282,12 +282,11 @@ class WorldModel:
         return np.unique(table.leaves[slots[before != after]])
 
     def near_recorded_collision(self, Q: Array) -> Array:
-        """Bool per row of Q: within the indication radius of a recorded collision posture."""
+        """Bool per row of Q: inside the posture box of a recorded collision (`indications`)."""
         Q = np.atleast_2d(np.asarray(Q, dtype=float))
         out = np.zeros(len(Q), dtype=bool)
         if not self.collisions or self.table is None:
             return out
         for rc in self.collisions:
-            out |= joint_distance(self.table, self.weights, Q, rc.q) <= \
-                self.config.indication.joint_radius
+            out |= near_posture(self.table, Q, rc.q, self.config.indication.joint_steps)
         return out

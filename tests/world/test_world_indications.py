@@ -1,0 +1,69 @@
+"""Operator collision indications and sensor observations change the world model."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from assistant.collision import Obstacle
+from assistant.robot_model import CollisionShape, ShapeKind
+from assistant.transforms import make_T
+from assistant.world.cell_positions import INVALID_INDICATED
+from assistant.world.fusion import Source
+from assistant.world.indications import near_posture
+from assistant.world.model import WorldConfig, WorldModel
+from assistant.world.reachability import ReachabilityConfig
+
+
+@pytest.fixture
+def world(rv2aj) -> WorldModel:
+    table = Obstacle("table", make_T(p=[0.0, 0.0, -0.011]),
+                     (CollisionShape(ShapeKind.BOX, (1.5, 1.5, 0.02)),))
+    cfg = WorldConfig(leaf=0.125, reach=ReachabilityConfig(d_step=0.0625), use_cache=False)
+    w = WorldModel(rv2aj, [table], cfg)
+    w.build()
+    return w
+
+
+def test_indication_occupies_the_arm_cells_and_invalidates_nearby_postures(world, rv2aj):
+    q = np.radians([20.0, 40.0, 60.0, 30.0, 0.0])
+    tcp_cell = world.tcp_cell(q)
+    assert world.free().reshape(-1)[tcp_cell]
+    change = world.indicate_collision(q)
+    occ = world.occupied().reshape(-1)
+    assert tcp_cell in change.observed_cells.tolist()
+    assert occ[change.observed_cells].all()
+    assert tcp_cell in change.occupancy_flipped.tolist()
+    # cells along the forearm (elbow to wrist) are marked too, not only the TCP's
+    elbow = rv2aj.link_poses(q)[3][:3, 3]
+    assert world.grid.flat_of_points(elbow[None])[0] in change.observed_cells.tolist()
+    # postures next to q are gone from the search, and the posture itself is remembered
+    assert change.positions_invalidated > 0
+    _, _, Q = world.cell_positions()
+    assert not near_posture(world.table, Q, q, world.config.indication.joint_steps).any()
+    assert (world.positions.state == INVALID_INDICATED).sum() == change.positions_invalidated
+    assert world.near_recorded_collision(q[None])[0]
+    assert not world.near_recorded_collision(np.radians([[-90.0, 0, 90, 0, 0]]))[0]
+    # pressing again at the same posture changes no occupancy
+    again = world.indicate_collision(q)
+    assert len(again.occupancy_flipped) == 0
+
+
+def test_sensor_observations_go_through_fusion_and_free_cells_refill(world):
+    p = np.array([[0.30, 0.10, 0.35]])
+    cell = world.grid.flat_of_points(p)[0]
+    assert world.free().reshape(-1)[cell]
+    first = world.observe(Source.SENSOR, p, 1.0)
+    # one reading of a window-5 sensor is its own SMA: occupied at once
+    assert first.occupancy_flipped.tolist() == [cell]
+    for _ in range(4):
+        world.observe(Source.SENSOR, p, 1.0)
+    freed = None
+    for k in range(5):
+        ch = world.observe(Source.SENSOR, p, 0.0)
+        if len(ch.occupancy_flipped):
+            freed = k
+    # the 1 -> 0 step costs reliability, so P falls below 0.5 before the window empties
+    assert freed is not None and freed < 4
+    assert world.free().reshape(-1)[cell]
+    assert world.occupancy().reshape(-1)[cell] == 0.0
