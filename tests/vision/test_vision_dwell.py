@@ -119,7 +119,7 @@ def test_simulated_dwell_with_a_factory_in_single_camera_mode(stereo_rig):
 
 
 def test_simulated_dwell_reports_when_nothing_fires(stereo_rig):
-    strict = PointerParams(dwell=DwellParams(radius=1e-6))  # impossible to hold that still
+    strict = PointerParams(dwell=DwellParams(radius=1e-6, radius_mono=1e-6))  # too strict
     with pytest.raises(VisionError, match="no dwell fired"):
         simulate_dwell(stereo_rig[:1], np.array([0.3, 0.0, 0.3]), seed=2, hold_s=1.2,
                        params=strict)
