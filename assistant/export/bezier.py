@@ -82,13 +82,13 @@ class CubicBezier:
                 CubicBezier(np.array([c, b[1], a[2], P[3]])))
 
     def sub(self, t0: float, t1: float) -> CubicBezier:
-        """The piece between parameters t0 < t1."""
+        """The piece between parameters t0 < t1: its controls are the blossoms
+        b(t0,t0,t0), b(t0,t0,t1), b(t0,t1,t1), b(t1,t1,t1) (De Casteljau with mixed t)."""
         if t0 <= 0.0 and t1 >= 1.0:
             return self
-        right = self.split(t0)[1] if t0 > 0.0 else self
-        if t1 >= 1.0:
-            return right
-        return right.split((t1 - t0) / (1.0 - t0))[0]
+        P = self.control
+        return CubicBezier(np.array([_blossom(P, t0, t0, t0), _blossom(P, t0, t0, t1),
+                                     _blossom(P, t0, t1, t1), _blossom(P, t1, t1, t1)]))
 
     def chord_error_bound(self) -> float:
         """Certified upper bound of the distance from the curve to its chord (segment).
@@ -116,6 +116,12 @@ class CubicBezier:
     def transformed(self, T: Array) -> CubicBezier:
         """3-D copy under a rigid transform (2-D points are placed at z = 0 first)."""
         return CubicBezier(_apply(T, self.control))
+
+
+def _blossom(P: Array, u: float, v: float, w: float) -> Array:
+    a = (1 - u) * P[:-1] + u * P[1:]
+    b = (1 - v) * a[:-1] + v * a[1:]
+    return (1 - w) * b[0] + w * b[1]
 
 
 def _max_bernstein_mix(a: float, b: float) -> float:
@@ -297,17 +303,74 @@ def _farthest(s: CubicBezier, t0: float, tol: float) -> float:
     if s.sub(t0, 1.0).chord_error_bound() <= tol:
         return 1.0
     lo, hi = t0, 1.0  # lo passes (trivially), hi fails
-    for _ in range(40):
+    while hi - lo > 1e-7:  # a step shorter by 1e-7 of the segment costs nothing
         mid = 0.5 * (lo + hi)
         if s.sub(t0, mid).chord_error_bound() <= tol:
             lo = mid
         else:
             hi = mid
-        if hi - lo < 1e-9:
-            break
     if lo <= t0:
         lo = min(1.0, t0 + 1e-9)
     return lo
+
+
+@dataclass(frozen=True)
+class PathPiece:
+    """A piece of a chain as a controller primitive: a line, an arc or sampled points."""
+
+    kind: str  # "line" (start, end) | "arc" (start, via, end) | "curve" (samples, ends incl.)
+    points: Array
+    #: Largest distance from the Bezier segment to this piece, measured densely.
+    max_deviation: float
+    segment: int
+
+
+def fit_primitives(segments: Sequence[CubicBezier] | BezierChain, tol: float
+                   ) -> list[PathPiece]:
+    """Each segment as the simplest primitive within `tol`: a line, a circular arc, else the
+    adaptive samples. The drawings' straight strokes and rounded corners (quarter arcs) then
+    need 2 and 3 positions instead of a sampled polyline: what a person would program, and
+    what the source (000 §2.6) notes arcs are better at, done only where they fit.
+    """
+    out: list[PathPiece] = []
+    for i, s in enumerate(_segments(segments)):
+        t = np.linspace(0.0, 1.0, 257)
+        pts = s.point(t)
+        line_dev = float(_dist_to_segment(pts, s.start, s.end).max())
+        if line_dev <= tol:
+            out.append(PathPiece("line", np.array([s.start, s.end]), line_dev, i))
+            continue
+        arc = _arc_deviation(pts, s.point(0.5))
+        if arc is not None and arc <= tol:
+            out.append(PathPiece("arc", np.array([s.start, s.point(0.5), s.end]), arc, i))
+            continue
+        samp = sample_bezier_chain([s], tol)
+        out.append(PathPiece("curve", samp.points, samp.max_deviation, i))
+    return out
+
+
+def _arc_deviation(pts: Array, mid: Array) -> float | None:
+    """Largest radial distance of the dense points from the circle through start, mid, end
+    (None if they are collinear or the points do not sweep the arc monotonically)."""
+    P = pts if pts.shape[1] == 3 else np.c_[pts, np.zeros(len(pts))]
+    m = mid if mid.shape[0] == 3 else np.r_[mid, 0.0]
+    p0, p1 = P[0], P[-1]
+    a, b = m - p0, p1 - p0
+    n = np.cross(a, b)
+    nn = float(np.linalg.norm(n))
+    if nn < 1e-12 * max(float(a @ a), float(b @ b), 1e-30):
+        return None
+    c = p0 + (np.cross(n, a) * (b @ b) + np.cross(b, n) * (a @ a)) / (2.0 * nn * nn)
+    r = float(np.linalg.norm(p0 - c))
+    u = (p0 - c) / r
+    v = np.cross(n / nn, u)
+    d = P - c
+    ang = np.unwrap(np.arctan2(d @ v, d @ u))
+    if np.any(np.diff(ang) < -1e-12):
+        return None
+    off_plane = np.abs(d @ (n / nn))
+    return float(np.max(np.hypot(np.linalg.norm(d - np.outer(d @ (n / nn), n / nn), axis=1) - r,
+                                 off_plane)))
 
 
 def _assemble(segs: list[CubicBezier], params: list[list[float]],

@@ -221,7 +221,7 @@ def lower_splines(program: NeutralProgram) -> NeutralProgram:
 
 
 #: How far a blend between the linear moves of a lowered spline may pass from its point (m).
-CORNER_DEVIATION = 1e-4
+CORNER_DEVIATION = 5e-5
 
 
 def _corner_blend(a: Array | None, b: Array | None, c: Array | None) -> float:

@@ -200,24 +200,15 @@ class KrlDialect:
         else:
             lines = [f"; {name}: part {part.index} of {program.name}"]
         state: dict[str, object] = {}
-        in_spline = False
         for ins, step in step_changes(part.instructions):
-            starts_spline = isinstance(ins, Move) and ins.kind == MoveKind.SPLINE
-            if in_spline and not starts_spline:
-                lines.append("  ENDSPLINE")
-                in_spline = False
             if step is not None:
-                if in_spline:
-                    lines.append("  ENDSPLINE")
-                    in_spline = False
                 lines.append(step_line("  ; ", step, self.rules.max_line))
             if isinstance(ins, Move):
                 lines += self._settings(ins, state)
-                if ins.kind == MoveKind.SPLINE:
-                    if not in_spline:
-                        lines.append("  SPLINE")
-                        in_spline = True
+                if ins.kind == MoveKind.SPLINE:  # one block per spline move
+                    lines.append("  SPLINE")
                     lines += [f"    SPL {names[p.name]}" for p in ins.positions()]
+                    lines.append("  ENDSPLINE")
                 else:
                     lines.append("  " + self._motion(ins, names))
             elif isinstance(ins, Gripper):
@@ -231,8 +222,6 @@ class KrlDialect:
                 lines.append(f"  WAIT SEC {format_compact(ins.seconds, 3, step=ins.step)}")
             elif isinstance(ins, Comment):
                 lines += comment_lines("  ; ", ins.text, self.rules.max_line)
-        if in_spline:
-            lines.append("  ENDSPLINE")
         src = ProgramFile(f"{name}.src", self._head(name, robot, lines), newline="\r\n")
         decls = [self._declaration(p, names[p.name], robot, program) for p in part.positions]
         dat = ["&ACCESS RVP", "&REL 1", f"DEFDAT {name}",

@@ -8,16 +8,19 @@ The thesis gives no coordinates; these are chosen inside the RV-2AJ's reach with
 pointing down (J5 within +-90 deg), the arm in front of the base with the elbow up.
 
 `drawing_trajectory`: a Bezier drawing (source 000) on a calibrated paper plane: joint move
-above the first point, pen down, the drawing, pen up. The chain is cut at its corners (joints
-that are not G1): a straight run becomes one linear move, a curved run one spline through
-its adaptively sampled points (or linear moves through them), so no spline rounds a corner.
+above the first point, pen down, the drawing, pen up. With `arcs` every segment that is a
+line or a circular arc within the tolerance becomes a linear or circular move; the other
+segments, cut at corners (joints that are not G1), become splines through their adaptively
+sampled points (or linear moves through them), so no spline rounds a corner.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
-from assistant.export.bezier import BezierChain, sample_bezier_chain
+from assistant.export.bezier import BezierChain, fit_primitives, sample_bezier_chain
 from assistant.motion import (
     Motion,
     MotionKind,
@@ -68,14 +71,19 @@ def waypoint(robot: Robot, name: str, xyz_m: Array, R: Array = R_DOWN,
     return Waypoint(T, res.best(seed), name)
 
 
-def thesis_trajectory(robot: Robot, *, linear_speed: float = 0.1,
-                      joint_speed: float = 0.5) -> Trajectory:
-    """The thesis scenario P1..P10 with its six primitives and the gripper opening at P7."""
+def thesis_trajectory(robot: Robot, *, linear_speed: float = 0.1, joint_speed: float = 0.5,
+                      jitter: float = 0.0, seed: int = 0) -> Trajectory:
+    """The thesis scenario P1..P10 with its six primitives and the gripper opening at P7.
+
+    `jitter` (m) moves every point randomly by up to that much, so the coordinates are not
+    round millimetres (as a planner's are not): then the number format shows in round trips.
+    """
+    rng = np.random.default_rng(seed)
     w: dict[str, Waypoint] = {}
     prev_q = None
     for name, xyz in THESIS_POINTS_MM.items():
-        w[name] = waypoint(robot, name, np.array(xyz) / 1000.0,
-                           seed=None if prev_q is None else prev_q)
+        p = np.array(xyz) / 1000.0 + rng.uniform(-jitter, jitter, 3)
+        w[name] = waypoint(robot, name, p, seed=None if prev_q is None else prev_q)
         prev_q = w[name].q
     lin = dict(speed=linear_speed)
     motions = [
@@ -96,9 +104,15 @@ def paper_frame(origin_mm: tuple[float, float, float] = (290.0, 0.0, 100.0)) -> 
 
 
 def drawing_trajectory(robot: Robot, chain: BezierChain, *, T_base_paper: Array | None = None,
-                       tolerance: float = 1e-4, spline: bool = True, lift: float = 0.03,
-                       draw_speed: float = 0.05, name: str = "drawing") -> Trajectory:
-    """Pen down, the chain (sampled to `tolerance`), pen up; positions D1, D2, ... on paper."""
+                       tolerance: float = 1e-4, spline: bool = True, arcs: bool = True,
+                       lift: float = 0.03, draw_speed: float = 0.05, blend: float = 5e-4,
+                       name: str = "drawing") -> Trajectory:
+    """Pen down, the chain (within `tolerance`), pen up; positions D1, D2, ... on paper.
+
+    Moves inside a corner-free run blend into each other by `blend` (m): the transitions are
+    tangent, so the pen does not stop and the cut is negligible (0.5 mm into a 10 mm arc
+    passes about 3 um from it).
+    """
     T = paper_frame() if T_base_paper is None else T_base_paper
     chain3 = chain.transformed(T)
     up = T[:3, 2] * lift
@@ -110,25 +124,65 @@ def drawing_trajectory(robot: Robot, chain: BezierChain, *, T_base_paper: Array 
     label = f"draw {name}"
     motions = [Motion(MotionKind.JOINT, above, label="approach", speed=0.5),
                Motion(MotionKind.LINEAR, down, label="pen down", speed=0.02)]
-    prev = down.q
-    k = 1
+    namer = _DrawingPoints(robot, R, down.q)
     for run in corner_runs(chain3):
-        samp = sample_bezier_chain(run, tolerance)
-        pts: list[Waypoint] = []
-        for p in samp.points[1:]:
-            k += 1
-            wp = waypoint(robot, f"D{k}", p, R, seed=prev)
-            pts.append(wp)
-            prev = wp.q
-        if len(pts) == 1 or not spline:
-            motions += [Motion(MotionKind.LINEAR, wp, label=label, speed=draw_speed)
-                        for wp in pts]
-        else:
-            motions.append(Motion(MotionKind.SPLINE, pts[-1], through=tuple(pts[:-1]),
-                                  label=label, speed=draw_speed))
-    lift_wp = waypoint(robot, "LIFT", chain3.segments[-1].end + up, R, seed=prev)
+        first_of_run = len(motions)
+        motions += _run_motions(run, namer, tolerance, spline=spline, arcs=arcs, label=label,
+                                speed=draw_speed)
+        for i in range(first_of_run, len(motions) - 1):
+            motions[i] = replace(motions[i], blend_radius=blend)
+    lift_wp = waypoint(robot, "LIFT", chain3.segments[-1].end + up, R, seed=namer.q)
     motions.append(Motion(MotionKind.LINEAR, lift_wp, label="pen up", speed=0.05))
     return Trajectory(start, motions)
+
+
+class _DrawingPoints:
+    """Waypoints D2, D3, ... with IK seeded by the previous one (the arm does not jump)."""
+
+    def __init__(self, robot: Robot, R: Array, q: Array):
+        self.robot, self.R, self.q, self.k = robot, R, q, 1
+
+    def __call__(self, points: Array) -> list[Waypoint]:
+        out = []
+        for p in points:
+            self.k += 1
+            wp = waypoint(self.robot, f"D{self.k}", p, self.R, seed=self.q)
+            self.q = wp.q
+            out.append(wp)
+        return out
+
+
+def _run_motions(run: list, points: _DrawingPoints, tol: float, *, spline: bool, arcs: bool,
+                 label: str, speed: float) -> list[Motion]:
+    out: list[Motion] = []
+
+    def curve(wps: list[Waypoint]) -> None:
+        if len(wps) == 1 or not spline:
+            out.extend(Motion(MotionKind.LINEAR, w, label=label, speed=speed) for w in wps)
+        else:
+            out.append(Motion(MotionKind.SPLINE, wps[-1], through=tuple(wps[:-1]), label=label,
+                              speed=speed))
+
+    if not arcs:
+        curve(points(sample_bezier_chain(run, tol).points[1:]))
+        return out
+    pending: list[Waypoint] = []
+    for piece in fit_primitives(run, tol):
+        if piece.kind == "curve":
+            pending += points(piece.points[1:])
+            continue
+        if pending:
+            curve(pending)
+            pending = []
+        if piece.kind == "line":
+            out.append(Motion(MotionKind.LINEAR, points(piece.points[1:])[0], label=label,
+                              speed=speed))
+        else:
+            via, end = points(piece.points[1:])
+            out.append(Motion(MotionKind.CIRCULAR, end, via=via, label=label, speed=speed))
+    if pending:
+        curve(pending)
+    return out
 
 
 def corner_runs(chain: BezierChain, angle: float = np.radians(1.0)) -> list[list]:

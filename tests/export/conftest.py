@@ -25,6 +25,13 @@ def drawing_program(rv2aj) -> NeutralProgram:
 
 
 @pytest.fixture(scope="session")
+def frame_program(rv2aj) -> NeutralProgram:
+    """Frame 1 (the source timed a frame): straight strokes and quarter arcs -> LIN and CIRC."""
+    traj = drawing_trajectory(rv2aj, drawing(1), tolerance=1e-4, name="frame")
+    return program_from_trajectory(traj, rv2aj, name="frame")
+
+
+@pytest.fixture(scope="session")
 def ur5():
     """A UR5 from example-robot-data through URDFRobot, or skip (the test extra is missing)."""
     try:

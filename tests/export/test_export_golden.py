@@ -1,4 +1,5 @@
-"""Golden files: the exact text each dialect writes for the thesis scenario and a drawing.
+"""Golden files: the exact text each dialect writes for the thesis scenario and two drawings
+(screen 9: lines and a free curve as a spline; frame 1: lines and arcs as LIN and CIRC).
 
 They encode what a hand-written program looks like and were reviewed line by line before
 they were committed. Regenerate after an intended change with
@@ -25,11 +26,12 @@ UPDATE = os.environ.get("CELLTEACH_UPDATE_GOLDEN") == "1"
 
 
 @pytest.fixture
-def scenario_program(request, thesis_program, drawing_program):
-    return {"thesis": thesis_program, "drawing": drawing_program}[request.param]
+def scenario_program(request, thesis_program, drawing_program, frame_program):
+    return {"thesis": thesis_program, "drawing": drawing_program,
+            "frame": frame_program}[request.param]
 
 
-@pytest.mark.parametrize("scenario_program", ["thesis", "drawing"], indirect=True)
+@pytest.mark.parametrize("scenario_program", ["thesis", "drawing", "frame"], indirect=True)
 @pytest.mark.parametrize("dialect", ALL)
 def test_written_program_matches_golden(rv2aj, scenario_program, dialect, request):
     scenario = request.node.callspec.params["scenario_program"]
@@ -47,7 +49,7 @@ def test_written_program_matches_golden(rv2aj, scenario_program, dialect, reques
         assert f.text == (folder / f.name).read_text(encoding="ascii"), f.name
 
 
-@pytest.mark.parametrize("scenario_program", ["thesis", "drawing"], indirect=True)
+@pytest.mark.parametrize("scenario_program", ["thesis", "drawing", "frame"], indirect=True)
 @pytest.mark.parametrize("dialect", ALL)
 def test_golden_files_read_back_to_the_planned_path(rv2aj, scenario_program, dialect, request):
     """The committed text itself (not a fresh write) drives the planned TCP path."""
