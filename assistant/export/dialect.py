@@ -173,6 +173,13 @@ def split_into_parts(program: NeutralProgram, limit: int | None,
             for i, (ins, pos) in enumerate(parts)]
 
 
+def cut_long_splines(program: NeutralProgram, limit: int | None) -> NeutralProgram:
+    """Splines with more points than fit in one file, as several splines through them."""
+    if limit is None:
+        return program
+    return replace(program, instructions=_cut_long_splines(list(program.instructions), limit))
+
+
 def _cut_long_splines(instructions: list[Instruction], limit: int) -> list[Instruction]:
     out: list[Instruction] = []
     chunk = max(limit - 2, 1)

@@ -32,6 +32,7 @@ from assistant.export.dialect import (
     ProgramFile,
     ascii_text,
     comment_lines,
+    cut_long_splines,
     flatten,
     lower_splines,
     parse_step_comment,
@@ -118,9 +119,11 @@ class KrlDialect:
 
     # ====================================================================== writing
     def lower(self, program: NeutralProgram) -> NeutralProgram:
-        """Splines stay SPLINE blocks (exact stop at their end) unless `spline` is off."""
+        """Splines stay SPLINE blocks (exact stop at their end; cut into several when longer
+        than a file may be) unless `spline` is off."""
         if not self.spline:
             return lower_splines(program)
+        program = cut_long_splines(program, self.rules.max_positions_per_file)
         out = [replace(i, blend_radius=0.0) if isinstance(i, Move) and i.kind == MoveKind.SPLINE
                else i for i in program.instructions]
         return replace(program, instructions=out)

@@ -111,8 +111,8 @@ def check_lines(text: str, rules: DialectRules, filename: str) -> None:
                               f"{line.strip()!r}", dialect=rules.dialect)
 
 
-# A digit followed by e/E and a signed integer: 1e-05, 2.5E+03 (but not names like P1E).
-_EXPONENT = re.compile(r"(?<![A-Za-z_])\d+(\.\d*)?[eE][+-]?\d+")
+# A number with an exponent: 1e-05, 2.5E+03 (but not names like P1E5 or D12E3).
+_EXPONENT = re.compile(r"(?<![A-Za-z0-9_.])\d+(\.\d*)?[eE][+-]?\d+")
 
 
 def _strip_known_tokens(line: str) -> str:

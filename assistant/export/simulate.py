@@ -122,12 +122,20 @@ def _solve_target(robot: Robot, p: Position, seed: Array | None, step: str,
     return min(sols, key=lambda s: float(np.linalg.norm(s - seed)))
 
 
-def _ik_all(robot: Robot, T: Array, seed: Array | None, step: str, what: str) -> list[Array]:
+def _ik_all(robot: Robot, T: Array, seed: Array | None, step: str, what: str, *,
+            on_path: bool = False) -> list[Array]:
+    """IK solutions; a 5-axis arm's orientation is projected into its reach.
+
+    Targets may be turned by rounding only (`ORIENTATION_SNAP`). Between targets a 5-axis
+    arm cannot follow a slerp that leaves its arm plane; like its controller it keeps the
+    TCP on the path and turns the tool as little as needed (`on_path`).
+    """
     res = robot.ik(T, seed)
     if not res.ok and res.failure == IKFailure.ORIENTATION and res.nearest_T_base_tool is not None:
         near = res.nearest_T_base_tool
         turn = _angle(near[:3, :3], T[:3, :3])
-        if np.linalg.norm(near[:3, 3] - T[:3, 3]) < 1e-7 and turn <= ORIENTATION_SNAP:
+        limit = np.pi if on_path and robot.dof < 6 else ORIENTATION_SNAP
+        if np.linalg.norm(near[:3, 3] - T[:3, 3]) < 1e-7 and turn <= limit:
             res = robot.ik(near, seed)
     if not res.ok:
         raise ExportError(f"{what}: {res.message}", step=step)
@@ -155,7 +163,7 @@ def _simulate_move(robot: Robot, m: Move, q0: Array, max_step: float, n: int | N
     radii = robot.arm_radii()
     for i, T in enumerate(poses[1:], start=1):
         sols = _ik_all(robot, T, qs[-1], m.step, f"{m.kind.value} path at "
-                       f"{100.0 * i / (len(poses) - 1):.0f}%")
+                       f"{100.0 * i / (len(poses) - 1):.0f}%", on_path=i < len(poses) - 1)
         q = min(sols, key=lambda s: float(np.linalg.norm(s - qs[-1])))
         chord = float(np.linalg.norm(T[:3, 3] - poses[i - 1][:3, 3]))
         sweep = float(np.abs(q - qs[-1]) @ radii)

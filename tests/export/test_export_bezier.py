@@ -131,3 +131,19 @@ def test_sampling_in_3d_after_placing_on_the_paper():
     assert s.points.shape[1] == 3
     assert np.allclose(s.points[:, 2], T[2, 3])
     assert s.max_deviation <= 1e-4
+
+
+def test_lines_and_arcs_are_recognised_within_tolerance():
+    from assistant.export.bezier import fit_primitives
+
+    kinds = [p.kind for p in fit_primitives(drawing(1), 1e-4)]
+    assert kinds == ["line", "arc"] * 4  # a rounded rectangle: 4 strokes, 4 quarter arcs
+    for n in DRAWINGS:
+        for piece in fit_primitives(drawing(n), 1e-4):
+            assert piece.max_deviation <= 1e-4
+    # A quarter arc drawn with the usual k = 0.5523 is 0.027 % off the circle: refused at a
+    # tolerance below that, sampled instead.
+    tight = fit_primitives(drawing(1), 1e-7)
+    assert [p.kind for p in tight][1] == "curve"
+    s_curve = CubicBezier(np.array([[0, 0], [1, 1], [2, -1], [3, 0.0]]))
+    assert fit_primitives([s_curve], 1e-3)[0].kind == "curve"

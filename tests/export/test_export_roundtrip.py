@@ -209,3 +209,69 @@ def test_urscript_round_trip_on_a_ur5(ur5):
     assert not rep.instruction_differences
     text = rep.files[0].text
     assert "movec(V, C, v=0.05, mode=0)" in text and "set_tool_digital_out(0, True)" in text
+
+
+def test_dialects_implement_the_protocol():
+    from assistant.export import Dialect
+
+    for name in ALL:
+        d = get_dialect(name)
+        assert isinstance(d, Dialect) and d.name == name and d.file_extensions
+
+
+def test_melfa_single_file_and_basic_v(rv2aj, program):
+    from assistant.export import MelfaDialect
+
+    single = MelfaDialect(single_file=True)
+    files = single.write(program, rv2aj)
+    assert [f.name for f in files] == ["EVERY.MB4"]
+    body, _, tail = files[0].text.partition(" END\n")
+    assert "PA=(" in tail and "PA=(" not in body
+    assert round_trip(program, single, rv2aj).max_tcp_deviation <= TOLERANCE["melfa"]
+    v = MelfaDialect(variant="V")
+    text = v.write(program, rv2aj)[0].text
+    assert "JOVRD 40" in text and "OVRD" not in text.replace("JOVRD", "")
+    assert v.write(program, rv2aj)[0].name == "EVERY.MB5"
+    rep = round_trip(program, v, rv2aj)
+    assert rep.max_tcp_deviation <= TOLERANCE["melfa"] and not rep.instruction_differences
+
+
+def test_long_splines_are_cut_to_fit_the_position_limit(rv2aj, drawing_program):
+    from assistant.export import KrlDialect
+
+    d = KrlDialect(max_positions_per_file=6)
+    files = d.write(drawing_program, rv2aj)
+    assert len(files) > 4
+    n_spl = sum(f.text.count("ENDSPLINE") for f in files)
+    assert n_spl >= 3  # the 12-point spline was cut into pieces through the same points
+    rep = round_trip(drawing_program, d, rv2aj)
+    assert rep.max_tcp_deviation < 5e-6
+
+
+def test_a_five_axis_line_with_a_tilted_tool_keeps_the_tcp_on_the_line(rv2aj):
+    from assistant.export.simulate import simulate
+
+    qa = np.radians([-30.0, 30.0, 80.0, 40.0, 10.0])
+    qb = np.radians([30.0, 35.0, 75.0, 40.0, -20.0])
+    prog = NeutralProgram("T", [Move(MoveKind.LINEAR, Position("B", rv2aj.fk(qb), qb))],
+                          q_start=qa)
+    tcp = simulate(prog, rv2aj, max_step=0.002).moves[0].tcp
+    a, b = rv2aj.fk(qa)[:3, 3], rv2aj.fk(qb)[:3, 3]
+    off_line = np.linalg.norm(np.cross(tcp - a, b - a), axis=1) / np.linalg.norm(b - a)
+    assert off_line.max() < 1e-9
+
+
+def test_arc_simulation_follows_the_circle(rv2aj):
+    from assistant.export.simulate import circle_through
+
+    p0, pv, p1 = np.array([0.3, -0.05, 0.15]), np.array([0.33, 0.0, 0.16]), np.array(
+        [0.3, 0.05, 0.15])
+    arc = circle_through(p0, pv, p1)
+    pts = arc(np.linspace(0, 1, 201))
+    c = np.linalg.solve(np.array([2 * (pv - p0), 2 * (p1 - p0), np.cross(pv - p0, p1 - p0)]),
+                        np.array([pv @ pv - p0 @ p0, p1 @ p1 - p0 @ p0,
+                                  np.cross(pv - p0, p1 - p0) @ p0]))
+    r = np.linalg.norm(pts - c, axis=1)
+    assert np.ptp(r) < 1e-12
+    assert np.allclose(pts[0], p0) and np.allclose(pts[-1], p1)
+    assert np.min(np.linalg.norm(pts - pv, axis=1)) < 1e-3  # passes the via point
