@@ -1,9 +1,10 @@
 """Rigid transforms as 4x4 numpy arrays, named ``T_parent_child`` at every call site.
 
 Internal units are metres and radians; `pose_from_mm_deg` / `pose_to_mm_deg` are the only
-places where millimetres and degrees cross into the core. Euler angles follow the convention
-of the robot controllers we export to (A, B, C = rotations about Z, Y', X'' — i.e.
-R = Rz(A) @ Ry(B) @ Rx(C)), so a number typed in the UI reads the same as in the program.
+places where millimetres and degrees cross into the core. Operator-facing Euler angles follow
+KUKA's convention (A, B, C = rotations about Z, Y', X'', i.e. R = Rz(A) @ Ry(B) @ Rx(C)).
+Each program dialect converts to its controller's own convention (MELFA's A is about X and C
+about Z: R = Rz(C) Ry(B) Rx(A); see `assistant/export/melfa.py`).
 """
 
 from __future__ import annotations
@@ -48,7 +49,7 @@ def inv_T(T: Array) -> Array:
 
 
 def rpy_to_matrix(a: float, b: float, c: float) -> Array:
-    """R = Rz(a) Ry(b) Rx(c): the ZYX convention of KUKA A,B,C and MELFA's (A,B,C) read as Z,Y,X."""
+    """R = Rz(a) Ry(b) Rx(c): KUKA's A, B, C (the UI's angles)."""
     return rot_z(a) @ rot_y(b) @ rot_x(c)
 
 
