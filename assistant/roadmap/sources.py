@@ -57,6 +57,17 @@ class SourceLabels:
         return src, s_lab, g_lab
 
 
+def _border(shape: tuple[int, ...]) -> Array:
+    """The outer layer of the grid (axes of size 1 are a 2-D grid's thickness, not a border)."""
+    edge = np.zeros(shape, dtype=bool)
+    for a, n in enumerate(shape):
+        if n > 1:
+            idx = [slice(None)] * len(shape)
+            idx[a] = [0, n - 1]
+            edge[tuple(idx)] = True
+    return edge
+
+
 def label_sources(occupied: Array, object_ids: Array, object_names: list[str],
                   reachable: Array, has_valid: Array, *, border: bool = True) -> SourceLabels:
     """Region labels of every source cell (see the module docstring)."""
@@ -92,11 +103,7 @@ def label_sources(occupied: Array, object_ids: Array, object_names: list[str],
         todo &= ~front
     add(todo, "blocked")
     if border:
-        edge = np.zeros(shape, dtype=bool)
-        edge[[0, -1], :, :] = True
-        edge[:, [0, -1], :] = True
-        edge[:, :, [0, -1]] = True
-        add(edge & (src == 0), "border")
+        add(_border(shape) & (src == 0), "border")
     return SourceLabels(src, names)
 
 
@@ -111,11 +118,7 @@ def relabel(prev: SourceLabels, occupied: Array, object_ids: Array, object_names
     """
     shape = occupied.shape
     shadow = reachable & ~has_valid & ~occupied
-    edge = np.zeros(shape, dtype=bool)
-    if border:
-        edge[[0, -1], :, :] = True
-        edge[:, [0, -1], :] = True
-        edge[:, :, [0, -1]] = True
+    edge = _border(shape) if border else np.zeros(shape, dtype=bool)
     free = ~occupied & reachable & has_valid
     want = occupied | ~reachable | shadow | (edge & free)
     src = np.where(want, prev.source, 0).astype(np.int32)
