@@ -109,3 +109,56 @@ class Trajectory:
         for m in self.motions:
             counts[m.kind.value] = counts.get(m.kind.value, 0) + 1
         return counts
+
+
+# ---------------------------------------------------------------------- JSON (session files)
+def _arr(a: Array | None) -> list | None:
+    return None if a is None else np.asarray(a, dtype=float).tolist()
+
+
+def _finite(v: object, shape: tuple[int, ...] | None, what: str) -> Array:
+    a = np.asarray(v, dtype=float)
+    if (shape is not None and a.shape != shape) or not np.all(np.isfinite(a)):
+        raise ValueError(f"{what}: expected finite numbers of shape {shape}, got {a.shape}")
+    return a
+
+
+def waypoint_to_json(w: Waypoint) -> dict:
+    return {"T_base_tool": _arr(w.T_base_tool), "q": _arr(w.q), "name": w.name}
+
+
+def waypoint_from_json(d: dict) -> Waypoint:
+    return Waypoint(_finite(d["T_base_tool"], (4, 4), "waypoint pose"),
+                    _finite(d["q"], None, "waypoint joints"), str(d.get("name", "")))
+
+
+def trajectory_to_json(t: Trajectory) -> dict:
+    return {
+        "start": waypoint_to_json(t.start),
+        "actions_at_start": [a.to_json() for a in t.actions_at_start],
+        "motions": [{
+            "kind": m.kind.value, "target": waypoint_to_json(m.target),
+            "via": waypoint_to_json(m.via) if m.via else None,
+            "through": [waypoint_to_json(w) for w in m.through],
+            "joint_path": _arr(m.joint_path), "label": m.label, "speed": m.speed,
+            "blend_radius": m.blend_radius,
+            "actions_after": [a.to_json() for a in m.actions_after],
+        } for m in t.motions],
+    }
+
+
+def trajectory_from_json(d: dict) -> Trajectory:
+    motions = []
+    for i, m in enumerate(d.get("motions", [])):
+        jp = m.get("joint_path")
+        motions.append(Motion(
+            MotionKind(m["kind"]), waypoint_from_json(m["target"]),
+            waypoint_from_json(m["via"]) if m.get("via") else None,
+            tuple(waypoint_from_json(w) for w in m.get("through", [])),
+            None if jp is None else _finite(jp, None, f"motion {i} joint path"),
+            str(m.get("label", "")),
+            None if m.get("speed") is None else float(m["speed"]),
+            float(m.get("blend_radius", 0.0)),
+            tuple(ToolAction.from_json(a) for a in m.get("actions_after", []))))
+    return Trajectory(waypoint_from_json(d["start"]), motions,
+                      tuple(ToolAction.from_json(a) for a in d.get("actions_at_start", [])))
