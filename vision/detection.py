@@ -53,6 +53,10 @@ class Detection:
     hole_fraction: float = 0.0  # share of the outline's area not in the colour mask
 
     @property
+    def diameter_px(self) -> float:
+        return 2.0 * self.radius_px
+
+    @property
     def score(self) -> float:
         """Roundness in 0..1 (1 = a perfect disc); used to rank candidates."""
         return float(min(self.axis_ratio, 1.0) * min(self.fill, 1.0))

@@ -32,7 +32,8 @@ from vision.geometry import (
     sphere_ray,
     triangulate,
 )
-from vision.sources import FrameSource
+from vision.scene import PointerScene
+from vision.sources import FrameSource, synthetic_cameras
 from vision.tracking2d import Tracker2D, Tracking2DParams
 from vision.tracking3d import Track3D, Tracking3DParams
 
@@ -51,6 +52,7 @@ class PointerParams:
     reprojection_gate_px: float = 2.5
     size_ratio_range: tuple[float, float] = (0.65, 1.5)
     max_candidates_per_camera: int = 4
+    mono_bridge_s: float = 0.3  # a stereo track may go on single views this long after stereo
     search_window: bool = True
     detector: DetectorParams = field(default_factory=DetectorParams)
     tracking2d: Tracking2DParams = field(default_factory=Tracking2DParams)
@@ -100,6 +102,7 @@ class PointerState:
     cameras: dict[str, CameraView] = field(default_factory=dict)
     taught: TaughtPoint | None = None
     dwell_progress: float = 0.0
+    skew_s: float = 0.0  # spread of the frame timestamps used (unsynchronised cameras)
 
     @property
     def detections(self) -> dict[str, list[Detection]]:
@@ -336,39 +339,55 @@ class PointerSystem:
 
     def _choose(self, t: float, dets: dict[int, list[Detection]],
                 ids2d: dict[int, list[int]], n_delivering: int) -> _Hypothesis | None:
-        """Pick this frame's measurement (or none) and feed the 3-D track."""
+        """Pick this frame's measurement (or none) and feed the 3-D track.
+
+        With a track: the stereo candidate nearest in the Mahalanobis sense within the gate;
+        failing that a single view, but only as a brief stand-in (one camera lost the ball
+        for a moment) or when only one camera works, since after a long coast the gate is
+        wide enough to let a single view's poor depth drag the track off. Candidates that
+        stay outside the gate at a consistent place for `reinit_after_s` start a new track.
+        """
         stereo = self._stereo_hypotheses(dets)
         k = self.params.max_candidates_per_camera
+        gate = self._t3.gate_chi2
         if self.track.active:
-            gated = [(self.track.gate_distance(h.est), h) for h in stereo]
-            gated = [g for g in gated if g[0] <= self._t3.gate_chi2]
-            if not gated:  # a view lost the ball: single-camera measurements may continue
+            gated = [(d, h) for h in stereo if (d := self.track.gate_distance(h.est)) <= gate]
+            since = t - (self.track.last_measurement_time or t)
+            if not gated and (n_delivering == 1 or since <= self.params.mono_bridge_s):
                 monos = [self._mono(i, j, d) for i, ds in dets.items()
                          for j, d in enumerate(ds[:k])]
-                gated = [(self.track.gate_distance(h.est), h) for h in monos]
-                gated = [g for g in gated if g[0] <= self._t3.gate_chi2]
+                gated = [(d, h) for h in monos if (d := self.track.gate_distance(h.est)) <= gate]
             if gated:
                 h = min(gated, key=lambda g: g[0])[1]
                 self.track.update(t, h.est)
                 return h
-            if stereo and self.track.disagreement(t):
-                h = self._best_new(stereo, dets)
-                self.track.start(t, h.est)
-                return h
+            fresh = self._best_new(stereo, dets) if stereo else \
+                self._confirmed_mono(dets, ids2d) if n_delivering == 1 else None
+            if fresh is not None and self.track.disagreement(t, fresh.est.position_world):
+                self.track.start(t, fresh.est)
+                return fresh
             return None
         if stereo:
             h = self._best_new(stereo, dets)
             self.track.start(t, h.est)
             return h
         if n_delivering == 1:  # a single working camera: start from a confirmed blob track
-            confirmed = [(d.score, i, j) for i, ds in dets.items() for j, d in enumerate(ds[:k])
-                         if self.trackers2d[i].is_confirmed(ids2d[i][j])]
-            if confirmed:
-                _, i, j = max(confirmed)
-                h = self._mono(i, j, dets[i][j])
+            h = self._confirmed_mono(dets, ids2d)
+            if h is not None:
                 self.track.start(t, h.est)
                 return h
         return None
+
+    def _confirmed_mono(self, dets: dict[int, list[Detection]],
+                        ids2d: dict[int, list[int]]) -> _Hypothesis | None:
+        """The roundest blob that has been seen for `confirm_hits` frames in a row."""
+        k = self.params.max_candidates_per_camera
+        confirmed = [(d.score, i, j) for i, ds in dets.items() for j, d in enumerate(ds[:k])
+                     if self.trackers2d[i].is_confirmed(ids2d[i][j])]
+        if not confirmed:
+            return None
+        _, i, j = max(confirmed)
+        return self._mono(i, j, dets[i][j])
 
     def _best_new(self, stereo: list[_Hypothesis],
                   dets: dict[int, list[Detection]]) -> _Hypothesis:
@@ -416,15 +435,16 @@ class PointerSystem:
                                  covariance=np.full((3, 3), np.nan), mode="lost",
                                  measured=False, track_id=None)
         state.cameras = {v.camera_id: v for v in views}
+        if frames:
+            stamps = [f.timestamp for f in frames.values()]
+            state.skew_s = float(max(stamps) - min(stamps))
         self.last_state = state
         return state
 
     # -- convenience --------------------------------------------------------------------------
     @classmethod
-    def synthetic(cls, models: Sequence[CameraModel], scene, *, seed: int = 0,
+    def synthetic(cls, models: Sequence[CameraModel], scene: PointerScene, *, seed: int = 0,
                   fps: float = 60.0, profile: ColorProfile = DEFAULT_POINTER_RED,
                   params: PointerParams | None = None) -> PointerSystem:
         """A system watching a `PointerScene` through synthetic cameras (sample cells, tests)."""
-        from vision.sources import synthetic_cameras
-
         return cls(synthetic_cameras(models, scene, seed=seed, fps=fps), models, profile, params)

@@ -8,7 +8,7 @@ are close, and gating on the filter's own uncertainty replaces a fixed distance.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import linear_sum_assignment
@@ -39,7 +39,6 @@ class Track2D:
     radius_px: float
     hits: int = 1
     consecutive_hits: int = 1
-    history: list[float] = field(default_factory=list)
 
     @property
     def position(self) -> np.ndarray:

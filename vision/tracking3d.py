@@ -22,6 +22,8 @@ class Tracking3DParams:
     gate_chi2: float = CHI2_3DOF_999
     min_gate: float = 0.003  # metres: never gate tighter than the ball wobble
     reinit_after_s: float = 0.25  # persistent disagreement this long: start a new track
+    reinit_step: float = 0.05  # metres a disagreeing candidate may move per frame and persist
+    reseed_after_s: float = 0.1  # a measurement after a longer gap re-seeds the velocity
 
 
 class Track3D:
@@ -35,6 +37,7 @@ class Track3D:
         self.last_measurement_time: float | None = None
         self.last_mode = "lost"
         self._disagree_since: float | None = None
+        self._disagree_at: np.ndarray | None = None
 
     @property
     def active(self) -> bool:
@@ -46,6 +49,7 @@ class Track3D:
         self.last_measurement_time = None
         self.last_mode = "lost"
         self._disagree_since = None
+        self._disagree_at = None
 
     def predict_to(self, t: float) -> None:
         """Advance to time t; drop the track when it has gone unmeasured for over `hold_s`."""
@@ -80,20 +84,33 @@ class Track3D:
         self.last_measurement_time = t
         self.last_mode = est.mode
         self._disagree_since = None
+        self._disagree_at = None
 
     def update(self, t: float, est: PointEstimate) -> None:
+        """Kalman update; after a gap of over `reseed_after_s` (occlusion, dropout) the filter
+        is re-seeded at the measurement instead, keeping the track id: a velocity inferred
+        from a jump across a long gap is mostly the gap's error and would fling the track."""
         assert self.filter is not None
-        self.filter.update(est.position_world, est.covariance)
+        gap = t - (self.last_measurement_time if self.last_measurement_time is not None else t)
+        if gap > self.params.reseed_after_s:
+            p = self.params
+            self.filter = ConstantVelocityFilter(3, est.position_world, est.covariance,
+                                                 p.initial_velocity_std, p.accel_std)
+        else:
+            self.filter.update(est.position_world, est.covariance)
         self.last_measurement_time = t
         self.last_mode = est.mode
         self._disagree_since = None
+        self._disagree_at = None
 
-    def disagreement(self, t: float) -> bool:
-        """Note that this frame's only candidates fell outside the gate; True once that has
-        lasted `reinit_after_s` (the pointer really is elsewhere: restart there)."""
-        if self._disagree_since is None:
+    def disagreement(self, t: float, position: np.ndarray) -> bool:
+        """Note a candidate outside the gate at `position`; True once candidates have stayed
+        outside for `reinit_after_s`, each within `reinit_step` of the last (the pointer
+        really is elsewhere: restart there). A candidate that jumps around restarts the
+        count, so a one-off look-alike never captures the track."""
+        p = np.asarray(position, float)
+        if self._disagree_at is None or np.linalg.norm(p - self._disagree_at) > \
+                self.params.reinit_step:
             self._disagree_since = t
+        self._disagree_at = p
         return t - self._disagree_since >= self.params.reinit_after_s
-
-    def agree(self) -> None:
-        self._disagree_since = None

@@ -243,3 +243,32 @@ def test_search_window_can_be_switched_off(stereo_rig, centre):
     states, truth = _run(system, 10)
     assert all(v.window is None for s in states for v in s.cameras.values())
     assert np.sqrt(np.mean(_errors(states, truth, skip=2) ** 2)) < 1.5e-3
+
+
+def test_pointer_that_jumps_far_is_followed_without_flinging_the_track(stereo_rig, centre):
+    """The ball vanishes at one place and reappears 34 cm away: once the new place is inside
+    the grown gate (or has persisted), the track is there, at rest, not flying off."""
+    a, b = centre + [0.0, -0.15, 0.0], centre + [0.05, 0.15, 0.1]
+    scene = PointerScene(lambda t: a if t < 0.5 else b)
+    system = PointerSystem.synthetic(stereo_rig, scene, seed=14)
+    states = [system.step() for _ in range(60)]
+    late = states[-1]
+    assert late.mode == "stereo" and late.measured
+    assert np.linalg.norm(late.position_world - b) < 2e-3
+    assert np.linalg.norm(late.velocity_world) < 0.05
+    assert all(abs(s.skew_s) < 1e-12 for s in states)  # synthetic cameras are in sync
+
+
+def test_a_lookalike_pair_that_wanders_never_captures_the_track():
+    """Disagreeing candidates that do not stay in one place reset the re-init count."""
+    from vision.geometry import PointEstimate
+    from vision.tracking3d import Track3D, Tracking3DParams
+
+    tr = Track3D(Tracking3DParams(reinit_after_s=0.25, reinit_step=0.05))
+    est = PointEstimate(np.zeros(3), np.eye(3) * 1e-6, "stereo", 0.1, (0, 1))
+    tr.start(0.0, est)
+    rng = np.random.default_rng(0)
+    fired = [tr.disagreement(k / 60, rng.uniform(-0.5, 0.5, 3)) for k in range(1, 60)]
+    assert not any(fired)
+    steady = [tr.disagreement(1 + k / 60, np.array([0.3, 0.0, 0.0])) for k in range(20)]
+    assert not any(steady[:14]) and steady[-1]
