@@ -33,6 +33,7 @@ from assistant.roadmap.sources import SourceLabels, label_sources, relabel
 from assistant.roadmap.voronoi import ROAD, VoronoiMap, build_voronoi, update_voronoi
 from assistant.robot_model import Robot
 from assistant.validity import ValidityChecker
+from assistant.world.fusion import Source
 from assistant.world.model import WorldBuildReport, WorldChange, WorldModel
 
 Array = np.ndarray
@@ -193,9 +194,19 @@ class RoadmapPlanner:
     # ---------------------------------------------------------------- updates
     def add_collision(self, q: Array, progress: Progress | None = None) -> CollisionUpdate:
         """The operator flagged a collision at posture q: fuse it, update the roads locally."""
-        labels, vmap = self._need()
+        self._need()
         t0 = time.perf_counter()
-        change = self.world.indicate_collision(q, progress)
+        return self._sync(self.world.indicate_collision(q, progress), t0)
+
+    def observe(self, source: Source | str, points_base: Array, values: Array | float,
+                progress: Progress | None = None) -> CollisionUpdate:
+        """Sensor/camera occupancy observations at points: fuse them, update the roads."""
+        self._need()
+        t0 = time.perf_counter()
+        return self._sync(self.world.observe(source, points_base, values, progress), t0)
+
+    def _sync(self, change: WorldChange, t0: float) -> CollisionUpdate:
+        labels, vmap = self._need()
         w = self.world
         self.labels = relabel(labels, w.occupied(), w.object_ids(), w.object_names(),
                               w.reachable(), w.has_valid())
@@ -209,6 +220,8 @@ class RoadmapPlanner:
              ) -> RoadmapPlan:
         """Joint path from q_start to q_goal through the roads (see RoadmapPlan)."""
         labels, base = self._need()
+        if progress is not None:
+            progress.update(0.0, "planning")
         t0 = time.perf_counter()
         timings: dict[str, float] = {}
         w = self.world

@@ -3,6 +3,8 @@ rejection with detour, and the no-path / budget endings."""
 
 from __future__ import annotations
 
+from itertools import pairwise
+
 import networkx as nx
 import numpy as np
 import pytest
@@ -79,7 +81,7 @@ def test_astar_is_optimal_on_a_toy_graph(seed):
     assert res.found and res.reason == "found"
     assert res.cost == pytest.approx(want, rel=1e-9)
     # the returned node path really costs that much
-    assert sum(graph.cost(a, b) for a, b in zip(res.nodes, res.nodes[1:])) == \
+    assert sum(graph.cost(a, b) for a, b in pairwise(res.nodes)) == \
         pytest.approx(res.cost)
     assert res.nodes[0] == s and res.nodes[-1] == g
     # batching the lazy checks does not change the answer
@@ -99,7 +101,7 @@ def test_lazy_check_rejects_a_blocked_edge_and_finds_the_detour():
     # the path goes over the wall, and costs exactly the shortest path without the
     # rejected motions
     path = graph.node_q[res.nodes]
-    assert not any(wall.blocks(a, b) for a, b in zip(path, path[1:]))
+    assert not any(wall.blocks(a, b) for a, b in pairwise(path))
     want = nx.dijkstra_path_length(to_networkx(graph, reject=wall.blocks), s, g)
     assert res.cost == pytest.approx(want)
     assert nx.dijkstra_path_length(to_networkx(graph), s, g) < want - 1e-6  # a real detour

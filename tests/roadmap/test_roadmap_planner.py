@@ -1,0 +1,136 @@
+"""RoadmapPlanner on the thesis-like cell with the real FCL checker: plans, failure reasons,
+operator indications with a local roadmap update."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from assistant.collision import CollisionChecker, Obstacle
+from assistant.progress import Cancelled, Progress
+from assistant.roadmap.astar import SearchBudget
+from assistant.roadmap.planner import PlanFailure, RoadmapConfig, RoadmapPlanner
+from assistant.roadmap.voronoi import build_voronoi
+from assistant.robot_model import CollisionShape, ShapeKind
+from assistant.transforms import make_T
+from assistant.world.fusion import Source
+from assistant.world.model import WorldConfig, WorldModel
+from assistant.world.reachability import ReachabilityConfig
+
+Q_START = np.radians([-60.0, 30.0, 60.0, 0.0, 0.0])
+Q_GOAL = np.radians([60.0, 30.0, 60.0, 0.0, 0.0])
+
+
+def thesis_like() -> list[Obstacle]:
+    def box(name, c, s):
+        return Obstacle(name, make_T(p=c), (CollisionShape(ShapeKind.BOX, tuple(s)),))
+
+    return [box("O1", [0.28, -0.12, 0.10], [0.10, 0.12, 0.20]),
+            box("O2", [0.22, 0.18, 0.06], [0.16, 0.08, 0.12]),
+            box("table", [0.0, 0.0, -0.011], [1.5, 1.5, 0.02])]
+
+
+def make_planner(rv2aj, config: RoadmapConfig | None = None) -> RoadmapPlanner:
+    """A coarse world (125 mm leaves, 62.5 mm joint steps) keeps the build under a second."""
+    obs = thesis_like()
+    cfg = WorldConfig(leaf=0.125, reach=ReachabilityConfig(d_step=0.0625), use_cache=False)
+    planner = RoadmapPlanner(rv2aj, CollisionChecker(rv2aj, obs), WorldModel(rv2aj, obs, cfg),
+                             config)
+    planner.build()
+    return planner
+
+
+@pytest.fixture(scope="module")
+def planner(rv2aj) -> RoadmapPlanner:
+    return make_planner(rv2aj)
+
+
+def test_thesis_query_gives_a_collision_free_joint_path(planner, rv2aj):
+    plan = planner.plan(Q_START, Q_GOAL)
+    assert plan.ok and plan.failure is None and plan.reason == "found"
+    assert plan.searched in ("roads", "free cells")
+    path = plan.joint_path
+    assert np.allclose(path[0], Q_START) and np.allclose(path[-1], Q_GOAL)
+    assert len(path) >= 3 and plan.expansions > 0 and plan.edge_checks >= len(path) - 1
+    # exact continuous FCL check of every segment, and joint limits
+    assert planner.checker.check_path(path) is None
+    assert all(rv2aj.limits.contains(q) for q in path)
+    # cells are the TCP leaves of the nodes; interior nodes sit in free leaves
+    w = planner.world
+    assert plan.cells[0] == tuple(w.grid.ijk_of_flat([w.tcp_cell(Q_START)])[0])
+    free = w.free()
+    assert all(free[c] for c in plan.cells[1:-1])
+
+
+def test_j6_is_interpolated_between_start_and_goal(planner):
+    # the table fixes J6 (it cannot move a straight tool); the path must not jump to that
+    # value but turn J6 smoothly from the start's to the goal's
+    qs, qg = Q_START.copy(), Q_GOAL.copy()
+    qs[4], qg[4] = 0.6, -0.4
+    plan = planner.plan(qs, qg)
+    assert plan.ok
+    j6 = np.array([q[4] for q in plan.joint_path])
+    assert j6[0] == pytest.approx(0.6) and j6[-1] == pytest.approx(-0.4)
+    assert np.all(np.diff(j6) <= 1e-12) and len(set(np.round(j6, 9))) > 2
+    assert planner.checker.check_path(plan.joint_path) is None
+
+
+def test_goal_inside_an_obstacle_and_unreachable_goal_are_refused(planner, rv2aj):
+    T = np.eye(4)
+    T[:3, 3] = [0.28, -0.12, 0.15]  # inside O1
+    q_in = rv2aj.ik(T, position_only=True).best()
+    plan = planner.plan(Q_START, q_in)
+    assert not plan.ok and plan.failure == PlanFailure.GOAL_IN_OBSTACLE
+    assert "O1" in plan.reason
+    q_far = Q_GOAL.copy()
+    q_far[1] = np.radians(150.0)  # J2 beyond +120 deg
+    plan = planner.plan(Q_START, q_far)
+    assert plan.failure == PlanFailure.GOAL_UNREACHABLE and "J2" in plan.reason
+    plan = planner.plan(q_in, Q_GOAL)
+    assert plan.failure == PlanFailure.START_INVALID
+
+
+def test_budget_and_cancellation_end_the_search(rv2aj, planner):
+    tight = make_planner(rv2aj, RoadmapConfig(budget=SearchBudget(max_expansions=2)))
+    plan = tight.plan(Q_START, Q_GOAL)
+    assert not plan.ok and plan.failure == PlanFailure.BUDGET
+    assert plan.reason.startswith("budget exhausted")
+    prog = Progress("plan")
+    prog.cancel()
+    with pytest.raises(Cancelled):
+        planner.plan(Q_START, Q_GOAL, prog)
+
+
+def test_goal_walled_in_by_observations_is_in_another_free_region(rv2aj):
+    planner = make_planner(rv2aj)
+    w = planner.world
+    gc = w.tcp_cell(Q_GOAL)
+    ijk = w.grid.ijk_of_flat([gc])[0]
+    shell = np.array([ijk + [a, b, c] for a in (-1, 0, 1) for b in (-1, 0, 1)
+                      for c in (-1, 0, 1) if (a, b, c) != (0, 0, 0)])
+    upd = planner.observe(Source.SENSOR, w.grid.centres_of_ijk(shell), 1.0)
+    assert len(upd.world.occupancy_flipped) > 0
+    assert planner.voronoi.same_as(build_voronoi(planner.labels.source, w.reachable()))
+    plan = planner.plan(Q_START, Q_GOAL)
+    assert not plan.ok and plan.failure == PlanFailure.NO_PATH_REGIONS
+    assert plan.reason == "no path: start and goal are in different free regions"
+
+
+def test_collision_indication_updates_roads_locally_and_the_new_plan_avoids_it(rv2aj):
+    planner = make_planner(rv2aj)
+    before = planner.plan(Q_START, Q_GOAL)
+    assert before.ok
+    q_hit = before.joint_path[len(before.joint_path) // 2]
+    upd = planner.add_collision(q_hit)
+    w = planner.world
+    hit_cell = w.tcp_cell(q_hit)
+    assert hit_cell in upd.world.observed_cells.tolist()
+    assert planner.labels.source.reshape(-1)[hit_cell] > 0
+    assert not upd.rebuilt and len(upd.roadmap_changed) > 0
+    # the local update equals a rebuild from the same sources
+    assert planner.voronoi.same_as(build_voronoi(planner.labels.source, w.reachable()))
+    after = planner.plan(Q_START, Q_GOAL)
+    assert after.ok
+    assert not w.near_recorded_collision(np.array(after.joint_path)).any()
+    assert planner.checker.check_path(after.joint_path) is None
+    assert hit_cell not in [w.grid.flat_of_ijk(np.array([c]))[0] for c in after.cells]
