@@ -53,6 +53,7 @@ class PointerParams:
     size_ratio_range: tuple[float, float] = (0.65, 1.5)
     max_candidates_per_camera: int = 4
     mono_bridge_s: float = 0.3  # a stereo track may go on single views this long after stereo
+    clock_restart_s: float = 0.5  # a frame this much older than the last: the clock restarted
     search_window: bool = True
     detector: DetectorParams = field(default_factory=DetectorParams)
     tracking2d: Tracking2DParams = field(default_factory=Tracking2DParams)
@@ -215,7 +216,7 @@ class PointerSystem:
             view.timestamp = fr.timestamp
             view.frame = fr
             last = self._last_stamp[i]
-            if last is not None and fr.timestamp <= last:
+            if last is not None and last - self.params.clock_restart_s < fr.timestamp <= last:
                 view.status = "stale"
                 view.message = f"camera {src.camera_id!r} repeated an old frame"
                 continue

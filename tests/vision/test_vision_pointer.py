@@ -272,3 +272,16 @@ def test_a_lookalike_pair_that_wanders_never_captures_the_track():
     assert not any(fired)
     steady = [tr.disagreement(1 + k / 60, np.array([0.3, 0.0, 0.0])) for k in range(20)]
     assert not any(steady[:14]) and steady[-1]
+
+
+def test_a_camera_clock_that_restarts_resets_tracking_instead_of_stalling(stereo_rig, centre):
+    """A reconnected camera (or a video file played again) starts its timestamps from zero."""
+    cams = synthetic_cameras(stereo_rig, _moving(centre), seed=15)
+    frames = [[c.read(1.0) for _ in range(10)] for c in cams]
+    sources = [ReplaySource(f + f, c.camera_id) for f, c in zip(frames, cams, strict=True)]
+    # 10 frames span 0.15 s; a jump back by more than 0.1 s counts as a restart here
+    system = PointerSystem(sources, stereo_rig, params=PointerParams(clock_restart_s=0.1))
+    states = [system.step() for _ in range(20)]
+    assert states[9].track_id == 1
+    assert all(v.status == "ok" for v in states[10].cameras.values())
+    assert states[12].mode == "stereo" and states[12].track_id == 2
