@@ -46,6 +46,37 @@ from assistant.robot_model import Robot
 Array = np.ndarray
 
 
+class _StatusPoller:
+    """Polls DSTATE on the command port while the stream runs, in its own thread, so a slow
+    command channel never delays a streamed target. The stream loop reads `error_code` and
+    `failure` (a LinkError the poll ran into)."""
+
+    def __init__(self, link: MelfaLink, period_s: float):
+        self._link = link
+        self._period = period_s
+        self._done = threading.Event()
+        self.error_code = 0
+        self.failure: LinkError | None = None
+        self._thread = threading.Thread(target=self._run, name="melfa-status", daemon=True)
+        self._thread.start()
+
+    def _run(self) -> None:
+        while not self._done.wait(self._period):
+            try:
+                code = self._link.read_state().error_code
+            except LinkError as exc:
+                self.failure = exc
+                return
+            if code:
+                self.error_code = code
+                return
+
+    def close(self) -> None:
+        self._done.set()
+        if self._thread is not threading.current_thread():
+            self._thread.join(timeout=self._link.timeout_s + 1.0)
+
+
 class MelfaLink(RobotLink):
     """TCP client for a MELFA CR controller: commands, streaming, programs.
 
@@ -112,8 +143,9 @@ class MelfaLink(RobotLink):
         self._last_q = np.zeros(robot.dof)
         self._progress_index = 0
         self.controller_info = ""
-        #: Send times (monotonic) of the last stream's targets, for benchmarks.
+        #: Send / acknowledgement times (monotonic) of the last stream's targets (benchmarks).
         self.last_stream_send_times: list[float] = []
+        self.last_stream_ack_times: list[float] = []
 
     # ------------------------------------------------------------------ low level
     def _lost(self, why: str) -> LinkLost:
@@ -392,15 +424,23 @@ class MelfaLink(RobotLink):
         self.set_override(math.ceil(speed_scale * 100))
         dl = self._dl
         assert dl is not None
+        t0 = time.monotonic()
+        self._progress_index = 0
+        self.last_stream_send_times = []
+        self.last_stream_ack_times = []
+        poller = _StatusPoller(self, self.status_period_s)
+        try:
+            return self._stream_loop(dl, targets, index, path, poller, t0)
+        finally:
+            poller.close()
+
+    def _stream_loop(self, dl: socket.socket, targets: Array, index: Array, path: Array,
+                     poller: _StatusPoller, t0: float) -> LinkEvent:
         n = len(targets)
         sent, acked = 0, -1
         cycle, window = self.stream_cycle_s, self.stream_window
-        t0 = time.monotonic()
-        next_status = t0 + self.status_period_s
         waiting_since: float | None = None
         last_event = 0.0
-        self._progress_index = 0
-        self.last_stream_send_times = []
         while True:
             now = time.monotonic()
             if self._stop.is_set():
@@ -417,18 +457,17 @@ class MelfaLink(RobotLink):
                 sent += 1
             if acked == n - 1:
                 break
-            if now >= next_status:
-                try:
-                    st = self.read_state()
-                except ProtocolError as exc:
-                    return self._halt(LinkEventKind.ERROR, str(exc), targets, index, acked)
-                if st.error_code:
-                    return self._on_error(st.error_code, targets, index, acked)
-                next_status = time.monotonic() + self.status_period_s
+            if poller.failure is not None:
+                if isinstance(poller.failure, LinkLost):
+                    raise poller.failure
+                return self._halt(LinkEventKind.ERROR, str(poller.failure), targets, index,
+                                  acked)
+            if poller.error_code:
+                return self._on_error(poller.error_code, targets, index, acked)
             if waiting_since is not None and now - waiting_since > self.timeout_s:
                 raise self._lost(f"no acknowledgement of streamed target {acked + 1} within "
                                  f"{self.timeout_s:.2f} s")
-            wake = min(t0 + sent * cycle if sent < n else math.inf, next_status,
+            wake = min(t0 + sent * cycle if sent < n else math.inf,
                        (waiting_since or math.inf) + self.timeout_s)
             wait = float(np.clip(wake - time.monotonic(), 0.0, cycle))
             try:
@@ -460,6 +499,7 @@ class MelfaLink(RobotLink):
                                       f"data link acknowledged target {seq}, expected "
                                       f"{acked + 1}: {text!r}", targets, index, acked)
                 acked = seq
+                self.last_stream_ack_times.append(time.monotonic())
                 self._last_q = q
                 self._progress_index = int(index[self._nearest(targets, acked, q)])
                 now = time.monotonic()

@@ -20,6 +20,7 @@ import socket
 import socketserver
 import threading
 import time
+from collections import deque
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
@@ -92,9 +93,13 @@ class DataLinkPort:
         self._conn: _Conn | None = None
         self._cond = threading.Condition()
         self._closed = threading.Event()
+        self._late: deque[tuple[float, _Conn, bytes]] = deque()
         self._thread = threading.Thread(target=self._accept_loop, name=f"melfa-com{com}",
                                         daemon=True)
         self._thread.start()
+        self._late_thread = threading.Thread(target=self._late_loop,
+                                             name=f"melfa-com{com}-late", daemon=True)
+        self._late_thread.start()
 
     def _accept_loop(self) -> None:
         while not self._closed.is_set():
@@ -131,30 +136,58 @@ class DataLinkPort:
         return line
 
     def write(self, text: str, abort: threading.Event) -> None:
+        """Send a line; a reply delay (fault) holds it back without blocking the program,
+        as a controller's output buffer would."""
         with self._cond:
             conn = self._conn
         if conn is None or conn.closed:
             raise ProgramError(mp.ERR_DATALINK_LOST, f"COM{self.com}: not connected")
         out, delay = self.emu.faults.take_reply(text)
-        if delay > 0 and abort.wait(delay):
-            return  # the program was stopped while the reply was held back
+        data = (out + mp.TERMINATOR).encode("ascii", errors="replace")
+        if delay > 0:
+            with self._cond:
+                self._late.append((time.monotonic() + delay, conn, data))
+                self._cond.notify_all()
+            return
         try:
-            conn.sock.sendall((out + mp.TERMINATOR).encode("ascii", errors="replace"))
+            conn.sock.sendall(data)
         except OSError:
             raise ProgramError(mp.ERR_DATALINK_LOST, f"COM{self.com}: send failed") from None
 
+    def _late_loop(self) -> None:
+        """Sends held-back lines when they are due (in order)."""
+        while not self._closed.is_set():
+            with self._cond:
+                while not self._late and not self._closed.is_set():
+                    self._cond.wait(_POLL)
+                if self._closed.is_set():
+                    return
+                due, conn, data = self._late[0]
+                wait = due - time.monotonic()
+                if wait > 0:
+                    self._cond.wait(min(wait, _POLL))
+                    continue
+                self._late.popleft()
+            if not conn.closed:
+                with contextlib.suppress(OSError):
+                    conn.sock.sendall(data)
+
     def drop(self) -> None:
-        """Close the channel's connection; unread data on it is discarded."""
+        """Close the channel's connection; unread data and held-back lines are discarded."""
         with self._cond:
             if self._conn is not None:
                 self._conn.close()
             self._conn = None
+            self._late.clear()
 
     def close(self) -> None:
         self._closed.set()
         self.drop()
         self._listener.close()
+        with self._cond:
+            self._cond.notify_all()
         self._thread.join(timeout=2.0)
+        self._late_thread.join(timeout=2.0)
 
 
 @dataclass
@@ -622,12 +655,15 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--port", type=int, default=10001)
     ap.add_argument("--datalink-port", type=int, default=10002, help="TCP port of COM2:")
     ap.add_argument("--time-scale", type=float, default=1.0)
+    ap.add_argument("--reply-delay-ms", type=float, default=0.0,
+                    help="answer every request this late (a busy controller, a slow network)")
     ap.add_argument("--hidden-box", type=_parse_box, action="append", default=[],
                     help="hidden obstacle box x,y,z,sx,sy,sz in mm (repeatable)")
     args = ap.parse_args(argv)
     emu = MelfaEmulator(RV2AJ(), hidden_obstacles=args.hidden_box, host=args.host,
                         port=args.port, datalink_ports={mp.STREAM_COM: args.datalink_port},
                         time_scale=args.time_scale)
+    emu.faults.delay_replies(args.reply_delay_ms / 1000.0)
     with emu:
         print(f"MELFA emulator: commands on {args.host}:{emu.port}, COM2: data link on "
               f"{args.host}:{emu.datalink_port()}; Ctrl-C to stop", flush=True)
