@@ -147,6 +147,8 @@ def calibrate_from_ellipse(
             or image_bgr.ndim != 3 or image_bgr.shape[2] != 3:
         raise ColorCalibrationError("colour calibration needs a BGR uint8 image")
     ax = (float(axes[0]), float(axes[1]))
+    if not np.all(np.isfinite([float(center[0]), float(center[1]), float(angle)])):
+        raise ColorCalibrationError("the ellipse centre or angle is not a finite number")
     if not np.all(np.isfinite(ax)) or min(ax) < 1.0:
         raise ColorCalibrationError(
             f"the ellipse is empty (half-axes {ax[0]:.1f} x {ax[1]:.1f} px); drag it over the ball"

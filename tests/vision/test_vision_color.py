@@ -74,6 +74,12 @@ def test_ellipse_outside_the_image_is_a_clear_error(stereo_rig, centre):
         calibrate_from_ellipse(f.image, (-100, -100), (10, 10), 0.0)
 
 
+def test_non_finite_centre_is_a_clear_error(stereo_rig, centre):
+    f = _ball_frame(stereo_rig, centre)
+    with pytest.raises(ColorCalibrationError, match="finite"):
+        calibrate_from_ellipse(f.image, (float("nan"), 10.0), (5, 5), 0.0)
+
+
 def test_ellipse_over_grey_only_is_a_clear_error():
     grey = np.full((100, 100, 3), 128, np.uint8)
     with pytest.raises(ColorCalibrationError, match="coloured pixels"):
