@@ -72,6 +72,23 @@ class PointerParams:
     def ball_radius(self) -> float:
         return 0.5 * self.ball_diameter
 
+    def to_dict(self) -> dict:
+        """Plain JSON-able dict (saved with the session next to profiles and camera models)."""
+        return dataclasses.asdict(self)
+
+    @classmethod
+    def from_dict(cls, data: dict) -> PointerParams:
+        nested = {"detector": DetectorParams, "tracking2d": Tracking2DParams,
+                  "tracking3d": Tracking3DParams, "dwell": DwellParams}
+        names = {f.name for f in dataclasses.fields(cls)}
+        unknown = set(data) - names
+        if unknown:
+            raise ValueError(f"unknown pointer parameters {sorted(unknown)}")
+        kw = {k: (nested[k](**v) if k in nested else v) for k, v in data.items()}
+        if "size_ratio_range" in kw:
+            kw["size_ratio_range"] = tuple(kw["size_ratio_range"])
+        return cls(**kw)
+
 
 @dataclass
 class CameraView:

@@ -225,6 +225,18 @@ def test_construction_errors_are_clear(stereo_rig, centre):
         PointerParams(ball_diameter=0)
 
 
+def test_params_round_trip_through_json():
+    import json
+
+    from vision.dwell import DwellParams
+
+    p = PointerParams(hold_s=0.7, dwell=DwellParams(dwell_s=1.5))
+    p2 = PointerParams.from_dict(json.loads(json.dumps(p.to_dict())))
+    assert p2 == p
+    with pytest.raises(ValueError, match="unknown"):
+        PointerParams.from_dict({"hold": 1.0})
+
+
 def test_models_by_camera_id_and_profile_switch(stereo_rig, centre):
     cams = synthetic_cameras(stereo_rig, PointerScene(centre), seed=12)
     system = PointerSystem(cams, {"cam1": stereo_rig[1], "cam0": stereo_rig[0]})
