@@ -1,5 +1,6 @@
 """Finding the coloured ball in one image: HSV threshold, median filter, morphological closing,
-connected components, size and roundness filters, sub-pixel centre and apparent radius.
+blobs (outer contours of the mask), size and roundness filters, sub-pixel centre (moments of
+the filled blob) and apparent radius.
 
 The thesis chain (003, §6.5.3) plus tests that a ball passes from any direction and most
 look-alikes fail: the second-moment axis ratio (the thesis' circularity), how much of its
@@ -110,6 +111,9 @@ class BlobDetector:
         passes in front of), since without a known size that turns square stickers into
         "balls".
         """
+        if not isinstance(image_bgr, np.ndarray) or image_bgr.dtype != np.uint8 \
+                or image_bgr.ndim != 3 or image_bgr.shape[2] != 3:
+            raise ValueError("detection needs a BGR uint8 image (H, W, 3)")
         h, w = image_bgr.shape[:2]
         x0, y0, x1, y1 = (0, 0, w, h) if window is None else window
         if x1 - x0 < 3 or y1 - y0 < 3:

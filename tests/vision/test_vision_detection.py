@@ -123,6 +123,11 @@ def test_motion_blurred_ball_is_still_found(stereo_rig, centre):
     assert hits >= 18
 
 
+def test_detector_refuses_what_is_not_a_colour_image():
+    with pytest.raises(ValueError, match="BGR uint8"):
+        BlobDetector(PROFILE).detect(np.zeros((10, 10), np.uint8))
+
+
 def test_detector_params_are_validated():
     with pytest.raises(ValueError):
         DetectorParams(median_ksize=4)
