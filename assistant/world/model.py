@@ -146,6 +146,8 @@ class WorldModel:
                   and (cache_dir(self.config.cache) / "reachability" / f"{key}.npz").exists())
         table = load_or_build(self.robot, self.grid, self.config.reach, progress.sub(0.0, 0.4),
                               cache=self.config.cache, use_cache=self.config.use_cache)
+        table.index_of_ids(np.zeros(0, dtype=np.int64))  # build the inverse map now, not
+        # during the first collision indication
         t1 = time.perf_counter()
         progress.update(0.4, "rasterising CAD")
         cad_cells = rasterise_obstacles(self.grid, self.cad)
@@ -257,8 +259,7 @@ class WorldModel:
         cells = indicated_cells(self.robot, self.grid, q, cfg)
         upd = self._apply(Source.BUTTON, cells, cfg.value)
         flipped = self.grid.flat_of_codes(upd.flipped.astype(np.uint64))
-        tcp = self.robot.fk(q)[:3, 3]
-        near = nearby_positions(table, self.weights, q, tcp, cfg.joint_steps)
+        near = nearby_positions(table, q, cfg.joint_steps)
         slots = positions.invalidate(near)
         before = positions.n_selected[slots] > 0
         occupied = self.occupied().reshape(-1)

@@ -94,6 +94,7 @@ class ReachabilityTable:
     positions: Array  # (N,) int32 flat joint-grid ids, grouped by leaf, diversity order
     build_seconds: float = 0.0
     _slot: Array | None = field(default=None, repr=False)
+    _inverse: Array | None = field(default=None, repr=False)
 
     # ---------------------------------------------------------------- joint grid
     @property
@@ -126,6 +127,32 @@ class ReachabilityTable:
     def flat_id(self, joint_index: Array) -> Array:
         ji = np.asarray(joint_index, dtype=np.int64).reshape(-1, self.dof)
         return np.ravel_multi_index(tuple(ji.T), tuple(int(c) for c in self.counts))
+
+    def index_of_ids(self, ids: Array) -> Array:
+        """Index into `positions` of flat joint-grid ids, -1 where the id is not stored (its
+        TCP is outside the octree). The inverse map (4 bytes per grid point) is built once."""
+        if self._inverse is None:
+            inv = np.full(self.grid_size, -1, dtype=np.int32)
+            inv[self.positions] = np.arange(self.n_positions, dtype=np.int32)
+            self._inverse = inv
+        return self._inverse[np.asarray(ids, dtype=np.int64)].astype(np.int64)
+
+    def ids_in_box(self, q: Array, half_steps: float) -> Array:
+        """Flat ids of the grid points within `half_steps` steps of q in every varying joint
+        (fixed joints are ignored)."""
+        ranges = []
+        for i in range(self.dof):
+            if self.counts[i] == 1:
+                ranges.append(np.array([0]))
+                continue
+            x = (float(q[i]) - self.lower[i]) / self.step[i]
+            lo = max(0, int(np.ceil(x - half_steps - 1e-9)))
+            hi = min(int(self.counts[i]) - 1, int(np.floor(x + half_steps + 1e-9)))
+            if hi < lo:
+                return np.zeros(0, dtype=np.int64)
+            ranges.append(np.arange(lo, hi + 1))
+        mesh = np.stack(np.meshgrid(*ranges, indexing="ij"), axis=-1).reshape(-1, self.dof)
+        return self.flat_id(mesh)
 
     # ---------------------------------------------------------------- leaves
     def slot_of_leaf(self, flat_leaves: Array) -> Array:

@@ -10,7 +10,7 @@ from assistant.robot_model import CollisionShape, ShapeKind
 from assistant.transforms import make_T
 from assistant.world.cell_positions import INVALID_INDICATED
 from assistant.world.fusion import Source
-from assistant.world.indications import near_posture
+from assistant.world.indications import near_posture, nearby_positions
 from assistant.world.model import WorldConfig, WorldModel
 from assistant.world.reachability import ReachabilityConfig
 
@@ -42,6 +42,11 @@ def test_indication_occupies_the_arm_cells_and_invalidates_nearby_postures(world
     _, _, Q = world.cell_positions()
     assert not near_posture(world.table, Q, q, world.config.indication.joint_steps).any()
     assert (world.positions.state == INVALID_INDICATED).sum() == change.positions_invalidated
+    # the direct box look-up finds exactly what a scan of the whole table finds
+    t = world.table
+    scan = np.flatnonzero(near_posture(t, t.joints(t.positions), q,
+                                       world.config.indication.joint_steps))
+    assert nearby_positions(t, q, world.config.indication.joint_steps).tolist() == scan.tolist()
     assert world.near_recorded_collision(q[None])[0]
     assert not world.near_recorded_collision(np.radians([[-90.0, 0, 90, 0, 0]]))[0]
     # pressing again at the same posture changes no occupancy
