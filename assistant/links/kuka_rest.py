@@ -36,6 +36,7 @@ from assistant.links.arm_config import arm_config, status_bits, turn_bits
 from assistant.links.decimate import decimate_joint_path
 from assistant.links.errors import ControllerRefused, ProtocolError
 from assistant.links.kuka_protocol import BridgeReply
+from assistant.links.operator_button import OperatorButton
 from assistant.links.timing import time_parametrize, validate_path
 from assistant.robot_link import LinkError, LinkEvent, LinkEventKind, LinkLost, RobotLink
 from assistant.robot_model import Robot
@@ -44,7 +45,7 @@ Array = np.ndarray
 _upload_seq = itertools.count(1)
 
 
-class KukaRestLink(RobotLink):
+class KukaRestLink(OperatorButton, RobotLink):
     """HTTP client for the 002 KUKA bridge.
 
     Args:
@@ -202,6 +203,7 @@ class KukaRestLink(RobotLink):
         if not self._connected:
             raise LinkError("KUKA bridge link is not connected; call connect() first")
         self._stop.clear()
+        self._pressed = None
         if not self._moving.acquire(blocking=False):
             raise LinkError("the robot is already moving")
         try:
@@ -215,7 +217,8 @@ class KukaRestLink(RobotLink):
         v = self.robot.limits.velocity
         for k, q in enumerate(targets):
             if self._stop.is_set():
-                return self._event(LinkEventKind.STOPPED, "stopped on request", int(index[k]))
+                kind, text, details = self._stopped_as()
+                return self._event(kind, text, int(index[k]), details)
             span = time_parametrize(np.vstack([self._last_q[None], q[None]]), v, speed_scale)
             try:
                 reply = self.post("ptp", self.target_params(q, speed_scale),
@@ -249,7 +252,8 @@ class KukaRestLink(RobotLink):
                                f"collision indicated by the bridge: {reply.describe()}",
                                path_index, details)
         if reply.statuscode == kp.STATUS_STOPPED:
-            return self._event(LinkEventKind.STOPPED, "stopped on request", path_index, details)
+            kind, text, details = self._stopped_as(details)
+            return self._event(kind, text, path_index, details)
         return self._event(LinkEventKind.ERROR, f"bridge refused the motion: {reply.describe()}",
                            path_index, details)
 
@@ -289,6 +293,7 @@ class KukaRestLink(RobotLink):
             raise LinkError("KUKA bridge link is not connected; call connect() first")
         with self._moving:
             self._stop.clear()
+            self._pressed = None
             long = self.timeout_s + 60.0  # Cartesian moves: no cheap duration estimate
             try:
                 reply = self.post(endpoint, params, timeout_s=long)

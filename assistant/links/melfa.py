@@ -39,6 +39,7 @@ import numpy as np
 from assistant.links import melfa_protocol as mp
 from assistant.links.errors import ControllerRefused, ProtocolError
 from assistant.links.melfa_protocol import DState, MelfaPose, Reply
+from assistant.links.operator_button import OperatorButton
 from assistant.links.timing import time_parametrize, validate_path
 from assistant.robot_link import LinkError, LinkEvent, LinkEventKind, LinkLost, RobotLink
 from assistant.robot_model import Robot
@@ -77,7 +78,7 @@ class _StatusPoller:
             self._thread.join(timeout=self._link.timeout_s + 1.0)
 
 
-class MelfaLink(RobotLink):
+class MelfaLink(OperatorButton, RobotLink):
     """TCP client for a MELFA CR controller: commands, streaming, programs.
 
     Args:
@@ -330,6 +331,7 @@ class MelfaLink(RobotLink):
         if not self._moving.acquire(blocking=False):
             raise LinkError("the robot is already moving")
         self._stop.clear()
+        self._pressed = None
         try:
             self._stop_stream()
             self.set_override(math.ceil(speed_scale * 100))
@@ -363,6 +365,7 @@ class MelfaLink(RobotLink):
         timed_check = time_parametrize(path[:1], self.robot.limits.velocity, speed_scale)
         del timed_check  # validates speed_scale before anything is sent
         self._stop.clear()
+        self._pressed = None
         if not self._moving.acquire(blocking=False):
             raise LinkError("the robot is already moving")
         try:
@@ -444,8 +447,8 @@ class MelfaLink(RobotLink):
         while True:
             now = time.monotonic()
             if self._stop.is_set():
-                return self._halt(LinkEventKind.STOPPED, "stopped on request", targets, index,
-                                  acked)
+                kind, text, details = self._stopped_as()
+                return self._halt(kind, text, targets, index, acked, details)
             while sent < n and sent - acked - 1 < window and now >= t0 + sent * cycle:
                 try:
                     dl.sendall(mp.format_stream_line(sent, targets[sent], self._names))
@@ -542,7 +545,7 @@ class MelfaLink(RobotLink):
             time.sleep(max(self.stream_cycle_s, 0.005))
 
     def _halt(self, kind: LinkEventKind, message: str, targets: Array, index: Array,
-              acked: int) -> LinkEvent:
+              acked: int, details: dict | None = None) -> LinkEvent:
         """Stop the program and the arm, read where it is, report `kind`."""
         with contextlib.suppress(LinkError):
             self._stop_stream()
@@ -551,7 +554,7 @@ class MelfaLink(RobotLink):
             q = self._read_joints()
         self._last_q = q
         i = int(index[self._nearest(targets, max(acked, 0), q)]) if len(targets) else 0
-        ev = LinkEvent(kind, q.copy(), time.monotonic(), message, i)
+        ev = LinkEvent(kind, q.copy(), time.monotonic(), message, i, details or {})
         self._emit(ev)
         return ev
 
@@ -582,7 +585,7 @@ class MelfaLink(RobotLink):
             with contextlib.suppress(LinkError):
                 self.command("RSTALRM")
         elif stopped:
-            kind, text = LinkEventKind.STOPPED, "stopped on request"
+            kind, text, details = self._stopped_as(details)
         else:
             kind = LinkEventKind.ERROR
             text = f"controller refused the motion: error {code:04d} {message}; raw {raw!r}"
@@ -661,6 +664,7 @@ class MelfaLink(RobotLink):
             raise LinkError("MELFA link is not connected; call connect() first")
         self._stop_stream()
         self._stop.clear()
+        self._pressed = None
         self.command("SLOTINIT")
         self.command(f"RUN{mp.sanitize_program_name(name, max_len=12)};1")
         if not wait:

@@ -222,3 +222,25 @@ def test_refused_targets_are_never_sent_and_bridge_refusals_carry_the_code(start
     assert ev.kind == LinkEventKind.ERROR and ev.details["statuscode"] == kp.STATUS_LIMIT
     assert "software limit" in ev.message and '"statuscode": -1' in ev.message
     assert abs(emu.arm.q[0]) < np.radians(100.0)
+
+
+def test_operator_button_during_a_ptp(start):
+    emu, link = start()
+    first = threading.Event()
+    link.subscribe(lambda e: first.set() if e.kind == LinkEventKind.MOVED else None)
+
+    def press():
+        first.wait(10.0)
+        while emu.arm.q[0] < Q_A[0] + 0.01 and not done.is_set():
+            done.wait(0.002)
+        link.indicate_collision("operator: cable snagged")
+
+    done = threading.Event()
+    th = threading.Thread(target=press)
+    th.start()
+    ev = link.move_path(np.array([Q_A, Q_B]), speed_scale=0.05)
+    done.set()
+    th.join(timeout=10.0)
+    assert ev.kind == LinkEventKind.COLLISION_INDICATED and ev.path_index == 1
+    assert ev.details["source"] == "operator" and "cable" in ev.message
+    assert np.allclose(ev.q, emu.arm.q, atol=1e-4) and not emu.arm.moving

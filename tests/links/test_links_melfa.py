@@ -215,3 +215,19 @@ def test_controller_refusal_carries_its_error_code(start, fast_robot):
     assert ev.details["error_code"] == f"{mp.ERR_JOINT_RANGE:04d}"
     assert abs(emu.arm.q[0]) <= np.radians(100.0) + 1e-9
     assert link.move_path(np.array([Q_A])).kind == LinkEventKind.REACHED
+
+
+def test_operator_button_while_streaming_and_when_idle(start):
+    emu, link = start()
+    events: list = []
+    link.subscribe(events.append)
+    on_first_move(link, lambda: threading.Thread(
+        target=link.indicate_collision, args=("gripper grazed the fixture",)).start())
+    ev = link.move_path(np.vstack([sweep(HOME, Q_A, 3), sweep(Q_A, Q_B, 3)]), speed_scale=0.2)
+    assert ev.kind == LinkEventKind.COLLISION_INDICATED
+    assert ev.details["source"] == "operator" and "fixture" in ev.message
+    assert not emu.arm.moving and np.allclose(ev.q, emu.arm.q, atol=TOL)
+    link.indicate_collision()
+    assert events[-1].kind == LinkEventKind.COLLISION_INDICATED
+    assert np.allclose(events[-1].q, ev.q)
+    assert link.move_path(np.array([HOME])).kind == LinkEventKind.REACHED
