@@ -66,6 +66,11 @@ class RoadmapConfig:
     heuristic_weight: float = 1.5
     #: Search all free cells if the roads do not connect start and goal.
     fallback_to_free_cells: bool = True
+    #: Cells (Chebyshev radius) around the start whose joint positions stay usable even if
+    #: occupied: after an indication the robot stands among the cells it just marked and
+    #: must be able to leave them (edges are still checked against CAD and the recorded
+    #: collision postures).
+    start_escape: int = 2
 
 
 @dataclass(frozen=True)
@@ -117,6 +122,9 @@ class _EdgeCheck:
     def __init__(self, checker: ValidityChecker, world: WorldModel):
         self.checker = checker
         self.world = world
+        #: Recorded collisions whose box holds the query's start: the robot stands there and
+        #: must be allowed to move out.
+        self.exempt: frozenset[int] = frozenset()
 
     def first_invalid_fraction(self, q0: Array, q1: Array) -> float | None:
         if self.world.collisions:
@@ -127,7 +135,7 @@ class _EdgeCheck:
             steps = np.abs(q1 - q0)[varying] / (0.5 * table.step[varying])
             n = max(1, int(np.ceil(steps.max(initial=0.0))))
             f = np.arange(n + 1) / n
-            near = self.world.near_recorded_collision(q0 + f[:, None] * (q1 - q0))
+            near = self.world.near_recorded_collision(q0 + f[:, None] * (q1 - q0), self.exempt)
             if near.any():
                 return float(f[int(np.argmax(near))])
         return self.checker.first_invalid_fraction(q0, q1)
@@ -143,7 +151,7 @@ class _EdgeCheck:
         Q = np.concatenate([a + f[:, None] * (b - a) for a, b, f in zip(Q0, Q1, fr, strict=True)])
         ok = self.checker.is_valid_batch(Q)
         if self.world.collisions:
-            ok &= ~self.world.near_recorded_collision(Q)
+            ok &= ~self.world.near_recorded_collision(Q, self.exempt)
         out: list[float | None] = []
         start = 0
         for f in fr:
@@ -231,6 +239,7 @@ class RoadmapPlanner:
         if pre is not None:
             return pre
         sc, gc = w.tcp_cell(q_s), w.tcp_cell(q_g)
+        self._edge.exempt = w.recorded_collisions_at(q_s)
         direct = self._weighted(q_s, q_g)
         if (sc == gc or direct <= self.config.max_edge) and \
                 self._edge.first_invalid_fraction(q_s, q_g) is None:
@@ -241,7 +250,8 @@ class RoadmapPlanner:
         src, s_lab, g_lab = labels.with_terminals(sc, gc)
         vmap = update_voronoi(base, src, d_min=self.config.d_min).vmap
         timings["roadmap_update"] = time.perf_counter() - t1
-        free = w.free().reshape(-1).copy()
+        escape = self._escape_cells(sc)
+        free = w.free().reshape(-1) | escape
         free[[sc, gc]] = True
         comp, _ = components26(free.reshape(w.grid.shape))
         comp = comp.reshape(-1)
@@ -251,7 +261,8 @@ class RoadmapPlanner:
                                PlanFailure.NO_PATH_REGIONS, timings=timings)
         lab = vmap.label.reshape(-1)
         on_roads = (lab == ROAD) | (lab == s_lab) | (lab == g_lab)
-        res, graph = self._search(q_s, q_g, sc, gc, on_roads & free, progress, timings)
+        res, graph = self._search(q_s, q_g, sc, gc, (on_roads & free) | escape, progress,
+                                  timings)
         searched = "roads"
         if (not res.found and res.reason != REASON_BUDGET
                 and self.config.fallback_to_free_cells):
@@ -278,6 +289,19 @@ class RoadmapPlanner:
         return self._plan_from(path, res, searched, timings, res.cost)
 
     # ---------------------------------------------------------------- helpers
+    def _escape_cells(self, sc: int) -> Array:
+        """Flat mask: cells near the start that offer joint positions (occupied or not)."""
+        w = self.world
+        out = np.zeros(w.grid.n_cells, dtype=bool)
+        r = self.config.start_escape
+        if r <= 0:
+            return out
+        c = w.grid.ijk_of_flat([sc])[0]
+        rng = [np.arange(max(0, c[a] - r), min(w.grid.n, c[a] + r + 1)) for a in range(3)]
+        ijk = np.stack(np.meshgrid(*rng, indexing="ij"), axis=-1).reshape(-1, 3)
+        out[w.grid.flat_of_ijk(ijk)] = True
+        return out & w.has_valid().reshape(-1)
+
     def _weighted(self, a: Array, b: Array) -> float:
         return float(np.linalg.norm((b - a) * self._weights()))
 

@@ -262,9 +262,9 @@ class WorldModel:
         near = nearby_positions(table, q, cfg.joint_steps)
         slots = positions.invalidate(near)
         before = positions.n_selected[slots] > 0
-        occupied = self.occupied().reshape(-1)
-        free_slots = slots[~occupied[table.leaves[slots]]]
-        positions.fill(free_slots, progress)
+        # refill every affected leaf, occupied ones too: the planner may still use positions
+        # of occupied leaves around its start (to leave the region it just marked)
+        positions.fill(slots, progress)
         after = positions.n_selected[slots] > 0
         lost = table.leaves[slots[before != after]]
         self.collisions.append(RecordedCollision(q.copy(), cells))
@@ -282,12 +282,23 @@ class WorldModel:
         after = positions.n_selected[slots] > 0
         return np.unique(table.leaves[slots[before != after]])
 
-    def near_recorded_collision(self, Q: Array) -> Array:
-        """Bool per row of Q: inside the posture box of a recorded collision (`indications`)."""
+    def near_recorded_collision(self, Q: Array, exclude: frozenset[int] = frozenset(),
+                                ) -> Array:
+        """Bool per row of Q: inside the posture box of a recorded collision (`indications`),
+        ignoring the recorded collisions whose indices are in `exclude`."""
         Q = np.atleast_2d(np.asarray(Q, dtype=float))
         out = np.zeros(len(Q), dtype=bool)
         if not self.collisions or self.table is None:
             return out
-        for rc in self.collisions:
-            out |= near_posture(self.table, Q, rc.q, self.config.indication.joint_steps)
+        for i, rc in enumerate(self.collisions):
+            if i not in exclude:
+                out |= near_posture(self.table, Q, rc.q, self.config.indication.joint_steps)
         return out
+
+    def recorded_collisions_at(self, q: Array) -> frozenset[int]:
+        """Indices of the recorded collisions whose posture box contains q."""
+        if self.table is None:
+            return frozenset()
+        js = self.config.indication.joint_steps
+        return frozenset(i for i, rc in enumerate(self.collisions)
+                         if near_posture(self.table, np.asarray(q)[None], rc.q, js)[0])

@@ -134,3 +134,8 @@ def test_collision_indication_updates_roads_locally_and_the_new_plan_avoids_it(r
     assert not w.near_recorded_collision(np.array(after.joint_path)).any()
     assert planner.checker.check_path(after.joint_path) is None
     assert hit_cell not in [w.grid.flat_of_ijk(np.array([c]))[0] for c in after.cells]
+    # the robot, stopped at q_hit among the cells it just marked, can plan its way out
+    out = planner.plan(q_hit, Q_GOAL)
+    assert out.ok and np.allclose(out.joint_path[0], q_hit)
+    assert planner.checker.check_path(out.joint_path) is None
+    assert not w.near_recorded_collision(np.array(out.joint_path[1:])).any()
