@@ -360,41 +360,39 @@ class PointerSystem:
         """Pick this frame's measurement (or none) and feed the 3-D track.
 
         With a track: the stereo candidate nearest in the Mahalanobis sense within the gate;
-        failing that a single view, but only as a brief stand-in (one camera lost the ball
-        for a moment) or when only one camera works, since after a long coast the gate is
-        wide enough to let a single view's poor depth drag the track off. Candidates that
-        stay outside the gate at a consistent place for `reinit_after_s` start a new track.
+        failing that a single view inside the gate, either as a brief stand-in (one camera
+        lost the ball for up to `mono_bridge_s`) or because that view's blob has been tracked
+        for a few frames (the ball is in front of a same-coloured thing in the other view):
+        after a long coast the gate is wide, and a one-off blob must not drag the track off.
+        Candidates that stay outside the gate at a consistent place for `reinit_after_s`
+        start a new track. Without a track: stereo, else a confirmed single-view blob.
         """
         stereo = self._stereo_hypotheses(dets)
         k = self.params.max_candidates_per_camera
         gate = self._t3.gate_chi2
         if self.track.active:
             gated = [(d, h) for h in stereo if (d := self.track.gate_distance(h.est)) <= gate]
-            since = t - (self.track.last_measurement_time or t)
-            if not gated and (n_delivering == 1 or since <= self.params.mono_bridge_s):
+            if not gated:
+                since = t - (self.track.last_measurement_time or t)
+                bridge = n_delivering == 1 or since <= self.params.mono_bridge_s
                 monos = [self._mono(i, j, d) for i, ds in dets.items()
-                         for j, d in enumerate(ds[:k])]
+                         for j, d in enumerate(ds[:k])
+                         if bridge or self.trackers2d[i].is_confirmed(ids2d[i][j])]
                 gated = [(d, h) for h in monos if (d := self.track.gate_distance(h.est)) <= gate]
             if gated:
                 h = min(gated, key=lambda g: g[0])[1]
                 self.track.update(t, h.est)
                 return h
             fresh = self._best_new(stereo, dets) if stereo else \
-                self._confirmed_mono(dets, ids2d) if n_delivering == 1 else None
+                self._confirmed_mono(dets, ids2d)
             if fresh is not None and self.track.disagreement(t, fresh.est.position_world):
                 self.track.start(t, fresh.est)
                 return fresh
             return None
-        if stereo:
-            h = self._best_new(stereo, dets)
+        h = self._best_new(stereo, dets) if stereo else self._confirmed_mono(dets, ids2d)
+        if h is not None:
             self.track.start(t, h.est)
-            return h
-        if n_delivering == 1:  # a single working camera: start from a confirmed blob track
-            h = self._confirmed_mono(dets, ids2d)
-            if h is not None:
-                self.track.start(t, h.est)
-                return h
-        return None
+        return h
 
     def _confirmed_mono(self, dets: dict[int, list[Detection]],
                         ids2d: dict[int, list[int]]) -> _Hypothesis | None:

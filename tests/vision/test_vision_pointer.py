@@ -297,3 +297,23 @@ def test_a_camera_clock_that_restarts_resets_tracking_instead_of_stalling(stereo
     assert states[9].track_id == 1
     assert all(v.status == "ok" for v in states[10].cameras.values())
     assert states[12].mode == "stereo" and states[12].track_id == 2
+
+
+def test_after_an_occlusion_one_view_is_enough_to_pick_the_ball_up_again(stereo_rig, centre):
+    """Both views lose the ball for 0.5 s, then only cam1 gets it back (in cam0 it is in
+    front of something of its own colour): single-camera mode takes over once cam1's blob
+    has been seen for a few frames, rather than waiting for stereo that will not come."""
+    path = lissajous(centre, [0.1, 0.1, 0.05])
+    views = []
+    for model, hidden, seed in ((stereo_rig[0], [(0.3, 9.0)], 16), (stereo_rig[1],
+                                                                    [(0.3, 0.8)], 17)):
+        cam = SyntheticCamera(model, PointerScene(path, hidden=hidden),
+                              np.random.default_rng(seed), camera_id=f"v{seed}")
+        views.append([cam.read(1.0) for _ in range(66)])
+    sources = [ReplaySource(v, v[0].camera_id) for v in views]
+    system = PointerSystem(sources, stereo_rig)
+    states = [system.step() for _ in range(66)]
+    assert states[10].mode == "stereo"
+    back = [s for s in states if s.timestamp >= 0.8 + 6 / 60]
+    assert all(s.measured and s.mode == "mono" for s in back)
+    assert np.linalg.norm(back[-1].position_world - path(back[-1].timestamp)) < 0.05
