@@ -8,8 +8,9 @@ Streaming follows the thesis' CONTROLLINK program (Listing 4) - ``INPUT #1`` / `
 ``CNT 1`` blending in a loop - moved from RS-232 to the data-link port: the PC sends one
 ``seq,(j1,...,j6)`` target per controller cycle (7.1 ms), keeps at most `stream_window`
 targets unacknowledged, and the controller answers each accepted target with its current
-joints. A status poll (``DSTATE``) on the command port at `status_period_s` catches errors
-(collision, range) while the arm moves; the thesis needed that second connection too.
+joints. A status poll (``DSTATE``) on the command port, in its own thread so a slow reply
+never delays a target, catches errors (collision, range) while the arm moves; the thesis
+needed that second connection too.
 
 Real-world choice: the CR1's *Real-time external control* (MXT, UDP, one packet per 7.1 ms
 cycle, 003 Table 4 "RTEC") is the lower-latency path for a production set-up; it needs a

@@ -11,8 +11,6 @@ from __future__ import annotations
 import re
 from dataclasses import dataclass
 
-Array = object
-
 _AGG = re.compile(r"\{([^{}]*)\}")
 _MOTION = re.compile(r"^\s*(PTP|LIN|SPL|SLIN|SPTP|CIRC)\b\s*(.*)$", re.IGNORECASE)
 

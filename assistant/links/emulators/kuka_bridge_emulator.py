@@ -97,6 +97,7 @@ class KukaBridgeEmulator:
 
         class Handler(BaseHTTPRequestHandler):
             protocol_version = "HTTP/1.1"
+            timeout = 2.0  # an idle keep-alive client must not hold a thread forever
 
             def log_message(self, *args: object) -> None:  # keep test output clean
                 return
