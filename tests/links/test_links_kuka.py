@@ -7,7 +7,7 @@ import threading
 
 import numpy as np
 import pytest
-from conftest import FAST_SPEEDS, HOME, Q_A, Q_B, box_on_sweep, sweep
+from link_fixtures import FAST_SPEEDS, HOME, Q_A, Q_B, box_on_sweep, sweep
 
 from assistant.collision import CollisionChecker
 from assistant.links import kuka_protocol as kp

@@ -10,7 +10,7 @@ import sys
 
 import numpy as np
 import pytest
-from conftest import HOME, Q_A
+from link_fixtures import HOME, Q_A
 
 from assistant.links import LinkSettings, LinkSettingsError, make_link
 from assistant.links.emulators.kuka_bridge_emulator import KukaBridgeEmulator

@@ -6,7 +6,7 @@ import threading
 
 import numpy as np
 import pytest
-from conftest import HOME, Q_A, Q_B, box_on_sweep, sweep
+from link_fixtures import HOME, Q_A, Q_B, box_on_sweep, sweep
 
 from assistant.collision import CollisionChecker
 from assistant.links.simulated import SimulatedRobot
