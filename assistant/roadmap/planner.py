@@ -20,7 +20,7 @@ along the path instead of jumping to the table's fixed value.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum
 
 import numpy as np
@@ -204,24 +204,36 @@ class RoadmapPlanner:
         """The operator flagged a collision at posture q: fuse it, update the roads locally."""
         self._need()
         t0 = time.perf_counter()
-        return self._sync(self.world.indicate_collision(q, progress), t0)
+        try:
+            change = self.world.indicate_collision(q, progress)
+        except BaseException:
+            self._sync(None, t0)  # cancelled while refilling: roads follow the world anyway
+            raise
+        return self._sync(change, t0)
 
     def observe(self, source: Source | str, points_base: Array, values: Array | float,
                 progress: Progress | None = None) -> CollisionUpdate:
         """Sensor/camera occupancy observations at points: fuse them, update the roads."""
         self._need()
         t0 = time.perf_counter()
-        return self._sync(self.world.observe(source, points_base, values, progress), t0)
+        try:
+            change = self.world.observe(source, points_base, values, progress)
+        except BaseException:
+            self._sync(None, t0)
+            raise
+        return self._sync(change, t0)
 
-    def _sync(self, change: WorldChange, t0: float) -> CollisionUpdate:
+    def _sync(self, change: WorldChange | None, t0: float) -> CollisionUpdate:
         labels, vmap = self._need()
         w = self.world
         self.labels = relabel(labels, w.occupied(), w.object_ids(), w.object_names(),
                               w.reachable(), w.has_valid())
         upd = update_voronoi(vmap, self.labels.source, d_min=self.config.d_min)
         self.voronoi = upd.vmap
-        return CollisionUpdate(change, np.flatnonzero(upd.changed), upd.region_cells,
-                               upd.rounds, upd.rebuilt, time.perf_counter() - t0)
+        empty = np.zeros(0, dtype=np.int64)
+        return CollisionUpdate(change or WorldChange(empty, empty, empty),
+                               np.flatnonzero(upd.changed), upd.region_cells, upd.rounds,
+                               upd.rebuilt, time.perf_counter() - t0)
 
     # ---------------------------------------------------------------- queries
     def plan(self, q_start: Array, q_goal: Array, progress: Progress | None = None,
@@ -266,7 +278,11 @@ class RoadmapPlanner:
         searched = "roads"
         if (not res.found and res.reason != REASON_BUDGET
                 and self.config.fallback_to_free_cells):
-            res2, graph = self._search(q_s, q_g, sc, gc, free, progress, timings)
+            b = self.config.budget
+            left = replace(b, max_expansions=max(1, b.max_expansions - res.expansions),
+                           max_edge_checks=max(1, b.max_edge_checks - res.edge_checks),
+                           max_seconds=max(0.0, b.max_seconds - res.seconds))
+            res2, graph = self._search(q_s, q_g, sc, gc, free, progress, timings, left)
             searched = "free cells"
             res = SearchResult(res2.found, res2.reason, res2.nodes, res2.cost,
                                res.expansions + res2.expansions,
@@ -365,7 +381,7 @@ class RoadmapPlanner:
 
     def _search(self, q_s: Array, q_g: Array, sc: int, gc: int, searchable: Array,
                 progress: Progress | None, timings: dict[str, float],
-                ) -> tuple[SearchResult, JointGraph]:
+                budget: SearchBudget | None = None) -> tuple[SearchResult, JointGraph]:
         w = self.world
         t0 = time.perf_counter()
         cells, offsets, Q = w.cell_positions()
@@ -377,7 +393,7 @@ class RoadmapPlanner:
             extra=[(sc, q_s), (gc, q_g)], max_edge=self.config.max_edge)
         timings["graph"] = timings.get("graph", 0.0) + time.perf_counter() - t0
         t1 = time.perf_counter()
-        res = lazy_astar(graph, s_id, g_id, self._edge, self.config.budget, progress,
+        res = lazy_astar(graph, s_id, g_id, self._edge, budget or self.config.budget, progress,
                          heuristic_weight=self.config.heuristic_weight)
         timings["search"] = timings.get("search", 0.0) + time.perf_counter() - t1
         return res, graph

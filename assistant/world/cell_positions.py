@@ -71,6 +71,8 @@ class CellPositions:
         t = self.table
         cfg = self.config
         slots = np.unique(np.asarray(slots, dtype=np.int64))
+        if progress is not None:
+            progress.update(0.0, "valid joint positions")
         counts = np.diff(t.offsets)
         checked = 0
         batch = cfg.first_batch
@@ -126,8 +128,15 @@ class CellPositions:
         if not len(pi):
             return pi
         self.state[pi] = INVALID_INDICATED
-        slots = np.searchsorted(self.table.offsets, pi, side="right") - 1
-        return np.unique(slots)
+        self.selected[pi] = False  # consistent at once, even if the refill is cancelled
+        slots = self.slots_of(pi)
+        self._reselect(slots)
+        return slots
+
+    def slots_of(self, position_index: Array) -> Array:
+        """The leaf slots (unique) holding some positions (indices into table.positions)."""
+        pi = np.asarray(position_index, dtype=np.int64)
+        return np.unique(np.searchsorted(self.table.offsets, pi, side="right") - 1)
 
     # ---------------------------------------------------------------- views
     def has_valid(self) -> Array:

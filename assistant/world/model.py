@@ -260,14 +260,16 @@ class WorldModel:
         upd = self._apply(Source.BUTTON, cells, cfg.value)
         flipped = self.grid.flat_of_codes(upd.flipped.astype(np.uint64))
         near = nearby_positions(table, q, cfg.joint_steps)
-        slots = positions.invalidate(near)
+        slots = positions.slots_of(near)
         before = positions.n_selected[slots] > 0
+        # Record first: a cancelled refill below must not lose the evidence.
+        self.collisions.append(RecordedCollision(q.copy(), cells))
+        positions.invalidate(near)
         # refill every affected leaf, occupied ones too: the planner may still use positions
         # of occupied leaves around its start (to leave the region it just marked)
         positions.fill(slots, progress)
         after = positions.n_selected[slots] > 0
         lost = table.leaves[slots[before != after]]
-        self.collisions.append(RecordedCollision(q.copy(), cells))
         return WorldChange(cells, np.unique(flipped), np.unique(lost), len(near))
 
     def _refill(self, flat_cells: Array, progress: Progress | None) -> Array:

@@ -139,3 +139,20 @@ def test_collision_indication_updates_roads_locally_and_the_new_plan_avoids_it(r
     assert out.ok and np.allclose(out.joint_path[0], q_hit)
     assert planner.checker.check_path(out.joint_path) is None
     assert not w.near_recorded_collision(np.array(out.joint_path[1:])).any()
+
+
+def test_cancelled_indication_leaves_world_and_roads_consistent(rv2aj):
+    planner = make_planner(rv2aj)
+    q = np.radians([30.0, 40.0, 50.0, 20.0, 0.0])
+    prog = Progress("indication")
+    prog.cancel()
+    with pytest.raises(Cancelled):
+        planner.add_collision(q, prog)
+    w = planner.world
+    # the evidence is kept, no invalidated posture is offered, the roads match the world
+    assert len(w.collisions) == 1 and w.occupied().reshape(-1)[w.tcp_cell(q)]
+    _, _, Q = w.cell_positions()
+    assert not w.near_recorded_collision(Q).any()
+    assert planner.voronoi.same_as(build_voronoi(planner.labels.source, w.reachable()))
+    assert planner.labels.source.reshape(-1)[w.tcp_cell(q)] > 0
+    assert planner.plan(Q_START, Q_GOAL).ok

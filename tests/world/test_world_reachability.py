@@ -170,3 +170,16 @@ def test_failed_write_leaves_no_partial_file(rv2aj, coarse_grid, tmp_path, monke
     with pytest.raises(OSError, match="disk full"):
         load_or_build(rv2aj, coarse_grid, COARSE, cache=tmp_path)
     assert not any(p.is_file() for p in tmp_path.rglob("*"))
+
+
+def test_a_finer_octree_works(rv2aj, rng):
+    fine = OctreeGrid.for_leaf(2.0, 0.03125)
+    assert fine.shape == (64, 64, 64)
+    table = build_table(rv2aj, fine, COARSE)
+    idx = rng.choice(table.n_positions, 5000, replace=False)
+    q = table.joints(table.positions[idx])
+    assert np.array_equal(fine.flat_of_points(rv2aj.batch_fk(q).positions),
+                          table.leaf_of_positions()[idx])
+    # each leaf splits into 8; near the reach boundary some of the 8 are not reachable
+    coarse = build_table(rv2aj, OctreeGrid.for_leaf(2.0, 0.0625), COARSE)
+    assert 5 * len(coarse.leaves) < len(table.leaves) < 9 * len(coarse.leaves)
