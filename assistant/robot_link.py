@@ -85,6 +85,10 @@ class RobotLink(abc.ABC):
     def stop(self) -> None:
         """Stop as soon as possible (from any thread)."""
 
+    @abc.abstractmethod
+    def indicate_collision(self, message: str = "operator pressed Collision!") -> None:
+        """The operator's Collision! button: stop now and report COLLISION_INDICATED."""
+
     def upload_program(self, name: str, files: dict[str, bytes]) -> str:
         """Send a program to the controller; returns the name it is stored under."""
         raise LinkError(f"{type(self).__name__} cannot store programs")
