@@ -66,11 +66,12 @@ class RoadmapConfig:
     heuristic_weight: float = 1.5
     #: Search all free cells if the roads do not connect start and goal.
     fallback_to_free_cells: bool = True
-    #: Cells (Chebyshev radius) around the start whose joint positions stay usable even if
-    #: occupied: after an indication the robot stands among the cells it just marked and
-    #: must be able to leave them (edges are still checked against CAD and the recorded
-    #: collision postures).
-    start_escape: int = 2
+    #: Cells (Chebyshev radius) around the start (any) and the goal (CAD leaves only) whose
+    #: joint positions stay usable even if occupied: after an indication the robot stands
+    #: among the cells it just marked and must be able to leave them, and a point taught on
+    #: a part lies among the part's partly filled leaves. Edges are still checked exactly
+    #: against CAD and the recorded collision postures.
+    terminal_escape: int = 2
 
 
 @dataclass(frozen=True)
@@ -262,7 +263,10 @@ class RoadmapPlanner:
         src, s_lab, g_lab = labels.with_terminals(sc, gc)
         vmap = update_voronoi(base, src, d_min=self.config.d_min).vmap
         timings["roadmap_update"] = time.perf_counter() - t1
-        escape = self._escape_cells(sc)
+        # around the goal only CAD leaves (partly filled; FCL checked their positions), around
+        # the start any leaf (the robot is there)
+        cad_leaf = w.object_ids().reshape(-1) > 0
+        escape = self._escape_cells(sc) | (self._escape_cells(gc) & cad_leaf)
         free = w.free().reshape(-1) | escape
         free[[sc, gc]] = True
         comp, _ = components26(free.reshape(w.grid.shape))
@@ -305,14 +309,14 @@ class RoadmapPlanner:
         return self._plan_from(path, res, searched, timings, res.cost)
 
     # ---------------------------------------------------------------- helpers
-    def _escape_cells(self, sc: int) -> Array:
-        """Flat mask: cells near the start that offer joint positions (occupied or not)."""
+    def _escape_cells(self, cell: int) -> Array:
+        """Flat mask: cells near `cell` that offer joint positions (occupied or not)."""
         w = self.world
         out = np.zeros(w.grid.n_cells, dtype=bool)
-        r = self.config.start_escape
+        r = self.config.terminal_escape
         if r <= 0:
             return out
-        c = w.grid.ijk_of_flat([sc])[0]
+        c = w.grid.ijk_of_flat([cell])[0]
         rng = [np.arange(max(0, c[a] - r), min(w.grid.n, c[a] + r + 1)) for a in range(3)]
         ijk = np.stack(np.meshgrid(*rng, indexing="ij"), axis=-1).reshape(-1, 3)
         out[w.grid.flat_of_ijk(ijk)] = True
@@ -362,7 +366,9 @@ class RoadmapPlanner:
                                PlanFailure.GOAL_IN_OBSTACLE)
         gc = w.tcp_cell(q_g)
         p = float(w.occupancy().reshape(-1)[gc])
-        if p >= w.threshold:
+        # A leaf a CAD part only partly fills is occupied, yet a taught point on the part's
+        # surface lies in it: for CAD leaves the exact check above has the last word.
+        if p >= w.threshold and w.object_ids().reshape(-1)[gc] <= 0:
             return RoadmapPlan(False, f"goal inside an obstacle: its cell is occupied "
                                f"(P = {p:.2f})", PlanFailure.GOAL_IN_OBSTACLE)
         if w.near_recorded_collision(q_g[None])[0]:

@@ -156,3 +156,17 @@ def test_cancelled_indication_leaves_world_and_roads_consistent(rv2aj):
     assert planner.voronoi.same_as(build_voronoi(planner.labels.source, w.reachable()))
     assert planner.labels.source.reshape(-1)[w.tcp_cell(q)] > 0
     assert planner.plan(Q_START, Q_GOAL).ok
+
+
+def test_a_point_taught_on_a_part_is_a_valid_goal(planner, rv2aj):
+    # TCP 2 mm above O2's top face, tool pointing down: the leaf is partly filled by O2
+    T = np.eye(4)
+    T[:3, :3] = np.diag([1.0, -1.0, -1.0])
+    T[:3, 3] = [0.22, 0.18, 0.122]
+    q_on = rv2aj.ik(T).best(Q_GOAL)
+    w = planner.world
+    assert w.occupied().reshape(-1)[w.tcp_cell(q_on)]
+    assert planner.checker.is_valid(q_on)
+    plan = planner.plan(Q_START, q_on)
+    assert plan.ok, plan.reason
+    assert planner.checker.check_path(plan.joint_path) is None
