@@ -5,12 +5,20 @@
     report = planner.build(progress)           # one-time: table (cached), CAD, roads
     plan = planner.plan(q_start, q_goal)        # RoadmapPlan: joint path or a reason
     update = planner.add_collision(q_stopped)   # operator indication: fusion + local update
+    update = planner.observe(Source.CAMERA, points, 1.0)  # other evidence, same update
 
 A query adds the start and goal leaves as brushfire sources of their own (an incremental update
 of the base roads, so roads form around them), then searches the joint positions of the road
 cells plus the start's and goal's regions (thesis §8.5.6). If the roads happen not to connect
 them although the free space does (cell-based Voronoi roads can break in 3-D), the search is
 repeated over all free cells and the plan says so (`searched`).
+
+Before any of that: a goal outside the limits or the octree is refused ("unreachable goal"), a
+goal posture that collides (exact check) or sits in a leaf occupied by non-CAD evidence or in a
+recorded collision's posture box is refused ("goal inside an obstacle"); start and goal closer
+than one edge with a valid straight motion are joined directly. The search is weighted A*
+(factor 1.5 by default, `RoadmapConfig.heuristic_weight`; 1.0 gives the optimum over the
+graph) with lazy exact edge checks, under a budget of expansions, edge checks and seconds.
 
 The joint path is what the elastic net / primitive fitter consumes. Table joints that cannot
 move the geometry (J6 with a straight tool) are interpolated between the start and goal values
