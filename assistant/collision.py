@@ -184,6 +184,32 @@ class CollisionChecker:
         self._sp_a = np.asarray(sp_a, dtype=np.int64)
         self._sp_b = np.asarray(sp_b, dtype=np.int64)
         self._sp_pair = np.asarray(sp_pair, dtype=np.int64)
+        # Start offsets of each shape's / pair's contiguous run of spheres (for reduceat).
+        self._shape_has_sph = np.isin(np.arange(len(self._rshapes)), self._sph_shape)
+        self._sph_starts = np.searchsorted(self._sph_shape, np.nonzero(self._shape_has_sph)[0])
+        self._pair_has_sph = np.isin(np.arange(len(self._self_pairs)), self._sp_pair)
+        self._sp_starts = np.searchsorted(self._sp_pair,
+                                          np.nonzero(self._pair_has_sph)[0])
+
+    @property
+    def self_pairs(self) -> list[tuple[str, str]]:
+        """The self-collision pairs checked, as (link name, link name), one per shape pair."""
+        return [(self._link_names[self._rshapes[a].link], self._link_names[self._rshapes[b].link])
+                for a, b in self._self_pairs]
+
+    @property
+    def self_shape_pairs(self) -> list[tuple[int, int, int, int]]:
+        """The same as (link index, shape index in link, link index, shape index in link)."""
+        out = []
+        for a, b in self._self_pairs:
+            ra, rb = self._rshapes[a], self._rshapes[b]
+            out.append((ra.link, self._shape_index_in_link(a), rb.link,
+                        self._shape_index_in_link(b)))
+        return out
+
+    def _shape_index_in_link(self, i: int) -> int:
+        link = self._rshapes[i].link
+        return sum(1 for k in range(i) if self._rshapes[k].link == link)
 
     # ------------------------------------------------------------------ self-collision pairs
     def _self_shape_pairs(self) -> list[tuple[int, int]]:
@@ -268,17 +294,15 @@ class CollisionChecker:
             dist2 = np.einsum("nsek,nsek->nse", d, d)
             near = dist2 <= (self._sph_r[None, :, None] ** 2)
             near[:, self._sph_link == 0, :] = False  # the fixed base cannot move into anything
-            # Reduce spheres to shapes.
-            for s in range(R):
-                mask = self._sph_shape == s
-                env_c[:, s, :] = near[:, mask, :].any(axis=1)
+            # Reduce spheres to shapes: each shape's spheres are contiguous.
+            env_c[:, self._shape_has_sph, :] = np.logical_or.reduceat(
+                near, self._sph_starts, axis=1)
         if P:
             diff = C[:, self._sp_a] - C[:, self._sp_b]
             near = np.einsum("npk,npk->np", diff, diff) <= (
                 (self._sph_r[self._sp_a] + self._sph_r[self._sp_b]) ** 2
             )[None]
-            for p in range(P):
-                self_c[:, p] = near[:, self._sp_pair == p].any(axis=1)
+            self_c[:, self._pair_has_sph] = np.logical_or.reduceat(near, self._sp_starts, axis=1)
         return env_c, self_c
 
     def _narrow(self, frames_n: Array, env_c: Array, self_c: Array, *, all_contacts: bool,

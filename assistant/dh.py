@@ -6,6 +6,7 @@ algorithms are free functions over it so they can be vectorised over many config
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,6 +27,11 @@ class DHRow:
 @dataclass(frozen=True)
 class DHChain:
     rows: tuple[DHRow, ...]
+
+    @functools.cached_property
+    def fixed_parts(self) -> tuple[Array, ...]:
+        """All F_i, computed once (hot in single-configuration FK)."""
+        return tuple(self.fixed_part(i) for i in range(len(self.rows)))
 
     def fixed_part(self, i: int) -> Array:
         """F_i = Rz(offset) Tz(d) Tx(a) Rx(alpha): the joint-independent part of A_i."""
@@ -64,24 +70,23 @@ def chain_frames(chain: DHChain, q: Array) -> Array:
     """
     n = len(chain.rows)
     out = np.empty((n + 1, 4, 4))
-    T = np.eye(4)
-    out[0] = T
+    out[0] = np.eye(4)
+    F = chain.fixed_parts
+    cs, sn = np.cos(q), np.sin(q)
+    T = out[0]
     for i in range(n):
-        c, s = np.cos(q[i]), np.sin(q[i])
-        Rz = np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
-        T = T @ Rz
-        out[i + 1] = T
-        T = T @ chain.fixed_part(i)
+        # T @ Rz(q_i) touches only the first two columns.
+        Ti = T.copy()
+        Ti[:, 0] = cs[i] * T[:, 0] + sn[i] * T[:, 1]
+        Ti[:, 1] = -sn[i] * T[:, 0] + cs[i] * T[:, 1]
+        out[i + 1] = Ti
+        T = Ti @ F[i]
     return out
 
 
 def flange_frame(chain: DHChain, q: Array) -> Array:
-    T = np.eye(4)
-    for i in range(len(chain.rows)):
-        c, s = np.cos(q[i]), np.sin(q[i])
-        Rz = np.array([[c, -s, 0, 0], [s, c, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.0]])
-        T = T @ Rz @ chain.fixed_part(i)
-    return T
+    frames = chain_frames(chain, q)
+    return frames[-1] @ chain.fixed_parts[-1]
 
 
 def batch_chain_frames(chain: DHChain, Q: Array) -> tuple[Array, Array]:
@@ -97,5 +102,5 @@ def batch_chain_frames(chain: DHChain, Q: Array) -> tuple[Array, Array]:
     for i in range(n):
         T = T @ rz_batch(Q[:, i])
         frames[:, i + 1] = T
-        T = T @ chain.fixed_part(i)
+        T = T @ chain.fixed_parts[i]
     return frames, T
