@@ -1,0 +1,74 @@
+"""Parameters of mission planning and execution, in one place with their reasons.
+
+The thesis gives no figures for budgets or the hysteresis; the defaults are ours and are
+chosen so the thesis scenario plans in about a second per transfer on two cores.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from assistant.trajectory.application import ApplicationParams
+from assistant.trajectory.assemble import AssemblyParams
+from assistant.trajectory.elastic_net import ElasticNetParams
+from assistant.trajectory.ordering import OrderingParams
+from assistant.trajectory.primitives import FitParams
+
+
+def _exploring_net() -> ElasticNetParams:
+    # Low shrink keeps the road's clearance (fewer indications while the world is unknown);
+    # short stages: an exploring path is driven once, slowly, and re-planned on contact.
+    return ElasticNetParams.exploring(stage1_iterations=120, stage2_iterations=60)
+
+
+def _final_net() -> ElasticNetParams:
+    # High shrink pulls the final path taut; stage 2 forms the arcs. Stage 1 usually settles
+    # before its cap on the thesis cell; stage 2 gains little after ~150 iterations.
+    return ElasticNetParams.final(stage1_iterations=300, stage2_iterations=150)
+
+
+@dataclass(frozen=True)
+class MissionPlannerConfig:
+    """How a mission is planned (see `MissionPlanner`)."""
+
+    net_exploring: ElasticNetParams = field(default_factory=_exploring_net)
+    net_final: ElasticNetParams = field(default_factory=_final_net)
+    #: Transfers need no precision, only clearance: 5 mm keeps the program short (the fitted
+    #: path is verified exactly, and refitted tighter if the 5 mm corridor touches something).
+    fit: FitParams = field(default_factory=lambda: FitParams(tolerance=0.005))
+    assembly: AssemblyParams = field(default_factory=AssemblyParams)
+    application: ApplicationParams = field(default_factory=ApplicationParams)
+    ordering: OrderingParams = field(default_factory=OrderingParams)
+    #: Measure transfer costs with the roadmap when ordering (estimates only if False).
+    measure_ordering: bool = True
+    #: Seconds for the whole mission (checked between pieces); the roadmap search and the
+    #: net have their own budgets inside.
+    max_seconds: float = 120.0
+    #: If smoothing a transfer fails verification, try the exploring net, then the roadmap's
+    #: joint path as joint moves (always verified; never unchecked).
+    fallback_to_joint_moves: bool = True
+
+
+@dataclass(frozen=True)
+class ExecutionConfig:
+    """How a plan is driven and repaired (SPEC §6 re-planning loop)."""
+
+    #: Fraction of the joint speed limits while exploring / for the final validation run.
+    speed_exploring: float = 0.3
+    speed_final: float = 0.6
+    #: Budgets: collision indications and re-plans over one `run` (each ends the run with a
+    #: clear reason when exceeded).
+    max_indications: int = 25
+    max_replans: int = 25
+    #: A re-planned path replaces a still-valid one only if it is shorter by more than
+    #: `hysteresis_m` metres of TCP path AND by more than `hysteresis_ratio` of the old length.
+    hysteresis_m: float = 0.05
+    hysteresis_ratio: float = 0.1
+    #: Back-off: a posture of the new plan counts as "on the executed path" within this much
+    #: arm travel (metres, sum of arm radius x joint change).
+    common_tolerance: float = 0.01
+    #: After reaching the goal, plan the final (high-shrink) trajectory and drive it once from
+    #: the start; it is offered only if that run had no indication.
+    validate_final: bool = True
+    #: Final validation rounds (each: back to the start, drive the final plan).
+    max_final_rounds: int = 4

@@ -1,0 +1,135 @@
+"""What the planners may rely on: CAD checked exactly plus the operator's recorded collisions.
+
+The roadmap already refuses edges through a recorded collision's posture box; the elastic
+net and the final verification must do the same, or a smoothed path would slide back into a
+posture the operator just flagged. Three small adapters give the trajectory package that view
+through its own interfaces:
+
+* `WorldAllowed` - TCP points -> bool: inside a free leaf of the world model (the net's
+  `allowed`); the dense grid is read once per plan, not once per net iteration.
+* `KnownValidity` - the `ValidityChecker` for the net's particles: FCL against CAD and joint
+  limits, and not inside a recorded posture box.
+* `KnownVerifier` - the `PathVerifier` for finished trajectories: the exact continuous FCL
+  check, then the recorded posture boxes along every segment.
+
+Boxes that hold the path's first posture are exempt (the robot stands there after an
+indication and must be allowed to leave), as in the roadmap's own edge check.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from assistant.collision import CollisionChecker, CollisionReport, Contact, MotionCheck
+from assistant.world.model import WorldModel
+
+Array = np.ndarray
+
+
+class WorldAllowed:
+    """`allowed(points)` for the elastic net: TCP points in free, reachable leaves."""
+
+    def __init__(self, world: WorldModel):
+        self.world = world
+        self._free = world.free().reshape(-1)
+
+    def refresh(self) -> None:
+        """Re-read the grid after the world changed (an indication, an observation)."""
+        self._free = self.world.free().reshape(-1)
+
+    def __call__(self, points: Array) -> Array:
+        flat = self.world.grid.flat_of_points(np.atleast_2d(np.asarray(points, dtype=float)))
+        out = np.zeros(len(flat), dtype=bool)
+        inside = flat >= 0
+        out[inside] = self._free[flat[inside]]
+        return out
+
+
+class KnownValidity:
+    """FCL + joint limits + recorded collision postures, for single configurations."""
+
+    def __init__(self, checker: CollisionChecker, world: WorldModel,
+                 exempt: frozenset[int] = frozenset()):
+        self.checker = checker
+        self.world = world
+        self.exempt = exempt
+
+    def is_valid(self, q: Array) -> bool:
+        return bool(self.is_valid_batch(np.asarray(q, dtype=float)[None])[0])
+
+    def is_valid_batch(self, Q: Array) -> Array:
+        Q = np.atleast_2d(np.asarray(Q, dtype=float))
+        ok = self.checker.is_valid_batch(Q)
+        if self.world.collisions and ok.any():
+            ok[ok] &= ~self.world.near_recorded_collision(Q[ok], self.exempt)
+        return ok
+
+    def first_invalid_fraction(self, q0: Array, q1: Array) -> float | None:
+        mc = KnownVerifier(self.checker, self.world).check_motion(q0, q1, self.exempt)
+        return mc.first_invalid_fraction
+
+
+class KnownVerifier:
+    """Exact continuous check of joint paths against CAD, limits and recorded postures."""
+
+    def __init__(self, checker: CollisionChecker, world: WorldModel):
+        self.checker = checker
+        self.world = world
+
+    def _box_samples(self, q0: Array, q1: Array) -> Array:
+        """Fractions along q0 -> q1 at most half a table grid step apart (no box skipped)."""
+        table = self.world.table
+        if table is None:
+            return np.array([0.0, 1.0])
+        varying = table.counts > 1
+        steps = np.abs(np.asarray(q1) - q0)[varying] / (0.5 * table.step[varying])
+        n = max(1, int(np.ceil(steps.max(initial=0.0))))
+        return np.arange(n + 1) / n
+
+    def check_motion(self, q0: Array, q1: Array, exempt: frozenset[int] = frozenset(),
+                     ) -> MotionCheck:
+        q0, q1 = np.asarray(q0, dtype=float), np.asarray(q1, dtype=float)
+        mc = self.checker.check_motion(q0, q1)
+        if not mc.valid or not self.world.collisions:
+            return mc
+        f = self._box_samples(q0, q1)
+        near = self.world.near_recorded_collision(q0 + f[:, None] * (q1 - q0), exempt)
+        if not near.any():
+            return mc
+        k = int(np.argmax(near))
+        hit = sorted(self.world.recorded_collisions_at(q0 + f[k] * (q1 - q0)) - exempt)
+        what = ", ".join(f"recorded collision {i + 1}" for i in hit) or "a recorded collision"
+        report = CollisionReport(True, (Contact("arm posture", what),))
+        return MotionCheck(float(f[k]), len(f) - 1, report)
+
+    def check_path(self, path: Sequence[Array], max_step: float | None = None,
+                   ) -> tuple[int, MotionCheck] | None:
+        """First invalid segment (index, check) or None; exempts the boxes at path[0]."""
+        if len(path) == 0:
+            return None
+        hit = self.checker.check_path(path, max_step)
+        if not self.world.collisions:
+            return hit
+        exempt = self.world.recorded_collisions_at(np.asarray(path[0], dtype=float))
+        last = hit[0] if hit is not None else len(path) - 1
+        P = np.asarray(path, dtype=float)
+        segs, parts = [], []
+        for i in range(min(last + 1, len(P) - 1)):  # all samples at once, one box query
+            f = self._box_samples(P[i], P[i + 1])
+            parts.append(P[i] + f[:, None] * (P[i + 1] - P[i]))
+            segs.append(np.full(len(f), i))
+        if not parts:
+            return hit
+        near = self.world.near_recorded_collision(np.concatenate(parts), exempt)
+        if near.any():
+            i = int(np.concatenate(segs)[int(np.argmax(near))])
+            if hit is None or i < hit[0] or (i == hit[0]):
+                mc = self.check_motion(P[i], P[i + 1], exempt)
+                if not mc.valid:
+                    return i, mc
+        return hit
+
+    def min_clearance_along(self, path: Sequence[Array], max_step: float = 0.01) -> float:
+        return self.checker.min_clearance_along(path, max_step)

@@ -1,0 +1,88 @@
+"""Taught locations into joint configurations, with the reason when there is none.
+
+The operator needs to know *which* location fails and *why*: out of reach, an orientation a
+5-axis arm cannot take (then the nearest reachable orientation is offered - never used
+silently), every arm configuration outside the limits, or every configuration colliding
+(and with what). Among valid solutions the one nearest the seed is taken: the configuration
+the location was taught with if known, else where the arm comes from, so transfers stay on
+one arm branch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import Enum
+
+import numpy as np
+
+from assistant.collision import CollisionChecker
+from assistant.robot_model import IKFailure, Robot
+from assistant.transforms import inv_T
+
+Array = np.ndarray
+
+
+class LocationProblem(str, Enum):
+    UNREACHABLE = "unreachable"
+    ORIENTATION = "orientation"
+    JOINT_LIMIT = "joint_limit"
+    IN_COLLISION = "in_collision"
+
+
+class LocationError(ValueError):
+    """A location the robot cannot take; `suggestion_T_world_tool` is offered when known."""
+
+    def __init__(self, name: str, problem: LocationProblem, message: str,
+                 suggestion_T_world_tool: Array | None = None):
+        super().__init__(message)
+        self.name = name
+        self.problem = problem
+        self.suggestion_T_world_tool = suggestion_T_world_tool
+
+
+@dataclass(frozen=True)
+class SolvedLocation:
+    name: str
+    q: Array
+    T_base_tool: Array
+
+
+def solve_location(robot: Robot, checker: CollisionChecker | None, name: str,
+                   T_world_tool: Array, T_world_base: Array, *, seed: Array | None = None,
+                   q_hint: Array | None = None) -> SolvedLocation:
+    """The valid joint solution of a taught pose nearest `q_hint` (else `seed`).
+
+    Raises:
+        LocationError naming the location and the problem (see the module docstring).
+    """
+    T_base_world = inv_T(np.asarray(T_world_base, dtype=float))
+    T_base_tool = T_base_world @ np.asarray(T_world_tool, dtype=float)
+    pref = q_hint if q_hint is not None else seed
+    res = robot.ik(T_base_tool, pref)
+    if not res.ok:
+        p_mm = np.asarray(T_world_tool)[:3, 3] * 1000.0
+        where = f"({p_mm[0]:.0f}, {p_mm[1]:.0f}, {p_mm[2]:.0f}) mm"
+        if res.failure == IKFailure.ORIENTATION:
+            sugg = None
+            if res.nearest_T_base_tool is not None:
+                sugg = np.asarray(T_world_base, dtype=float) @ res.nearest_T_base_tool
+            raise LocationError(name, LocationProblem.ORIENTATION,
+                                f"{name} at {where}: orientation not reachable - {res.message}; "
+                                "accept the projected orientation to use it", sugg)
+        if res.failure == IKFailure.JOINT_LIMIT:
+            raise LocationError(name, LocationProblem.JOINT_LIMIT,
+                                f"{name} at {where} is unreachable: {res.message}")
+        raise LocationError(name, LocationProblem.UNREACHABLE,
+                            f"{name} at {where} is unreachable: {res.message}")
+    sols = [np.asarray(q, dtype=float) for q in res.solutions]
+    if pref is not None:
+        sols.sort(key=lambda q: float(np.linalg.norm(q - np.asarray(pref, dtype=float))))
+    if checker is None:
+        return SolvedLocation(name, sols[0], T_base_tool)
+    ok = checker.is_valid_batch(np.array(sols))
+    if not ok.any():
+        why = checker.check(sols[0]).describe()
+        raise LocationError(name, LocationProblem.IN_COLLISION,
+                            f"{name} is inside an obstacle: every arm configuration collides "
+                            f"({why})")
+    return SolvedLocation(name, sols[int(np.argmax(ok))], T_base_tool)

@@ -1,0 +1,476 @@
+"""`MissionPlanner`: a whole mission - locations, order, transfers, application paths - into one
+verified `Trajectory` (SPEC §6).
+
+    planner = MissionPlanner(robot, cell.collision_objects_in_base(), world, roadmap)
+    plan = planner.plan_mission(mission, cell.T_world_base, q_current, Progress())
+    plan.ok, plan.trajectory, plan.report.describe()
+
+Steps, each ending with a reason that names the failing piece:
+
+1. Locations: start and goal solved by IK (seeded: the taught configuration, else where the
+   arm is), refusing unreachable poses, 5-axis orientations (offering the projection) and
+   poses where every arm configuration collides (`locations`).
+2. Application paths into motions (`trajectory.application_motions`), verified against the
+   known world; reversible paths in both directions.
+3. Order (`trajectory.order_paths`): estimated TCP distances first, then measured ones - the
+   TCP length of the roadmap's joint path, planned lazily only for the transfers the current
+   best order uses; those roadmap paths are reused for the chosen transfers.
+4. Transfers: roadmap query, then the elastic net with the world's free cells as `allowed`
+   and FCL + recorded collision postures as the particles' validity; low shrink while
+   exploring, high for the final plan. A smoothed transfer that fails verification falls
+   back to the exploring net, then to joint moves along the roadmap path (verified too).
+5. All pieces joined into one trajectory (labels = mission steps, gripper actions where the
+   paths want them) and verified once more as a whole: the exact continuous FCL check against
+   every known obstacle, the recorded collision postures and the joint limits. Nothing
+   unverified is offered.
+"""
+
+from __future__ import annotations
+
+import re
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from assistant.collision import CollisionChecker, ObstacleView
+from assistant.mission import Mission
+from assistant.motion import Motion, MotionKind, Trajectory, Waypoint
+from assistant.planning.config import MissionPlannerConfig
+from assistant.planning.known_world import KnownValidity, KnownVerifier, WorldAllowed
+from assistant.planning.locations import LocationError, SolvedLocation, solve_location
+from assistant.planning.pieces import PieceKind, PlanPiece, join_pieces
+from assistant.planning.report import MissionPlanReport, PieceReport
+from assistant.progress import Progress
+from assistant.roadmap.planner import RoadmapPlan, RoadmapPlanner
+from assistant.robot_model import Robot
+from assistant.trajectory.application import (
+    ApplicationMotions,
+    application_motions,
+    reversed_path,
+)
+from assistant.trajectory.assemble import (
+    AssemblyResult,
+    assemble_trajectory,
+    joint_interpolation,
+    verify,
+)
+from assistant.trajectory.elastic_net import ElasticNetParams, run_elastic_net
+from assistant.trajectory.ordering import Endpoint, Ordering, PathEnds, order_paths
+from assistant.trajectory.primitives import fit_primitives
+from assistant.transforms import inv_T
+from assistant.world.model import WorldModel
+
+Array = np.ndarray
+
+#: Location names used as program position names only if every dialect accepts them.
+_SAFE_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9]{0,7}$")
+
+
+@dataclass(frozen=True)
+class TransferResult:
+    """A planned transfer (or why not) and where the time went."""
+
+    ok: bool
+    piece: PlanPiece | None
+    report: PieceReport
+    roadmap: RoadmapPlan | None = None
+    roadmap_seconds: float = 0.0
+    smoothing_seconds: float = 0.0
+
+
+@dataclass
+class MissionPlan:
+    """The planned mission: one verified trajectory and its pieces, or the reason for none."""
+
+    ok: bool
+    trajectory: Trajectory | None
+    pieces: list[PlanPiece]
+    report: MissionPlanReport
+    T_world_base: Array
+    #: Solved joint configurations of the locations (start, goal), by name.
+    locations: dict[str, Array] = field(default_factory=dict)
+    #: The joined trajectory even when rejected (display of the failure only).
+    candidate: Trajectory | None = field(default=None, repr=False)
+    ordering: Ordering | None = None
+
+    @property
+    def reason(self) -> str:
+        return self.report.reason
+
+
+class MissionPlanner:
+    """Plans missions in a built world model and roadmap (module docstring).
+
+    Args:
+        robot: the robot (with its tool).
+        cell_obstacles: the known obstacles in the robot base frame (CAD of the cell).
+        world: the world model, built (or built by `roadmap.build`).
+        roadmap: the roadmap planner over `world`.
+        checker: the exact checker for `cell_obstacles` (built from them if None).
+        config: planning parameters.
+    """
+
+    def __init__(self, robot: Robot, cell_obstacles: Sequence[ObstacleView], world: WorldModel,
+                 roadmap: RoadmapPlanner, checker: CollisionChecker | None = None,
+                 config: MissionPlannerConfig | None = None):
+        self.robot = robot
+        self.obstacles = list(cell_obstacles)
+        self.world = world
+        self.roadmap = roadmap
+        self.checker = checker or CollisionChecker(robot, self.obstacles)
+        self.config = config or MissionPlannerConfig()
+        self.verifier = KnownVerifier(self.checker, world)
+        self._allowed: WorldAllowed | None = None
+
+    # ------------------------------------------------------------------ transfers
+    def allowed(self) -> WorldAllowed:
+        """The net's `allowed` over the world's current free cells."""
+        if self._allowed is None:
+            self._allowed = WorldAllowed(self.world)
+        else:
+            self._allowed.refresh()
+        return self._allowed
+
+    def plan_transfer(self, q_start: Array, q_goal: Array, *, exploring: bool = False,
+                      label: str = "transfer", progress: Progress | None = None,
+                      roadmap_plan: RoadmapPlan | None = None) -> TransferResult:
+        """Roadmap query + smoothing + verification of one transfer q_start -> q_goal."""
+        q_s = np.asarray(q_start, dtype=float)
+        q_g = np.asarray(q_goal, dtype=float)
+        t0 = time.perf_counter()
+        plan = roadmap_plan if roadmap_plan is not None else self.roadmap.plan(
+            q_s, q_g, progress.sub(0.0, 0.2) if progress else None)
+        t1 = time.perf_counter()
+        if not plan.ok:
+            rep = PieceReport(label, "transfer", False, plan.reason, seconds=t1 - t0)
+            return TransferResult(False, None, rep, plan, t1 - t0)
+        asm, notes = self._smooth(plan.joint_path, exploring, label,
+                                  progress.sub(0.2, 1.0) if progress else None)
+        t2 = time.perf_counter()
+        if asm.trajectory is None:
+            rep = PieceReport(label, "transfer", False,
+                              f"no verified trajectory along the roadmap path: "
+                              f"{asm.report.reason}", asm.report, t2 - t0, plan.searched,
+                              tuple(notes))
+            return TransferResult(False, None, rep, plan, t1 - t0, t2 - t1)
+        piece = PlanPiece(PieceKind.TRANSFER, label, asm.trajectory, asm.report)
+        rep = PieceReport(label, "transfer", True, "", asm.report, t2 - t0, plan.searched,
+                          tuple(notes))
+        return TransferResult(True, piece, rep, plan, t1 - t0, t2 - t1)
+
+    def _smooth(self, joint_path: list[Array], exploring: bool, label: str,
+                progress: Progress | None) -> tuple[AssemblyResult, list[str]]:
+        """Net -> lines/arcs -> verified motions, with fallbacks that never skip verification.
+
+        The fitted primitives may stray from the (valid) net by up to the fit tolerance; if
+        that touches something, the same net is refitted tighter before anything else. The
+        final plan may fall back to the exploring net (it stays nearer the roads), and last,
+        to joint moves along the roadmap path.
+        """
+        cfg = self.config
+        nets: list[ElasticNetParams] = [cfg.net_exploring if exploring else cfg.net_final]
+        if cfg.fallback_to_joint_moves and not exploring:
+            nets.append(cfg.net_exploring)
+        tolerances = [cfg.fit.tolerance] + [t for t in (cfg.fit.tolerance / 2.5, 0.001)
+                                            if t < cfg.fit.tolerance]
+        q0, q1 = np.asarray(joint_path[0]), np.asarray(joint_path[-1])
+        validity = KnownValidity(self.checker, self.world,
+                                 self.world.recorded_collisions_at(q0))
+        assembly = replace(cfg.assembly, label=label)
+        allowed = self.allowed()
+        notes: list[str] = []
+        asm: AssemblyResult | None = None
+        for k, params in enumerate(nets):
+            net = run_elastic_net(self.robot, joint_path, allowed=allowed, validity=validity,
+                                  params=params,
+                                  progress=progress.sub(0.0, 0.8) if progress else None)
+            for tol in tolerances:
+                fit = fit_primitives(net.particles.points, replace(cfg.fit, tolerance=tol))
+                asm = assemble_trajectory(self.robot, fit, net.particles, self.verifier,
+                                          assembly)
+                if asm.trajectory is None:
+                    notes.append(f"fit within {tol * 1000:.1f} mm rejected: "
+                                 f"{asm.report.reason}")
+                    continue
+                snapped = _snap_end(self.robot, asm.trajectory, q1)
+                if snapped is None:
+                    notes.append("smoothed path ends too far from the goal posture")
+                    continue
+                if k > 0:
+                    notes.append("smoothed with the exploring net")
+                return replace(asm, trajectory=snapped), notes
+        assert asm is not None
+        if cfg.fallback_to_joint_moves:
+            traj = _joint_moves(self.robot, joint_path, label, cfg.assembly)
+            checked = verify(self.robot, traj, self.verifier,
+                             clearance_step=cfg.assembly.clearance_step)
+            if checked.ok:
+                notes.append("joint moves along the roadmap path (smoothing failed)")
+            return checked, notes
+        return asm, notes
+
+    # ------------------------------------------------------------------ missions
+    def plan_mission(self, mission: Mission, T_world_base: Array, q_current: Array,
+                     progress: Progress | None = None, *, exploring: bool = False,
+                     ) -> MissionPlan:
+        """Plan the mission from its start location (or `q_current` if it has none).
+
+        Args:
+            mission: start, goal and application paths (world frame).
+            T_world_base: where the robot base stands in the world.
+            q_current: the robot's joints now (IK seed; the start when the mission has none).
+            progress: reports and cancels (raises `Cancelled`).
+            exploring: low-shrink smoothing for a first run in a partly unknown cell.
+        """
+        t0 = time.perf_counter()
+        progress = progress or Progress("plan mission")
+        T_wb = np.asarray(T_world_base, dtype=float)
+        T_bw = inv_T(T_wb)
+        q_cur = np.asarray(q_current, dtype=float)
+        reports: list[PieceReport] = []
+        failed = _Failure(self, mission, T_wb, reports, t0, exploring)
+        if mission.start is None and mission.goal is None and not mission.paths:
+            return failed("mission", "mission", "the mission is empty: teach a start, a goal "
+                          "or an application path")
+        progress.update(0.0, "solving locations")
+        # 1. start
+        locations: dict[str, Array] = {}
+        if mission.start is not None:
+            try:
+                s = solve_location(self.robot, self.checker, mission.start.name,
+                                   mission.start.T_world_tool, T_wb, seed=q_cur,
+                                   q_hint=mission.start.q_hint)
+            except LocationError as exc:
+                return failed(f"start {exc.name}", "location", str(exc))
+            start_label = mission.start.name
+        else:
+            if not self.checker.is_valid(q_cur):
+                return failed("start (current posture)", "location",
+                              "the robot's current posture is in collision "
+                              f"({self.checker.check(q_cur).describe()})")
+            s = SolvedLocation("current posture", q_cur, self.robot.fk(q_cur))
+            start_label = "current posture"
+        locations[s.name] = s.q
+        reports.append(PieceReport(f"start {s.name}", "location", True))
+        # 2. application paths (both ways if reversible)
+        apps: dict[tuple[int, bool], ApplicationMotions] = {}
+        seed = s.q
+        for i, path in enumerate(mission.paths):
+            progress.update(0.05 + 0.1 * i / max(1, len(mission.paths)),
+                            f"application path {path.name}")
+            for rev in (False, True) if path.reversible else (False,):
+                p = reversed_path(path) if rev else path
+                am = application_motions(self.robot, p, q_seed=seed, T_base_world=T_bw,
+                                         verifier=self.verifier, params=self.config.application)
+                if not am.ok:
+                    why = am.failure.describe() if am.failure else "cannot be planned"
+                    if rev:  # the forward direction works: just do not offer reversing
+                        continue
+                    return failed(path.name, "application", f"application path {path.name}: "
+                                  f"{why}")
+                apps[(i, rev)] = am
+            fwd = apps[(i, False)]
+            note = ()
+            if fwd.max_orientation_correction > np.radians(0.5):
+                note = (f"orientation projected into the arm plane by up to "
+                        f"{np.degrees(fwd.max_orientation_correction):.1f} deg",)
+            reports.append(PieceReport(path.name, "application", True,
+                                       trajectory=fwd.verification, notes=note))
+        # 3. goal
+        goal: SolvedLocation | None = None
+        if mission.goal is not None:
+            gseed = _end_q(apps[(len(mission.paths) - 1, False)]) if mission.paths else s.q
+            try:
+                goal = solve_location(self.robot, self.checker, mission.goal.name,
+                                      mission.goal.T_world_tool, T_wb, seed=gseed,
+                                      q_hint=mission.goal.q_hint)
+            except LocationError as exc:
+                return failed(f"goal {exc.name}", "location", str(exc))
+            locations[goal.name] = goal.q
+            reports.append(PieceReport(f"goal {goal.name}", "location", True))
+        progress.update(0.15, "ordering")
+        # 4. order (estimated, then measured transfer lengths)
+        cache: dict[tuple[bytes, bytes], RoadmapPlan] = {}
+        ordering = self._order(mission, s, goal, apps, cache, progress)
+        if not np.isfinite(ordering.cost):
+            return failed("ordering", "ordering", "no order of the application paths has a "
+                          "transfer path between every pair (see the transfers' reasons)")
+        # 5. transfers and application pieces in order
+        pieces: list[PlanPiece] = []
+        here_q, here_label = s.q, start_label
+        steps: list[tuple[Array, str, ApplicationMotions | None, str]] = []
+        for i, rev in zip(ordering.order, ordering.reversed, strict=True):
+            steps.append((np.asarray(apps[(i, rev)].start.q, float),  # type: ignore[union-attr]
+                          mission.paths[i].name, apps[(i, rev)], mission.paths[i].name
+                          + (" (reversed)" if rev else "")))
+        if goal is not None:
+            steps.append((goal.q, goal.name, None, goal.name))
+        n_steps = max(1, len(steps))
+        for k, (q_to, to_label, am, _) in enumerate(steps):
+            if time.perf_counter() - t0 > self.config.max_seconds:
+                return failed(f"{here_label} -> {to_label}", "transfer",
+                              f"planning budget of {self.config.max_seconds:.0f} s exhausted")
+            sub = progress.sub(0.2 + 0.75 * k / n_steps, 0.2 + 0.75 * (k + 1) / n_steps,
+                               f"{here_label} -> {to_label}")
+            if float(np.abs(q_to - here_q).max()) > 1e-9:
+                label = f"{here_label} -> {to_label}"
+                tr = self.plan_transfer(here_q, q_to, exploring=exploring, label=label,
+                                        progress=sub,
+                                        roadmap_plan=cache.get((here_q.tobytes(),
+                                                                q_to.tobytes())))
+                reports.append(tr.report)
+                if not tr.ok:
+                    return failed(label, "transfer", tr.report.reason, keep_report=True)
+                assert tr.piece is not None
+                pieces.append(tr.piece)
+            if am is not None:
+                pieces.append(PlanPiece(PieceKind.APPLICATION, am.name, am.to_trajectory(),
+                                        am.verification, path_name=am.name))
+                here_q, here_label = _end_q(am), am.name
+            else:
+                here_q, here_label = q_to, to_label
+        if not pieces:
+            return failed("mission", "mission", "nothing to do: the robot already stands at "
+                          "the goal and there are no application paths")
+        # 6. one trajectory, verified as a whole
+        progress.update(0.96, "verifying the whole trajectory")
+        start_name = s.name if _SAFE_NAME.match(s.name) else ""
+        end_name = goal.name if goal is not None and _SAFE_NAME.match(goal.name) else ""
+        traj = join_pieces(pieces, start_name, end_name)
+        checked = verify(self.robot, traj, self.verifier,
+                         clearance_step=self.config.assembly.clearance_step)
+        order_names = tuple(mission.paths[i].name + (" (reversed)" if r else "")
+                            for i, r in zip(ordering.order, ordering.reversed, strict=True))
+        elapsed = time.perf_counter() - t0
+        if not checked.ok:
+            reports.append(PieceReport("whole trajectory", "verification", False,
+                                       checked.report.reason))
+            rep = MissionPlanReport(False, f"the joined trajectory failed verification: "
+                                    f"{checked.report.reason}", tuple(reports),
+                                    "whole trajectory", planning_seconds=elapsed,
+                                    order=order_names, ordering_method=ordering.method,
+                                    exploring=exploring)
+            return MissionPlan(False, None, pieces, rep, T_wb, locations, traj, ordering)
+        r = checked.report
+        rep = MissionPlanReport(True, "planned and verified", tuple(reports), None,
+                                r.min_clearance, r.tcp_length, r.joint_length,
+                                dict(r.primitive_counts), elapsed, order_names,
+                                ordering.method, exploring)
+        progress.update(1.0, "mission planned", force=True)
+        return MissionPlan(True, traj, pieces, rep, T_wb, locations, traj, ordering)
+
+    def _order(self, mission: Mission, s: SolvedLocation, goal: SolvedLocation | None,
+               apps: dict[tuple[int, bool], ApplicationMotions],
+               cache: dict[tuple[bytes, bytes], RoadmapPlan], progress: Progress) -> Ordering:
+        ends = []
+        for i, path in enumerate(mission.paths):
+            fwd = apps[(i, False)]
+            assert fwd.start is not None
+            ends.append(PathEnds(Endpoint(fwd.start.position, np.asarray(fwd.start.q, float),
+                                          f"{path.name} start"),
+                                 Endpoint(fwd.motions[-1].target.position, _end_q(fwd),
+                                          f"{path.name} end"),
+                                 (i, True) in apps))
+        start = Endpoint(s.T_base_tool[:3, 3], s.q, s.name)
+        gend = Endpoint(goal.T_base_tool[:3, 3], goal.q, goal.name) if goal else None
+        # Trivial orders need no measuring: one one-way path (or none) has a single order.
+        trivial = len(mission.paths) == 0 or (len(mission.paths) == 1
+                                              and not ends[0].reversible)
+        measure = None
+        if self.config.measure_ordering and not trivial:
+            def measure(a: Endpoint, b: Endpoint) -> float:
+                if a.q is None or b.q is None:
+                    return float(np.linalg.norm(a.position - b.position))
+                # the reversed direction's entry posture is the forward exit's pose
+                qa, qb = self._entry_q(a, apps, mission), self._entry_q(b, apps, mission)
+                key = (qa.tobytes(), qb.tobytes())
+                if key not in cache:
+                    progress.check()
+                    cache[key] = self.roadmap.plan(qa, qb)
+                plan = cache[key]
+                return _tcp_length(self.robot, plan.joint_path) if plan.ok else float("inf")
+        return order_paths(ends, start, gend, measure=measure, params=self.config.ordering)
+
+    @staticmethod
+    def _entry_q(e: Endpoint, apps: dict[tuple[int, bool], ApplicationMotions],
+                 mission: Mission) -> Array:
+        """Joints at an endpoint, taken from the motions that actually start/end there."""
+        for i, path in enumerate(mission.paths):
+            if e.label == f"{path.name} end" and (i, True) in apps:
+                rev = apps[(i, True)]
+                assert rev.start is not None
+                return np.asarray(rev.start.q, dtype=float)
+        assert e.q is not None
+        return np.asarray(e.q, dtype=float)
+
+
+class _Failure:
+    """Builds failed `MissionPlan`s with the reports gathered so far."""
+
+    def __init__(self, planner: MissionPlanner, mission: Mission, T_wb: Array,
+                 reports: list[PieceReport], t0: float, exploring: bool):
+        self.planner, self.mission, self.T_wb = planner, mission, T_wb
+        self.reports, self.t0, self.exploring = reports, t0, exploring
+
+    def __call__(self, label: str, kind: str, reason: str, *,
+                 keep_report: bool = False) -> MissionPlan:
+        if not keep_report:
+            self.reports.append(PieceReport(label, kind, False, reason))
+        rep = MissionPlanReport(False, reason, tuple(self.reports), label,
+                                planning_seconds=time.perf_counter() - self.t0,
+                                exploring=self.exploring)
+        return MissionPlan(False, None, [], rep, self.T_wb)
+
+
+def _end_q(am: ApplicationMotions) -> Array:
+    return np.asarray(am.motions[-1].target.q, dtype=float)
+
+
+def _tcp_length(robot: Robot, joint_path: Sequence[Array], step: float = 0.01) -> float:
+    """TCP length of a joint path moved in straight joint segments (densified)."""
+    if len(joint_path) < 2:
+        return 0.0
+    dense = [joint_interpolation(robot, a, b, step) for a, b in
+             zip(joint_path[:-1], joint_path[1:], strict=True)]
+    P = robot.batch_fk(np.concatenate(dense)).positions
+    return float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum())
+
+
+def _snap_end(robot: Robot, traj: Trajectory, q_goal: Array, tol: float = 1e-3,
+              ) -> Trajectory | None:
+    """Make the trajectory end exactly at q_goal (the next piece starts there).
+
+    The assembly re-solves the last pose by IK, so its joints may differ from the goal
+    posture by rounding; beyond `tol` (rad) it is another posture and None is returned.
+    """
+    last = traj.motions[-1]
+    gap = float(np.abs(np.asarray(last.target.q) - q_goal).max())
+    if gap > tol:
+        return None
+    if gap == 0.0:
+        return traj
+    target = Waypoint(robot.fk(q_goal), q_goal.copy(), last.target.name)
+    jp = None
+    if last.joint_path is not None:
+        jp = np.array(last.joint_path, dtype=float, copy=True)
+        jp[-1] = q_goal
+    motions = list(traj.motions)
+    motions[-1] = replace(last, target=target, joint_path=jp)
+    return Trajectory(traj.start, motions, traj.actions_at_start)
+
+
+def _joint_moves(robot: Robot, joint_path: Sequence[Array], label: str, assembly) -> Trajectory:
+    """The roadmap's joint path as JOINT motions (dense paths for execution and checks)."""
+    q0 = np.asarray(joint_path[0], dtype=float)
+    motions = []
+    prev = q0
+    for q in joint_path[1:]:
+        q = np.asarray(q, dtype=float)
+        Q = joint_interpolation(robot, prev, q, assembly.step)
+        motions.append(Motion(MotionKind.JOINT, Waypoint(robot.fk(q), q), joint_path=Q,
+                              label=label, speed=assembly.joint_speed))
+        prev = q
+    return Trajectory(Waypoint(robot.fk(q0), q0), motions)
+

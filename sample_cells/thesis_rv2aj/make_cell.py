@@ -1,0 +1,138 @@
+"""Generate the thesis sample cell (SPEC §1, source 003 §10): re-run after changing a number.
+
+    python sample_cells/thesis_rv2aj/make_cell.py
+
+Writes, next to this script:
+
+* ``dxf/O1.dxf``, ``dxf/O2.dxf`` - the two known obstacles as DXF drawings of 3-D faces in
+  millimetres (the thesis imported O1 and O2 from DXF); each drawing's origin is the middle of
+  the part's footprint on the table, so the cell places it by a translation.
+* ``cell/`` - the cell saved with `save_cell`: the RV-2AJ with a 100 mm straight gripper, its
+  base at the world origin on the table, the table top (z = 0) as a fixture, O1 and O2.
+* ``hidden.json`` - obstacle O3, a box the planner does not know; only the simulated robot
+  has it, so it is found through collision indications as in the thesis.
+* ``mission.json`` - start P1, goal P10 and the application line P7 -> P8 (tool pointing
+  down, gripper closed before the line and opened after it).
+
+Layout (world = robot base frame, metres): P1 on the robot's right (-y), P10 on its left (+y),
+O1 and O2 between them and the application line in front (+x). O3 stands across the arc the
+planner takes from P8 to P10 when it does not know O3, and leaves room to pass inside it.
+Everything stays inside the RV-2AJ's reach with the tool (flange ~0.41 m + 0.1 m tool).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+
+import ezdxf
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parents[1]))
+
+from assistant.cad import load_cad  # noqa: E402
+from assistant.cell import Cell, CellObject, ObjectRole  # noqa: E402
+from assistant.cell_io import save_cell  # noqa: E402
+from assistant.mission import ApplicationPath, Location, Mission, PathSegment, SegmentKind  # noqa: E402
+from assistant.motion import ToolAction, ToolActionKind  # noqa: E402
+from assistant.robot_catalog import RobotSpec, ToolSpec  # noqa: E402
+
+#: Tool pointing straight down (approach = -z), the usual pose over a table.
+R_DOWN = np.diag([1.0, -1.0, -1.0])
+
+#: Known obstacles: name -> (footprint centre x, y; size x, y, z), metres; they stand on z = 0.
+KNOWN = {
+    "O1": ((0.22, -0.20), (0.10, 0.10, 0.22)),
+    "O2": ((0.22, 0.20), (0.10, 0.10, 0.22)),
+}
+#: Hidden obstacle O3: centre and size (metres).
+HIDDEN_O3 = ((0.37, 0.22, 0.10), (0.06, 0.05, 0.20))
+#: Table top: the robot stands on it; its top face is z = 0.
+TABLE = ((0.0, 0.0, -0.01), (1.2, 1.2, 0.02))
+
+#: Taught locations (world frame, tool pointing down).
+P1 = (0.08, -0.34, 0.20)
+P7 = (0.34, -0.07, 0.06)
+P8 = (0.34, 0.07, 0.06)
+P10 = (0.08, 0.34, 0.20)
+
+
+def box_dxf(size_xyz: tuple[float, float, float]) -> bytes:
+    """A closed box of 3DFACE entities in millimetres, origin at the bottom face's centre."""
+    sx, sy, sz = (1000.0 * v for v in size_xyz)
+    x, y = sx / 2.0, sy / 2.0
+    v = [(-x, -y, 0.0), (x, -y, 0.0), (x, y, 0.0), (-x, y, 0.0),
+         (-x, -y, sz), (x, -y, sz), (x, y, sz), (-x, y, sz)]
+    # Outward faces, counter-clockwise seen from outside.
+    quads = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)]
+    # Fixed dates and GUIDs: a re-run writes the same bytes (the cell names files by hash).
+    ezdxf.options.write_fixed_meta_data_for_testing = True
+    doc = ezdxf.new("R2010")
+    doc.header["$INSUNITS"] = 4  # millimetres
+    msp = doc.modelspace()
+    for q in quads:
+        msp.add_3dface([v[i] for i in q])
+    from io import StringIO
+
+    buf = StringIO()
+    doc.write(buf)
+    return buf.getvalue().encode("utf-8")
+
+
+def translation(x: float, y: float, z: float) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, 3] = (x, y, z)
+    return T
+
+
+def pose_down(p: tuple[float, float, float]) -> np.ndarray:
+    T = translation(*p)
+    T[:3, :3] = R_DOWN
+    return T
+
+
+def make_cell() -> Cell:
+    spec = RobotSpec(kind="rv2aj", tool=ToolSpec.straight(0.1))
+    cell = Cell(robot_spec=spec, T_world_base=np.eye(4))
+    (c, s) = TABLE
+    cell.add_object(CellObject.box("table", s, translation(*c), role=ObjectRole.FIXTURE))
+    dxf_dir = HERE / "dxf"
+    dxf_dir.mkdir(exist_ok=True)
+    for name, ((x, y), size) in KNOWN.items():
+        data = box_dxf(size)
+        (dxf_dir / f"{name}.dxf").write_bytes(data)
+        cad = load_cad(data, f"{name}.dxf")
+        cell.add_object(CellObject.from_cad(name, cad, translation(x, y, 0.0),
+                                            role=ObjectRole.OBSTACLE))
+    return cell
+
+
+def make_mission() -> Mission:
+    line = ApplicationPath(
+        "P7-P8", [PathSegment(SegmentKind.LINE, (np.array(P7), np.array(P8)))],
+        R_world_tool=R_DOWN,
+        actions_before=[ToolAction(ToolActionKind.GRIPPER_CLOSE, 1)],
+        actions_after=[ToolAction(ToolActionKind.GRIPPER_OPEN, 1)],
+        speed=0.05)
+    return Mission(Location("P1", pose_down(P1)), Location("P10", pose_down(P10)), [line])
+
+
+def hidden_json() -> dict:
+    (c, s) = HIDDEN_O3
+    return {"schema_version": 1,
+            "note": "obstacles only the simulated robot knows (metres, world frame)",
+            "obstacles": [{"name": "O3", "kind": "box", "size": list(s),
+                           "T_world_object": translation(*c).tolist()}]}
+
+
+def main() -> None:
+    save_cell(make_cell(), HERE / "cell")
+    (HERE / "hidden.json").write_text(json.dumps(hidden_json(), indent=1) + "\n")
+    (HERE / "mission.json").write_text(json.dumps(make_mission().to_json(), indent=1) + "\n")
+    print(f"wrote {HERE / 'cell'}, hidden.json, mission.json")
+
+
+if __name__ == "__main__":
+    main()
