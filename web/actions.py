@@ -1,0 +1,100 @@
+"""Page callbacks that call the session: guarded, one at a time, errors shown with a hint.
+
+viser only greys a disabled button out in the browser; a stale or hostile page can still
+send the click. So every callback re-checks that its control is enabled and visible before it
+acts, and the session's workflow machine refuses anything the step does not allow.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+import viser
+
+from workflow.machine import TransitionRefused
+
+if TYPE_CHECKING:
+    from web.app import App
+
+log = logging.getLogger(__name__)
+
+NOT_AVAILABLE = "That action is not available now (the page may be out of date; it is now " \
+    "refreshed)."
+
+
+def hint_for(exc: BaseException) -> str:
+    """What the operator can do about an exception the session did not explain itself."""
+    from assistant import session as _s
+
+    fn = getattr(_s, "hint_for", None) or getattr(_s.session, "_hint_for", None)
+    return fn(exc) if fn is not None else ""
+
+
+class Actions:
+    """Binds page controls to session calls."""
+
+    def __init__(self, app: App):
+        self._app = app
+        self._running: set[int] = set()
+        self._lock = threading.Lock()
+
+    def bind(self, handle: Any, fn: Callable[[viser.GuiEvent], Any], *,
+             when: Callable[[], bool] | None = None) -> None:
+        """Run fn on a click (buttons, commands) or an operator edit (inputs, uploads)."""
+        cb = self._guarded(handle, fn, when)
+        if hasattr(handle, "on_upload"):
+            handle.on_upload(cb)
+        elif hasattr(handle, "on_click"):
+            handle.on_click(cb)
+        elif hasattr(handle, "on_trigger"):
+            handle.on_trigger(cb)
+        else:
+            handle.on_update(cb)
+
+    def _guarded(self, handle: Any, fn: Callable[[Any], Any],
+                 when: Callable[[], bool] | None) -> Callable[[Any], None]:
+        def cb(event: Any) -> None:
+            client = getattr(event, "client", None)
+            if client is None:
+                return  # the server set the value itself: not an operator action
+            if getattr(handle, "disabled", False) or not getattr(handle, "visible", True) or \
+                    (when is not None and not when()):
+                self._app.notifier.error(NOT_AVAILABLE, client=client)
+                self._app.refresh()
+                return
+            key = id(handle)
+            with self._lock:
+                if key in self._running:
+                    return  # a double click while the first one still runs
+                self._running.add(key)
+            try:
+                self.run(lambda: fn(event), client)
+            finally:
+                with self._lock:
+                    self._running.discard(key)
+
+        return cb
+
+    def run(self, fn: Callable[[], Any], client: viser.ClientHandle | None = None) -> Any:
+        """Call fn; any failure becomes a notification (once), never a broken page."""
+        notifier = self._app.notifier
+        try:
+            return fn()
+        except TransitionRefused as exc:
+            if not notifier.already_shown(str(exc)):
+                notifier.error(str(exc), client=client)
+        except Exception as exc:  # noqa: BLE001 - everything the operator triggers is caught
+            msg = str(exc) or type(exc).__name__
+            if isinstance(exc, (ValueError, KeyError, OSError, RuntimeError)) or \
+                    type(exc).__module__.startswith(("assistant", "vision", "workflow")):
+                if not notifier.already_shown(msg):
+                    notifier.error(msg, hint_for(exc), client=client)
+            else:
+                log.exception("page action failed")
+                notifier.error(f"internal error: {type(exc).__name__}: {msg}",
+                               "Try again; if it repeats, save the session and report it.",
+                               client=client)
+        return None

@@ -1,0 +1,172 @@
+"""Assemble the page: toolbar, one panel per workflow step, the 3-D scene, all over ONE session.
+
+All GUI and scene handles are server-wide, so every open browser shows the same state and an
+action in one page appears in the others. The session's events are applied by one UI thread
+(`EventPump`); page callbacks call session methods through `Actions` (guarded, errors shown).
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from dataclasses import dataclass, field
+
+import viser
+
+from assistant.session import Session
+from assistant.session.events import (
+    CollisionRecorded,
+    ErrorRaised,
+    Event,
+    Notice,
+    PlanReady,
+    ProgramReady,
+    StateChanged,
+)
+from web.actions import Actions
+from web.notify import Notifier
+from web.panels.base import Panel
+from web.panels.cad import CadPanel
+from web.panels.cameras import CamerasPanel
+from web.panels.explore import ExplorePanel
+from web.panels.export import ExportPanel
+from web.panels.jog import JogPanel
+from web.panels.paths import PathsPanel
+from web.panels.place import PlacePanel
+from web.panels.plan import PlanPanel
+from web.panels.session_file import SessionPanel
+from web.panels.setup import SetupPanel
+from web.panels.teach import TeachPanel
+from web.pump import EventPump
+from web.scene.layers import SceneLayers
+from web.toolbar import Toolbar
+from web.uploads import install_early_limit
+
+log = logging.getLogger(__name__)
+
+DEFAULT_MAX_UPLOAD_MB = 50
+
+
+@dataclass
+class App:
+    """The running page over one session (replaceable by loading another session)."""
+
+    server: viser.ViserServer
+    max_upload_bytes: int
+    _session: Session
+    notifier: Notifier = field(init=False)
+    actions: Actions = field(init=False)
+    pump: EventPump = field(init=False)
+    scene_layers: SceneLayers = field(init=False)
+    toolbar: Toolbar = field(init=False)
+    panels: dict[str, Panel] = field(init=False)
+    _swap_lock: threading.Lock = field(default_factory=threading.Lock, init=False)
+
+    def __post_init__(self) -> None:
+        self.server.gui.configure_theme(control_width="large", show_share_button=False,
+                                        brand_color=(40, 110, 200))
+        self.notifier = Notifier(self.server)
+        self.actions = Actions(self)
+        self.pump = EventPump(self._dispatch, on_queue=self._on_emit)
+        self.scene_layers = SceneLayers(self)
+        self.toolbar = Toolbar(self)
+        self.panels = {p.title: p for p in (
+            SetupPanel(self), CadPanel(self), PlacePanel(self), CamerasPanel(self),
+            TeachPanel(self), PathsPanel(self), ExplorePanel(self), PlanPanel(self),
+            ExportPanel(self), JogPanel(self), SessionPanel(self))}
+        install_early_limit(self)
+        self.pump.attach(self._session.bus)
+        self.refresh()
+
+    # ------------------------------------------------------------------ the session
+    @property
+    def session(self) -> Session:
+        return self._session
+
+    def replace_session(self, new: Session) -> None:
+        """Show another session (a loaded one) in every page."""
+        with self._swap_lock:
+            old = self._session
+            self.pump.detach()
+            old.stop_pointer()
+            self._session = new
+            self.pump.attach(new.bus)
+        self.refresh()
+
+    # ------------------------------------------------------------------ redraw
+    def refresh(self) -> None:
+        """Redraw everything from the session (queued on the UI thread)."""
+        self.pump.post(self._refresh_now)
+
+    def _refresh_now(self) -> None:
+        self.scene_layers.refresh()
+        state = self._session.machine.state
+        for p in self.panels.values():
+            p.show_for(state)
+            p.refresh()
+        self.toolbar.refresh()
+
+    def _on_emit(self, ev: Event) -> None:
+        """On the emitting thread, before the action returns: remember errors for dedup."""
+        if isinstance(ev, ErrorRaised):
+            self.notifier.remember(ev.message)
+
+    def _dispatch(self, ev: Event) -> None:
+        """Apply one event on the UI thread: scene first, then panels, then the toolbar."""
+        self.scene_layers.on_event(ev)
+        if isinstance(ev, StateChanged):
+            for p in self.panels.values():
+                p.show_for(ev.state)
+        for p in self.panels.values():
+            p.on_event(ev)
+        self.toolbar.on_event(ev)
+        if isinstance(ev, ErrorRaised):
+            self.notifier.error(ev.message, ev.hint)
+        elif isinstance(ev, Notice):
+            self.notifier.notice(ev.message)
+        elif isinstance(ev, CollisionRecorded):
+            self.notifier.notice(f"Collision #{ev.count} recorded ({ev.source}): that posture "
+                                 "is now known as blocked.")
+        elif isinstance(ev, PlanReady):
+            self.notifier.success("The mission is planned: the path is drawn in the scene.")
+        elif isinstance(ev, ProgramReady):
+            self.notifier.success(f"{ev.dialect} program written: {', '.join(ev.files)}")
+
+    # ------------------------------------------------------------------ lifetime
+    @property
+    def url(self) -> str:
+        host = self.server.get_host()
+        shown = "127.0.0.1" if host in ("0.0.0.0", "") else host
+        return f"http://{shown}:{self.server.get_port()}"
+
+    def wait_idle(self, timeout: float | None = None) -> bool:
+        """Until every queued session event has reached the page's handles."""
+        return self.pump.wait_idle(timeout)
+
+    def stop(self) -> None:
+        self.pump.stop()
+        self._session.stop_pointer()
+        self.server.stop()
+
+
+def build_app(session: Session, server: viser.ViserServer, *,
+              max_upload_mb: float = DEFAULT_MAX_UPLOAD_MB) -> App:
+    """The page for `session` on an existing viser server."""
+    if max_upload_mb <= 0:
+        raise ValueError("max_upload_mb must be > 0")
+    return App(server, int(max_upload_mb * 2**20), session)
+
+
+def serve(session: Session, *, host: str = "127.0.0.1", port: int = 8080,
+          max_upload_mb: float = DEFAULT_MAX_UPLOAD_MB) -> App:
+    """Start the page on host:port (127.0.0.1 by default: only this computer can connect).
+
+    Returns at once; the server runs on background threads until `App.stop()`. If the port
+    is taken viser tries the next ones - `App.url` is where it really listens.
+    """
+    server = viser.ViserServer(host=host, port=port, label="cellteach", verbose=False)
+    try:
+        return build_app(session, server, max_upload_mb=max_upload_mb)
+    except BaseException:
+        server.stop()
+        raise

@@ -1,0 +1,71 @@
+"""Notifications in every open page: errors say what to do next, notices inform.
+
+The session announces failures itself (`ErrorRaised`) and a page callback also sees the
+exception it raised; the notifier remembers recent messages so the operator reads each once.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+
+import viser
+
+log = logging.getLogger(__name__)
+
+#: How long an error message counts as "already shown" for the same failure.
+DEDUP_S = 5.0
+
+
+class Notifier:
+    def __init__(self, server: viser.ViserServer):
+        self._server = server
+        self._lock = threading.Lock()
+        self._recent: deque[tuple[float, str]] = deque(maxlen=32)
+        #: Called with (kind, text) for every message (the toolbar's status line).
+        self.on_message: Callable[[str, str], None] | None = None
+
+    # ------------------------------------------------------------------ dedup
+    def remember(self, message: str) -> None:
+        """Record an error as shown (called on the emitting thread, before it returns)."""
+        with self._lock:
+            self._recent.append((time.monotonic(), message))
+
+    def already_shown(self, message: str) -> bool:
+        now = time.monotonic()
+        with self._lock:
+            return any(now - t < DEDUP_S and message and message in m for t, m in self._recent)
+
+    # ------------------------------------------------------------------ output
+    def error(self, message: str, hint: str = "", *, client: viser.ClientHandle | None = None
+              ) -> None:
+        """A failure: red, stays until closed, with the next step to take."""
+        body = message if not hint else f"{message}\n\nWhat to do: {hint}"
+        body += "\n\nNothing you did was lost."
+        self._show("Could not do that", body, color="red", auto_close=None, client=client)
+        self._status("error", message + (f" - {hint}" if hint else ""))
+
+    def notice(self, message: str, *, client: viser.ClientHandle | None = None) -> None:
+        self._show("Note", message, color="blue", auto_close=10.0, client=client)
+        self._status("notice", message)
+
+    def success(self, message: str, *, client: viser.ClientHandle | None = None) -> None:
+        self._show("Done", message, color="green", auto_close=6.0, client=client)
+        self._status("ok", message)
+
+    def _status(self, kind: str, text: str) -> None:
+        if self.on_message is not None:
+            self.on_message(kind, text)
+
+    def _show(self, title: str, body: str, *, color: str, auto_close: float | None,
+              client: viser.ClientHandle | None) -> None:
+        clients = [client] if client is not None else list(self._server.get_clients().values())
+        for c in clients:
+            try:
+                c.add_notification(title, body, color=color,  # type: ignore[arg-type]
+                                   auto_close_seconds=auto_close, with_close_button=True)
+            except Exception:  # noqa: BLE001 - a closing tab must not break the others
+                log.debug("notification to a closing client failed", exc_info=True)

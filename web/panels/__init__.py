@@ -1,0 +1,1 @@
+"""One panel per workflow step (SPEC §1: the page shows only the current step's panel)."""

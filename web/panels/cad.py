@@ -1,0 +1,128 @@
+"""Step 2 - import CAD: upload any supported file, confirm its units, set its role; simple
+boxes/cylinders for things without CAD; the list of parts in the cell."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import viser
+
+from assistant.cell import ObjectRole
+from assistant.session.events import Event, SceneChanged
+from web.panels.base import Panel
+from web.uploads import check_upload_size
+
+UNITS = ("from the file", "mm", "m", "inch")
+ROLES = tuple(r.value for r in ObjectRole)
+FORMATS = "STL, OBJ, PLY, GLB/GLTF, 3MF, DXF, STEP"
+
+
+@dataclass
+class LastImport:
+    """The bytes of the last upload, kept so the operator can re-import with other units."""
+
+    filename: str
+    data: bytes
+    object_name: str
+    units: str
+
+
+class CadPanel(Panel):
+    title = "Import CAD"
+    steps = ("cad",)
+
+    def build(self) -> None:
+        g = self.gui
+        g.add_markdown(f"Upload a part ({FORMATS}). It lands at the world origin; place it "
+                       "in the next step.")
+        self.units = g.add_dropdown("Units", UNITS, hint="Leave 'from the file' unless the "
+                                    "size comes out wrong")
+        self.role = g.add_dropdown("Role", ROLES, initial_value="obstacle")
+        self.extrude = g.add_number("DXF height (mm)", 0.0, min=0.0, max=5000.0, step=1.0,
+                                    hint="Only for a DXF holding a 2-D outline; 0 = none")
+        self.upload = g.add_upload_button("Upload CAD file", icon=viser.Icon.UPLOAD)
+        self.report = g.add_markdown("")
+        with g.add_folder("Units of the last part", visible=False) as self.confirm:
+            self.reunits = g.add_dropdown("Re-import as", UNITS[1:])
+            self.reimport = g.add_button("Re-import with these units")
+        with g.add_folder("Parts in the cell"):
+            self.table = g.add_markdown("")
+            self.pick = g.add_dropdown("Part", ("-",))
+            self.new_role = g.add_dropdown("New role", ROLES)
+            self.set_role = g.add_button("Change role")
+            self.remove = g.add_button("Remove part", color="red")
+        with g.add_folder("Add a simple shape", expand_by_default=False):
+            self.shape = g.add_dropdown("Shape", ("box", "cylinder", "sphere"))
+            self.size = g.add_vector3("Size (mm)", (100.0, 100.0, 100.0), step=1.0,
+                                      hint="box: x, y, z; cylinder: radius, height, -; "
+                                           "sphere: radius, -, -")
+            self.shape_name = g.add_text("Name", "")
+            self.add_shape = g.add_button("Add shape")
+        self.last: LastImport | None = None
+        self.bind(self.upload, self._uploaded)
+        self.bind(self.reimport, lambda e: self._reimport())
+        self.bind(self.set_role, lambda e: self.session.set_object_role(self.pick.value,
+                                                                        self.new_role.value))
+        self.bind(self.remove, lambda e: self.session.remove_object(self.pick.value))
+        self.bind(self.add_shape, lambda e: self._add_shape())
+
+    # ------------------------------------------------------------------ actions
+    def _uploaded(self, event: viser.GuiEvent) -> None:
+        f = event.target.value
+        check_upload_size(self.app, f.name, len(f.content))
+        units = None if self.units.value == UNITS[0] else self.units.value
+        self._import(f.name, f.content, units, name=None)
+
+    def _import(self, filename: str, data: bytes, units: str | None, *, name: str | None
+                ) -> None:
+        height = self.extrude.value / 1000.0 if self.extrude.value > 0 else None
+        obj, cad = self.session.import_cad(data, filename, name=name, units=units,
+                                           dxf_extrude_height=height, role=self.role.value)
+        self.last = LastImport(filename, data, obj.name, cad.units)
+        guessed = cad.units_source == "size"
+        text = "\n".join(f"- {line}" for line in cad.summary().splitlines())
+        head = f"**Imported {obj.name}**" + (" - *units guessed from its size: check them*"
+                                              if guessed else "")
+        self.report.content = f"{head}\n\n{text}"
+        self.confirm.visible = True
+        if cad.units in UNITS:
+            self.reunits.value = cad.units
+
+    def _reimport(self) -> None:
+        last = self.last
+        if last is None:
+            raise ValueError("nothing imported yet")
+        s = self.session
+        if last.object_name in s.cell.objects:
+            s.remove_object(last.object_name)
+        self._import(last.filename, last.data, self.reunits.value, name=last.object_name)
+
+    def _add_shape(self) -> None:
+        kind = self.shape.value
+        v = [x / 1000.0 for x in self.size.value]
+        size = {"box": tuple(v), "cylinder": (v[0], v[1]), "sphere": (v[0],)}[kind]
+        self.session.add_primitive(kind, size, name=self.shape_name.value.strip() or None,
+                                   role=self.role.value)
+
+    # ------------------------------------------------------------------ redraw
+    def refresh(self) -> None:
+        objs = self.session.scene_objects()
+        if not objs:
+            self.table.content = "*No parts yet.*"
+        else:
+            rows = ["| part | role | size (mm) |", "|---|---|---|"]
+            for o in objs:
+                ext = o.display_mesh.extents * 1000.0
+                rows.append(f"| {o.name} | {o.role.value} | "
+                            f"{ext[0]:.0f} x {ext[1]:.0f} x {ext[2]:.0f} |")
+            self.table.content = "\n".join(rows)
+        names = tuple(o.name for o in objs) or ("-",)
+        if tuple(self.pick.options) != names:
+            self.pick.options = names
+        self.remove.disabled = self.set_role.disabled = not objs
+        if self.last is not None and self.last.object_name not in self.session.cell.objects:
+            self.confirm.visible = False
+
+    def on_event(self, ev: Event) -> None:
+        if isinstance(ev, SceneChanged) and ev.what in ("objects", "all"):
+            self.refresh()

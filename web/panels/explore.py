@@ -1,0 +1,70 @@
+"""Step 5 - explore the workspace: build the world model (reachability, CAD, roads) with a
+progress bar and Cancel, optionally move the robot around while pressing Collision! when it
+would hit something; show or hide the octree and the roads."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import viser
+
+from assistant.session.events import CollisionRecorded, Event, SceneChanged, StateChanged
+from web.panels.base import Panel
+
+EXPLORE_MODES = {"random moves": "random", "along the roads": "roadmap"}
+
+
+class ExplorePanel(Panel):
+    title = "Explore workspace"
+    steps = ("explore",)
+
+    def build(self) -> None:
+        g = self.gui
+        self.build_world = g.add_button("Build world model", icon=viser.Icon.CUBE)
+        self.world_md = g.add_markdown("")
+        with g.add_folder("Move the robot around", expand_by_default=False):
+            self.mode = g.add_dropdown("How", tuple(EXPLORE_MODES))
+            self.moves = g.add_number("Moves", 5, min=1, max=200, step=1)
+            self.explore = g.add_button("Explore")
+        self.collision = g.add_button("Collision!", color="red", icon=viser.Icon.ALERT_OCTAGON,
+                                      disabled=True, hint="Space key. Stops the robot and "
+                                                          "remembers this posture as blocked")
+        with g.add_folder("Show", expand_by_default=True):
+            self.show_occ = g.add_checkbox("Occupied cells", True)
+            self.min_p = g.add_slider("From probability", 0.0, 1.0, 0.05, 0.05)
+            self.show_roads = g.add_checkbox("Roads", True)
+        self.bind(self.build_world, lambda e: self.session.start_build_world())
+        self.bind(self.explore, lambda e: self.session.start_explore(
+            EXPLORE_MODES[self.mode.value], int(self.moves.value), seed=0))
+        self.bind(self.collision, lambda e: self.session.fire("collision"))
+        world = self.app.scene_layers.world
+        self.show_occ.on_update(lambda e: world.set_visibility(occupancy=bool(self.show_occ.value)))
+        self.show_roads.on_update(lambda e: world.set_visibility(roads=bool(self.show_roads.value)))
+        self.min_p.on_update(lambda e: self._min_p(e))
+
+    def _min_p(self, e: Any) -> None:
+        if e.client is None:
+            return
+        self.app.scene_layers.world.min_p = float(self.min_p.value)
+        self.app.pump.post(self.app.scene_layers.world.refresh)
+
+    def refresh(self) -> None:
+        s = self.session
+        world = self.app.scene_layers.world
+        mode = s.machine.mode.value
+        idle = mode == "idle"
+        self.build_world.disabled = not idle
+        self.explore.disabled = not idle or not s.world_ready
+        self.collision.disabled = mode != "moving"
+        if s.world_ready:
+            self.world_md.content = (f"World model ready: {world.cells_drawn:,} occupied cells "
+                                     f"shown, {world.roads_drawn:,} road cells, "
+                                     f"{s.counters.collision_indications} collision(s) "
+                                     "recorded.")
+        else:
+            self.world_md.content = "*No world model for the current cell yet.*"
+
+    def on_event(self, ev: Event) -> None:
+        if isinstance(ev, (StateChanged, CollisionRecorded)) or \
+                isinstance(ev, SceneChanged) and ev.what in ("world", "objects", "all"):
+            self.refresh()

@@ -1,0 +1,102 @@
+"""Step 4.2 - application paths: lines, arcs and Bezier chains through taught locations, with
+the gripper actions before and after; reorder and delete them."""
+
+from __future__ import annotations
+
+from assistant.motion import ToolAction, ToolActionKind
+from assistant.session.events import Event, SceneChanged, StateChanged
+from web.panels.base import Panel
+
+KINDS = {"line (2+ points)": "line", "arc (start, via, end)": "arc",
+         "Bezier chain (1 + 3k points)": "bezier"}
+ACTIONS: dict[str, list[ToolAction]] = {
+    "nothing": [],
+    "close the gripper": [ToolAction(ToolActionKind.GRIPPER_CLOSE)],
+    "open the gripper": [ToolAction(ToolActionKind.GRIPPER_OPEN)],
+}
+
+
+def action_label(actions: list[ToolAction]) -> str:
+    if not actions:
+        return "-"
+    return ", ".join(a.kind.value.replace("_", " ") for a in actions)
+
+
+def parse_points(text: str) -> list[str]:
+    names = [t for t in text.replace(";", ",").replace(" ", ",").split(",") if t]
+    if not names:
+        raise ValueError("list the path's points by name, e.g. 'P7, P8'")
+    return names
+
+
+class PathsPanel(Panel):
+    title = "Application paths"
+    steps = ("teach.paths",)
+
+    def build(self) -> None:
+        g = self.gui
+        self.name = g.add_text("Path name", "L1")
+        self.kind = g.add_dropdown("Kind", tuple(KINDS))
+        self.points = g.add_text("Through", "P7, P8", hint="Taught locations, in order")
+        self.before = g.add_dropdown("Before", tuple(ACTIONS), initial_value="close the gripper")
+        self.after = g.add_dropdown("After", tuple(ACTIONS), initial_value="open the gripper")
+        self.speed = g.add_number("Speed (mm/s)", 50.0, min=1.0, max=2000.0, step=1.0)
+        self.add = g.add_button("Add path")
+        with g.add_folder("Mission"):
+            self.table = g.add_markdown("")
+            self.pick = g.add_dropdown("Path", ("-",))
+            self.up = g.add_button("Move up")
+            self.down = g.add_button("Move down")
+            self.set_actions = g.add_button("Use the Before/After above")
+            self.delete = g.add_button("Delete path", color="red")
+        self.bind(self.add, lambda e: self._add())
+        self.bind(self.up, lambda e: self._move(-1))
+        self.bind(self.down, lambda e: self._move(+1))
+        self.bind(self.set_actions, lambda e: self.session.set_path_actions(
+            self.pick.value, ACTIONS[self.before.value], ACTIONS[self.after.value]))
+        self.bind(self.delete, lambda e: self.session.remove_path(self.pick.value))
+
+    def _add(self) -> None:
+        name = self.name.value.strip()
+        self.session.add_path(name, KINDS[self.kind.value], parse_points(self.points.value),
+                              before=ACTIONS[self.before.value], after=ACTIONS[self.after.value],
+                              speed=float(self.speed.value) / 1000.0)
+
+    def _move(self, delta: int) -> None:
+        names = [p.name for p in self.session.mission.paths]
+        i = names.index(self.pick.value)
+        self.session.move_path(self.pick.value, max(0, i + delta))
+
+    def refresh(self) -> None:
+        s = self.session
+        m = s.mission
+        lines = [f"**Start:** {m.start.name if m.start else '- (teach one in 4.1)'} &nbsp; "
+                 f"**Goal:** {m.goal.name if m.goal else '-'}"]
+        if m.paths:
+            lines += ["", "| # | path | kind | segments | before | after | mm/s |",
+                      "|---|---|---|---|---|---|---|"]
+            for i, p in enumerate(m.paths):
+                kinds = {seg.kind.value for seg in p.segments}
+                lines.append(f"| {i + 1} | {p.name} | {'/'.join(sorted(kinds))} | "
+                             f"{len(p.segments)} | {action_label(p.actions_before)} | "
+                             f"{action_label(p.actions_after)} | {p.speed * 1000:.0f} |")
+        else:
+            lines.append("\n*No application paths yet.*")
+        self.table.content = "\n".join(lines)
+        names = tuple(p.name for p in m.paths) or ("-",)
+        if tuple(self.pick.options) != names:
+            self.pick.options = names
+        empty = not m.paths
+        self.up.disabled = self.down.disabled = self.delete.disabled = empty
+        self.set_actions.disabled = empty
+        used = {p.name for p in m.paths}
+        if self.name.value in used:
+            k = 1
+            while f"L{k}" in used:
+                k += 1
+            self.name.value = f"L{k}"
+
+    def on_event(self, ev: Event) -> None:
+        if isinstance(ev, SceneChanged) and ev.what in ("mission", "locations", "all") or \
+                isinstance(ev, StateChanged):
+            self.refresh()

@@ -1,0 +1,111 @@
+"""Step 1 - robot, tool and link: what the assistant drives and how it talks to it."""
+
+from __future__ import annotations
+
+from assistant.links.settings import KINDS, LinkSettings
+from assistant.robot_catalog import RobotSpec, ToolSpec
+from assistant.session.events import Event, SceneChanged, StateChanged
+from web.panels.base import Panel
+
+ROBOTS = {"Mitsubishi RV-2AJ (built in)": "rv2aj", "URDF file": "urdf"}
+LINK_LABELS = {"simulated": "Simulated robot", "melfa": "Mitsubishi CR1 (MELFA, TCP)",
+               "kuka_rest": "KUKA via REST bridge"}
+
+
+class SetupPanel(Panel):
+    title = "Robot & link"
+    steps = ("setup",)
+
+    def build(self) -> None:
+        g = self.gui
+        self.summary = g.add_markdown("")
+        with g.add_folder("Robot and tool"):
+            self.robot = g.add_dropdown("Robot", tuple(ROBOTS))
+            self.urdf = g.add_text("URDF path", "", visible=False,
+                                   hint="A URDF on this computer (package:// paths resolve "
+                                        "next to it)")
+            self.tool_len = g.add_number("Tool length (mm)", 100.0, min=0.0, max=1000.0,
+                                         step=0.5, hint="Flange to tool centre point, along z")
+            self.tool_rad = g.add_number("Tool radius (mm)", 20.0, min=0.0, max=200.0, step=0.5)
+            self.gripper = g.add_checkbox("Gripper", True)
+            self.apply_robot = g.add_button("Use this robot")
+        with g.add_folder("Link to the robot"):
+            self.link_kind = g.add_dropdown("Link", tuple(LINK_LABELS[k] for k in KINDS))
+            self.host = g.add_text("Address", "127.0.0.1", visible=False)
+            self.port = g.add_number("Port", 10001, min=1, max=65535, step=1, visible=False)
+            self.time_scale = g.add_number("Simulation speed", 1.0, min=0.1, max=50.0, step=0.1,
+                                           hint="Robot seconds per wall second")
+            self.apply_link = g.add_button("Use this link")
+            self.connect = g.add_button("Connect now")
+        self.robot.on_update(lambda e: self._robot_kind_changed())
+        self.link_kind.on_update(lambda e: self._link_kind_changed())
+        self.bind(self.apply_robot, lambda e: self._choose_robot())
+        self.bind(self.apply_link, lambda e: self._set_link())
+        self.bind(self.connect, lambda e: self._connect(e.client))
+
+    def _robot_kind_changed(self) -> None:
+        self.urdf.visible = ROBOTS[self.robot.value] == "urdf"
+
+    def _link_kind(self) -> str:
+        return next(k for k, v in LINK_LABELS.items() if v == self.link_kind.value)
+
+    def _link_kind_changed(self) -> None:
+        sim = self._link_kind() == "simulated"
+        self.host.visible = self.port.visible = not sim
+        self.time_scale.visible = sim
+
+    def _choose_robot(self) -> None:
+        kind = ROBOTS[self.robot.value]
+        tool = ToolSpec.straight(self.tool_len.value / 1000.0, self.tool_rad.value / 1000.0,
+                                 has_gripper=bool(self.gripper.value)) \
+            if self.tool_len.value > 0 else ToolSpec()
+        spec = RobotSpec(kind=kind, urdf_path=self.urdf.value.strip() or None, tool=tool)
+        self.session.choose_robot(spec)
+
+    def _set_link(self) -> None:
+        kind = self._link_kind()
+        kw: dict = {"kind": kind}
+        if kind == "simulated":
+            kw["time_scale"] = float(self.time_scale.value)
+        else:
+            kw["host"] = self.host.value.strip()
+            kw["port"] = int(self.port.value)
+        self.session.set_link(LinkSettings(**kw))
+
+    def _connect(self, client) -> None:  # noqa: ANN001
+        self.session.link()
+        self.app.notifier.success("The robot link is connected.", client=client)
+        self.refresh()
+
+    def refresh(self) -> None:
+        s = self.session
+        r = s.robot
+        spec = s.cell.robot_spec
+        ls = s.link_settings
+        tool = spec.tool
+        tcp_mm = tool.T_flange_tool[2][3] * 1000.0
+        lines = [f"**Robot:** {r.name}, {r.dof} axes ({', '.join(r.joint_names)})",
+                 f"**Tool:** {tool.name}, TCP {tcp_mm:.1f} mm from the flange",
+                 f"**Link:** {LINK_LABELS[ls.kind]}"
+                 + ("" if ls.kind == "simulated" else f" at {ls.host}:{ls.port}")]
+        if r.dof < 6:
+            lines.append(f"*{r.dof}-axis arm: taught orientations are turned into the arm's "
+                         "plane; the page says by how much.*")
+        self.summary.content = "\n\n".join(lines)
+        label = next((k for k, v in ROBOTS.items() if v == spec.kind), None)
+        if label is not None:
+            self.robot.value = label
+        self.tool_len.value = round(tcp_mm, 3)
+        self.tool_rad.value = round(tool.body_radius * 1000.0, 3)
+        self.gripper.value = bool(tool.has_gripper)
+        self.link_kind.value = LINK_LABELS[ls.kind]
+        self.time_scale.value = float(ls.time_scale)
+        self.host.value = ls.host
+        self.port.value = int(ls.port)
+        self._robot_kind_changed()
+        self._link_kind_changed()
+
+    def on_event(self, ev: Event) -> None:
+        if isinstance(ev, SceneChanged) and ev.what in ("robot", "link", "all") or \
+                isinstance(ev, StateChanged) and ev.state == "setup":
+            self.refresh()

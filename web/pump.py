@@ -1,0 +1,111 @@
+"""One UI thread between the session's events and the viser handles.
+
+Session events arrive on worker, link and camera threads that must never wait for the page,
+so the subscriber only queues them; this thread applies them in order. Bursts of robot and
+pointer updates are coalesced to the newest, so a 50 Hz robot never floods the page.
+"""
+
+from __future__ import annotations
+
+import logging
+import queue
+import threading
+from collections.abc import Callable
+from typing import Any
+
+from assistant.session.events import Event, EventBus, PointerUpdated, RobotMoved
+
+log = logging.getLogger(__name__)
+
+#: Events of which only the newest in a burst matters.
+COALESCED: tuple[type, ...] = (RobotMoved, PointerUpdated)
+
+_STOP = object()
+
+
+class EventPump:
+    """Queues session events (and posted jobs) and runs them on one daemon thread."""
+
+    def __init__(self, dispatch: Callable[[Event], None], *, on_queue: Callable[[Event], None]
+                 | None = None):
+        self._dispatch = dispatch
+        self._on_queue = on_queue
+        self._q: queue.Queue[Any] = queue.Queue()
+        self._unsubscribe: Callable[[], None] | None = None
+        self._idle = threading.Event()
+        self._idle.set()
+        self._pending = 0
+        self._lock = threading.Lock()
+        self.errors: list[str] = []
+        self._thread = threading.Thread(target=self._run, name="cellteach-ui", daemon=True)
+        self._thread.start()
+
+    # ------------------------------------------------------------------ input
+    def attach(self, bus: EventBus) -> None:
+        """Subscribe to a session's bus (once; a later attach replaces it)."""
+        self.detach()
+        self._unsubscribe = bus.subscribe(self._enqueue)
+
+    def detach(self) -> None:
+        if self._unsubscribe is not None:
+            self._unsubscribe()
+            self._unsubscribe = None
+
+    def _enqueue(self, ev: Event) -> None:
+        if self._on_queue is not None:
+            self._on_queue(ev)  # must be cheap: runs on the emitting thread
+        self._put(ev)
+
+    def post(self, job: Callable[[], None]) -> None:
+        """Run `job` on the UI thread after everything queued before it."""
+        self._put(job)
+
+    def _put(self, item: Any) -> None:
+        with self._lock:
+            self._pending += 1
+            self._idle.clear()
+        self._q.put(item)
+
+    # ------------------------------------------------------------------ UI thread
+    def _run(self) -> None:
+        while True:
+            batch = [self._q.get()]
+            while True:
+                try:
+                    batch.append(self._q.get_nowait())
+                except queue.Empty:
+                    break
+            if any(item is _STOP for item in batch):
+                return
+            for item in _coalesce(batch):
+                try:
+                    if isinstance(item, Event):
+                        self._dispatch(item)
+                    else:
+                        item()
+                except Exception as exc:  # noqa: BLE001 - one bad redraw must not stop the page
+                    log.exception("UI update failed")
+                    self.errors.append(f"{type(item).__name__}: {exc!r}")
+            with self._lock:
+                self._pending -= len(batch)
+                if self._pending == 0:
+                    self._idle.set()
+
+    def wait_idle(self, timeout: float | None = None) -> bool:
+        """Block until every queued event has been applied (tests and benchmarks)."""
+        return self._idle.wait(timeout)
+
+    def stop(self) -> None:
+        self.detach()
+        self._q.put(_STOP)
+        self._thread.join(2.0)
+
+
+def _coalesce(batch: list[Any]) -> list[Any]:
+    """Keep order, but only the last of each coalesced event type."""
+    last: dict[type, int] = {}
+    for i, item in enumerate(batch):
+        if isinstance(item, COALESCED):
+            last[type(item)] = i
+    return [item for i, item in enumerate(batch)
+            if not isinstance(item, COALESCED) or last[type(item)] == i]

@@ -1,0 +1,45 @@
+"""All scene layers together, in the order they are redrawn."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+from assistant.session.events import Event
+from web.scene.base import Layer
+from web.scene.locations import LocationsLayer
+from web.scene.objects import ObjectsLayer
+from web.scene.paths import PathsLayer
+from web.scene.plan import PlanLayer
+from web.scene.pointer import PointerLayer
+from web.scene.robot import RobotLayer
+from web.scene.world import WorldLayer
+
+if TYPE_CHECKING:
+    from web.app import App
+
+
+class SceneLayers:
+    def __init__(self, app: App):
+        scene = app.server.scene
+        scene.set_up_direction("+z")
+        scene.add_grid("/grid", width=1.6, height=1.6, cell_size=0.1, section_size=0.5,
+                       plane="xy", shadow_opacity=0.0)
+        app.server.initial_camera.position = (1.35, -1.15, 0.95)
+        app.server.initial_camera.look_at = (0.2, 0.0, 0.15)
+        self.robot = RobotLayer(app)
+        self.objects = ObjectsLayer(app)
+        self.locations = LocationsLayer(app)
+        self.paths = PathsLayer(app)
+        self.world = WorldLayer(app)
+        self.plan = PlanLayer(app)
+        self.pointer = PointerLayer(app)
+        self.all: tuple[Layer, ...] = (self.robot, self.objects, self.locations, self.paths,
+                                       self.world, self.plan, self.pointer)
+
+    def refresh(self) -> None:
+        for layer in self.all:
+            layer.refresh()
+
+    def on_event(self, ev: Event) -> None:
+        for layer in self.all:
+            layer.on_event(ev)

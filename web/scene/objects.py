@@ -1,0 +1,82 @@
+"""Cell objects coloured by role, clickable (CAD-click teaching, selection), and the placement
+gizmo of the selected object."""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+import viser
+
+from assistant.session.events import Event, SceneChanged
+from web.scene.base import Layer, node_key
+from web.units import T_from_wxyz_position, wxyz_position
+
+#: Called with (object name, click event) when the operator clicks a part.
+ClickHandler = Callable[[str, Any], None]
+
+
+class ObjectsLayer(Layer):
+    root = "/objects"
+
+    def __init__(self, app: Any):
+        super().__init__(app)
+        self.click_handlers: list[ClickHandler] = []
+        self._gizmo: viser.TransformControlsHandle | None = None
+        self._gizmo_object: str | None = None
+        #: Called with (object name, T_world_object) when the operator releases the gizmo.
+        self.on_gizmo_release: Callable[[str, np.ndarray, Any], None] | None = None
+
+    def refresh(self) -> None:
+        self.clear()
+        for obj in self.session.scene_objects():
+            wxyz, pos = wxyz_position(obj.T_world_object)
+            mesh = obj.display_mesh
+            h = self.scene.add_mesh_simple(
+                f"{self.root}/{node_key(obj.name)}", np.asarray(mesh.vertices, np.float32),
+                np.asarray(mesh.faces, np.uint32), color=tuple(int(c) for c in obj.color),
+                wxyz=wxyz, position=pos, side="double", cast_shadow=False,
+                receive_shadow=False)
+            h.on_click(lambda ev, name=obj.name: self._clicked(name, ev))
+            self._nodes[obj.name] = h
+        self._sync_gizmo()
+
+    def _clicked(self, name: str, ev: Any) -> None:
+        for fn in list(self.click_handlers):
+            fn(name, ev)
+
+    # ------------------------------------------------------------------ gizmo
+    def show_gizmo(self, name: str | None) -> None:
+        """Put the placement gizmo on one object (None: no gizmo)."""
+        self._gizmo_object = name
+        self._sync_gizmo()
+
+    def _sync_gizmo(self) -> None:
+        objs = {o.name: o for o in self.session.scene_objects()}
+        name = self._gizmo_object
+        if name is None or name not in objs:
+            if self._gizmo is not None:
+                self._gizmo.remove()
+                self._gizmo = None
+            return
+        wxyz, pos = wxyz_position(objs[name].T_world_object)
+        if self._gizmo is None:
+            self._gizmo = self.scene.add_transform_controls(
+                "/gizmo/object", scale=0.18, line_width=3.0, depth_test=False,
+                wxyz=wxyz, position=pos)
+            self._gizmo.on_update(self._released)
+        else:
+            self._gizmo.wxyz, self._gizmo.position = wxyz, pos
+
+    def _released(self, ev: Any) -> None:
+        if getattr(ev, "phase", "end") != "end" or ev.client is None:
+            return  # only the operator's release places the part
+        if self._gizmo is None or self._gizmo_object is None or self.on_gizmo_release is None:
+            return
+        T = T_from_wxyz_position(self._gizmo.wxyz, self._gizmo.position)
+        self.on_gizmo_release(self._gizmo_object, T, ev)
+
+    def on_event(self, ev: Event) -> None:
+        if isinstance(ev, SceneChanged) and ev.what in ("objects", "all"):
+            self.refresh()

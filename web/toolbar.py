@@ -1,0 +1,217 @@
+"""The toolbar: where the operator is, Previous / Next / Exit, one button per allowed jump,
+the mode buttons (Cancel, Collision!, Stop, Acknowledge, Reconnect), progress, undo/redo.
+
+Buttons come from `session.transitions()`: a transition that is not allowed now is shown
+greyed out with its reason, so the operator always sees what to do first (SPEC §1).
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+import viser
+
+from assistant.session.events import (
+    CollisionRecorded,
+    ErrorRaised,
+    Event,
+    PlanReady,
+    ProgramReady,
+    ProgressChanged,
+    SceneChanged,
+    StateChanged,
+)
+from workflow.states import NUMBER, STATES, leaves
+
+if TYPE_CHECKING:
+    from web.app import App
+
+#: Colours of the mode buttons; Collision! is the big red one.
+MODE_COLORS: dict[str, str] = {"collision": "red", "stop": "orange", "cancel": "yellow",
+                               "acknowledge": "blue", "reconnect": "teal"}
+MODE_ICONS: dict[str, Any] = {"collision": viser.Icon.ALERT_OCTAGON,
+                              "stop": viser.Icon.PLAYER_STOP, "cancel": viser.Icon.X}
+NAV = ("previous", "next", "exit")
+MAIN_STEPS = [s for s in STATES if "." not in s]
+
+
+def step_heading(state: str, mode: str, busy_task: str) -> str:
+    n_main = len(MAIN_STEPS)
+    spec = STATES[state]
+    parent = STATES[state.split(".")[0]]
+    where = spec.title if parent is spec else f"{parent.title} - {spec.title}"
+    head = f"### Step {NUMBER[state]} of {n_main}: {where}"
+    if spec.help:
+        head += f"\n\n{spec.help}"
+    if mode == "busy":
+        head += f"\n\n**Working:** {busy_task or 'long task'} (Cancel stops it; nothing is lost)"
+    elif mode == "moving":
+        head += "\n\n**The robot is moving.** Press **Collision!** (or the Space key) the " \
+                "moment it would hit something; Stop halts it."
+    elif mode == "error":
+        head += "\n\n**Error:** acknowledge it or reconnect the robot."
+    return head
+
+
+class Toolbar:
+    def __init__(self, app: App):
+        self.app = app
+        gui = app.server.gui
+        self._buttons: dict[str, viser.GuiButtonHandle] = {}
+        with gui.add_folder("Workflow", order=0):
+            self.heading = gui.add_markdown("")
+            self.progress = gui.add_progress_bar(0.0, visible=False, animated=True)
+            self.progress_text = gui.add_markdown("", visible=False)
+            self.modes = gui.add_folder(None)
+            self.prev = gui.add_button("Previous", icon=viser.Icon.ARROW_LEFT)
+            self.next = gui.add_button("Next", icon=viser.Icon.ARROW_RIGHT, color="green")
+            self.jumps = gui.add_folder(None)
+            self.why = gui.add_markdown("")
+            with gui.add_folder("More", expand_by_default=False):
+                self.undo = gui.add_button("Undo", icon=viser.Icon.ARROW_BACK_UP)
+                self.redo = gui.add_button("Redo", icon=viser.Icon.ARROW_FORWARD_UP)
+                self.step_choice = gui.add_dropdown(
+                    "Go to step", tuple(f"{NUMBER[s]} {STATES[s].title}" for s in leaves()))
+                self.goto = gui.add_button("Go to that step")
+                self.exit = gui.add_button("Exit", icon=viser.Icon.LOGOUT)
+            self.status = gui.add_markdown("")
+        # Keyboard: Space is the Collision! button, Escape stops / cancels.
+        self.key_collision = gui.add_command(
+            "Collision!", description="The robot would hit something: stop and remember it",
+            hotkey="space", disabled=True)
+        self.key_stop = gui.add_command("Stop / Cancel", hotkey="escape", disabled=True)
+
+        acts = app.actions
+        acts.bind(self.prev, lambda e: self.app.session.fire("previous"))
+        acts.bind(self.next, lambda e: self.app.session.fire("next"))
+        acts.bind(self.exit, lambda e: self._exit(e.client))
+        acts.bind(self.undo, lambda e: self._undo(e.client, redo=False))
+        acts.bind(self.redo, lambda e: self._undo(e.client, redo=True))
+        acts.bind(self.goto, lambda e: self._goto())
+        acts.bind(self.key_collision, lambda e: self.app.session.fire("collision"))
+        acts.bind(self.key_stop, lambda e: self._stop_or_cancel())
+        app.notifier.on_message = self._on_message
+
+    # ------------------------------------------------------------------ actions
+    def _fire(self, event: str) -> None:
+        self.app.session.fire(event)
+
+    def _goto(self) -> None:
+        choice = self.step_choice.value.split(" ", 1)[0]
+        step = next(s for s in leaves() if NUMBER[s] == choice)
+        self.app.session.goto(step)
+
+    def _stop_or_cancel(self) -> None:
+        s = self.app.session
+        s.fire("stop" if s.machine.mode.value == "moving" else "cancel")
+
+    def _undo(self, client: viser.ClientHandle, *, redo: bool) -> None:
+        s = self.app.session
+        label = s.redo() if redo else s.undo()
+        self.app.notifier.notice(f"{'Redone' if redo else 'Undone'}: {label}", client=client)
+
+    def _exit(self, client: viser.ClientHandle) -> None:
+        s = self.app.session
+        s.fire("exit")
+        if s.folder is not None:
+            s.save(s.folder)
+            self.app.notifier.success(f"Session saved to {s.folder}. You can close this page; "
+                                      "loading that folder later continues where you left.",
+                                      client=client)
+        else:
+            self.app.notifier.notice("This session has no folder yet: save it under More > "
+                                     "Session before closing the page.", client=client)
+
+    def _on_message(self, kind: str, text: str) -> None:
+        icon = {"error": "**Error:**", "notice": "Note:", "ok": "Done:"}.get(kind, "")
+        self.status.content = f"<small>{icon} {_md_escape(text)}</small>"
+
+    # ------------------------------------------------------------------ redraw
+    def on_event(self, ev: Event) -> None:
+        if isinstance(ev, ProgressChanged):
+            self._progress(ev)
+        elif isinstance(ev, (StateChanged, SceneChanged, PlanReady, ProgramReady,
+                             CollisionRecorded, ErrorRaised)):
+            self.refresh()
+
+    def _progress(self, ev: ProgressChanged) -> None:
+        if ev.done:
+            self.progress.visible = False
+            self.progress_text.visible = False
+            return
+        self.progress.value = max(0.0, min(100.0, 100.0 * ev.fraction))
+        self.progress_text.content = f"<small>{_md_escape(ev.task)}: " \
+                                     f"{_md_escape(ev.message)}</small>"
+        self.progress.visible = True
+        self.progress_text.visible = True
+
+    def refresh(self) -> None:
+        s = self.app.session
+        m = s.machine
+        mode = m.mode.value
+        self.heading.content = step_heading(m.state, mode, m.busy_task)
+        transitions = s.transitions()
+        by_event = {t.event: t for t in transitions}
+        for name, btn in (("previous", self.prev), ("next", self.next), ("exit", self.exit)):
+            t = by_event.get(name)
+            _set(btn, disabled=t is None or not t.allowed,
+                 hint=(t.reason or _target_hint(t.target)) if t is not None else "")
+        nxt = by_event.get("next")
+        self.why.content = "" if nxt is None or nxt.allowed or nxt.target is None else \
+            f"<small>Next is not available yet: {_md_escape(nxt.reason)}</small>"
+        extra = [t for t in transitions if t.event not in NAV]
+        self._sync_extra(extra)
+        idle = mode == "idle"
+        _set(self.undo, disabled=not (idle and s.history.can_undo),
+             hint=f"Undo: {s.history.undo_label()}" if s.history.can_undo else "Nothing to undo")
+        _set(self.redo, disabled=not (idle and s.history.can_redo),
+             hint=f"Redo: {s.history.redo_label()}" if s.history.can_redo else "Nothing to redo")
+        self.goto.disabled = not idle
+        moving = mode == "moving"
+        if self.key_collision.disabled != (not moving):
+            self.key_collision.disabled = not moving
+        stop_ok = mode in ("moving", "busy")
+        if self.key_stop.disabled != (not stop_ok):
+            self.key_stop.disabled = not stop_ok
+        if idle:
+            self.progress.visible = False
+            self.progress_text.visible = False
+
+    def _sync_extra(self, extra: list) -> None:
+        """Jump and mode buttons: create the new ones, update or remove the rest."""
+        wanted = {t.event: t for t in extra}
+        for ev in list(self._buttons):
+            if ev not in wanted:
+                self._buttons.pop(ev).remove()
+        for i, t in enumerate(extra):
+            btn = self._buttons.get(t.event)
+            if btn is None:
+                is_mode = t.event in MODE_COLORS
+                with self.modes if is_mode else self.jumps:
+                    btn = self.app.server.gui.add_button(
+                        t.label, color=MODE_COLORS.get(t.event), icon=MODE_ICONS.get(t.event),
+                        order=float(i))
+                self.app.actions.bind(btn, lambda e, ev=t.event: self._fire(ev))
+                self._buttons[t.event] = btn
+            _set(btn, disabled=not t.allowed, hint=t.reason or _target_hint(t.target))
+
+    def button(self, event: str) -> viser.GuiButtonHandle | None:
+        """The toolbar button of a transition (tests)."""
+        return {"previous": self.prev, "next": self.next, "exit": self.exit}.get(event) or \
+            self._buttons.get(event)
+
+
+def _target_hint(target: str | None) -> str:
+    return "" if target is None else f"Go to {NUMBER[target]} {STATES[target].title}"
+
+
+def _set(btn: Any, **props: Any) -> None:
+    """Assign only what changed (every assignment is a message to every page)."""
+    for k, v in props.items():
+        if getattr(btn, k) != v:
+            setattr(btn, k, v)
+
+
+def _md_escape(text: str) -> str:
+    return str(text).replace("<", "&lt;").replace(">", "&gt;").replace("*", "\\*") \
+        .replace("_", "\\_")
