@@ -67,6 +67,9 @@ class ExecutionConfig:
     #: Back-off: a posture of the new plan counts as "on the executed path" within this much
     #: arm travel (metres, sum of arm radius x joint change).
     common_tolerance: float = 0.01
+    #: After reaching the goal, plan the final (high-shrink) trajectory (False: the run ends
+    #: at the goal of the exploring run, no final plan is offered).
+    plan_final: bool = True
     #: After reaching the goal, plan the final (high-shrink) trajectory and drive it once from
     #: the start; it is offered only if that run had no indication.
     validate_final: bool = True

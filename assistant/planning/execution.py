@@ -224,12 +224,13 @@ class MissionExecutor:
                 self._drive_queue(final=False)
                 self._phase, self._queue = _Phase.FINAL, None
                 rep.log.append("goal reached with the exploring plan")
-            if self._phase == _Phase.FINAL:
+            if self._phase == _Phase.FINAL and self.config.plan_final:
                 self._final_phase()
             rep.end = EndReason.COMPLETED
-            rep.reason = ("mission executed; final trajectory "
-                          + ("validated on the robot" if rep.final_validated
-                             else "planned (not driven)"))
+            rep.reason = "mission executed; " + (
+                "final trajectory validated on the robot" if rep.final_validated
+                else "final trajectory planned (not driven)" if rep.final_plan is not None
+                else "no final plan requested")
             self._phase = _Phase.DONE
         except _End as end:
             rep.end, rep.reason = end.reason, end.message

@@ -300,15 +300,17 @@ class MissionPlanner:
         # 5. transfers and application pieces in order
         pieces: list[PlanPiece] = []
         here_q, here_label = s.q, start_label
-        steps: list[tuple[Array, str, ApplicationMotions | None, str]] = []
+        # (posture to reach, its label, the application path that starts there, reversed)
+        steps: list[tuple[Array, str, ApplicationMotions | None, bool]] = []
         for i, rev in zip(ordering.order, ordering.reversed, strict=True):
-            steps.append((np.asarray(apps[(i, rev)].start.q, float),  # type: ignore[union-attr]
-                          mission.paths[i].name, apps[(i, rev)], mission.paths[i].name
-                          + (" (reversed)" if rev else "")))
+            am_i = apps[(i, rev)]
+            assert am_i.start is not None
+            steps.append((np.asarray(am_i.start.q, dtype=float), mission.paths[i].name, am_i,
+                          rev))
         if goal is not None:
-            steps.append((goal.q, goal.name, None, goal.name))
+            steps.append((goal.q, goal.name, None, False))
         n_steps = max(1, len(steps))
-        for k, (q_to, to_label, am, _) in enumerate(steps):
+        for k, (q_to, to_label, am, rev) in enumerate(steps):
             if time.perf_counter() - t0 > self.config.max_seconds:
                 return failed(f"{here_label} -> {to_label}", "transfer",
                               f"planning budget of {self.config.max_seconds:.0f} s exhausted")
@@ -326,8 +328,10 @@ class MissionPlanner:
                 assert tr.piece is not None
                 pieces.append(tr.piece)
             if am is not None:
+                a, b = _end_names(am.name)
                 pieces.append(PlanPiece(PieceKind.APPLICATION, am.name, am.to_trajectory(),
-                                        am.verification, path_name=am.name))
+                                        am.verification, path_name=am.name,
+                                        start_name=b if rev else a, end_name=a if rev else b))
                 here_q, here_label = _end_q(am), am.name
             else:
                 here_q, here_label = q_to, to_label
@@ -422,6 +426,14 @@ class _Failure:
                                 planning_seconds=time.perf_counter() - self.t0,
                                 exploring=self.exploring)
         return MissionPlan(False, None, [], rep, self.T_wb)
+
+
+def _end_names(path_name: str) -> tuple[str, str]:
+    """A path named like "P7-P8" names its start and end positions P7 and P8 in programs."""
+    parts = path_name.split("-")
+    if len(parts) == 2 and all(_SAFE_NAME.match(p) for p in parts):
+        return parts[0], parts[1]
+    return "", ""
 
 
 def _end_q(am: ApplicationMotions) -> Array:

@@ -35,6 +35,9 @@ class PlanPiece:
     report: TrajectoryReport | None = None
     #: Application path name (APPLICATION pieces).
     path_name: str = ""
+    #: Program position names for where the piece starts and ends ("" = numbered).
+    start_name: str = ""
+    end_name: str = ""
 
     @property
     def q_start(self) -> Array:
@@ -56,11 +59,12 @@ def join_pieces(pieces: Sequence[PlanPiece], start_name: str = "",
     Each piece's first waypoint must equal the previous piece's last (within 1e-6 rad).
     Application pieces carry `actions_at_start` (e.g. close the gripper): they go onto the
     previous move as `actions_after`, or to the trajectory start if nothing comes before.
+    Pieces' `start_name`/`end_name` name the waypoints where they start and end.
     """
     if not pieces:
         raise ValueError("no pieces to join")
     first = pieces[0].trajectory
-    start = _named(first.start, start_name)
+    start = _named(first.start, start_name or pieces[0].start_name)
     motions = []
     actions_at_start = tuple(first.actions_at_start)
     for k, piece in enumerate(pieces):
@@ -77,7 +81,12 @@ def join_pieces(pieces: Sequence[PlanPiece], start_name: str = "",
                                           + tuple(t.actions_at_start))
                 else:
                     actions_at_start += tuple(t.actions_at_start)
+            if piece.start_name and motions:
+                motions[-1] = replace(motions[-1],
+                                      target=_named(motions[-1].target, piece.start_name))
         motions += list(t.motions)
+        if piece.end_name and motions:
+            motions[-1] = replace(motions[-1], target=_named(motions[-1].target, piece.end_name))
     if end_name and motions:
         motions[-1] = replace(motions[-1], target=_named(motions[-1].target, end_name))
     return Trajectory(start, motions, actions_at_start)

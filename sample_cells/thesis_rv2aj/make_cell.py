@@ -1,8 +1,8 @@
 """Generate the thesis sample cell (SPEC §1, source 003 §10): re-run after changing a number.
 
-    python sample_cells/thesis_rv2aj/make_cell.py
+    python sample_cells/thesis_rv2aj/make_cell.py [OUT_DIR]
 
-Writes, next to this script:
+Writes, next to this script (or into OUT_DIR):
 
 * ``dxf/O1.dxf``, ``dxf/O2.dxf`` - the two known obstacles as DXF drawings of 3-D faces in
   millimetres (the thesis imported O1 and O2 from DXF); each drawing's origin is the middle of
@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import sys
+from collections import OrderedDict
 from pathlib import Path
 
 import ezdxf
@@ -74,6 +75,16 @@ def box_dxf(size_xyz: tuple[float, float, float]) -> bytes:
     msp = doc.modelspace()
     for q in quads:
         msp.add_3dface([v[i] for i in q])
+    # ezdxf collects the CLASSES section from a set: sort it so the bytes do not depend on
+    # the interpreter's hash seed.
+    classes = doc.classes
+    export = classes.export_dxf
+
+    def export_sorted(tagwriter) -> None:
+        classes.classes = OrderedDict(sorted(classes.classes.items()))
+        export(tagwriter)
+
+    classes.export_dxf = export_sorted  # type: ignore[method-assign]
     from io import StringIO
 
     buf = StringIO()
@@ -93,13 +104,13 @@ def pose_down(p: tuple[float, float, float]) -> np.ndarray:
     return T
 
 
-def make_cell() -> Cell:
+def make_cell(out: Path = HERE) -> Cell:
     spec = RobotSpec(kind="rv2aj", tool=ToolSpec.straight(0.1))
     cell = Cell(robot_spec=spec, T_world_base=np.eye(4))
     (c, s) = TABLE
     cell.add_object(CellObject.box("table", s, translation(*c), role=ObjectRole.FIXTURE))
-    dxf_dir = HERE / "dxf"
-    dxf_dir.mkdir(exist_ok=True)
+    dxf_dir = out / "dxf"
+    dxf_dir.mkdir(parents=True, exist_ok=True)
     for name, ((x, y), size) in KNOWN.items():
         data = box_dxf(size)
         (dxf_dir / f"{name}.dxf").write_bytes(data)
@@ -127,12 +138,13 @@ def hidden_json() -> dict:
                            "T_world_object": translation(*c).tolist()}]}
 
 
-def main() -> None:
-    save_cell(make_cell(), HERE / "cell")
-    (HERE / "hidden.json").write_text(json.dumps(hidden_json(), indent=1) + "\n")
-    (HERE / "mission.json").write_text(json.dumps(make_mission().to_json(), indent=1) + "\n")
-    print(f"wrote {HERE / 'cell'}, hidden.json, mission.json")
+def main(out: Path = HERE) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    save_cell(make_cell(out), out / "cell")
+    (out / "hidden.json").write_text(json.dumps(hidden_json(), indent=1) + "\n")
+    (out / "mission.json").write_text(json.dumps(make_mission().to_json(), indent=1) + "\n")
+    print(f"wrote {out / 'cell'}, hidden.json, mission.json")
 
 
 if __name__ == "__main__":
-    main()
+    main(Path(sys.argv[1]).resolve() if len(sys.argv) > 1 else HERE)
