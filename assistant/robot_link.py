@@ -56,6 +56,11 @@ class RobotLink(abc.ABC):
     def subscribe(self, fn: Callable[[LinkEvent], None]) -> None:
         self._listeners.append(fn)
 
+    def unsubscribe(self, fn: Callable[[LinkEvent], None]) -> None:
+        """Stop sending events to `fn` (a no-op if it was not subscribed)."""
+        if fn in self._listeners:
+            self._listeners.remove(fn)
+
     def _emit(self, ev: LinkEvent) -> None:
         for fn in list(self._listeners):
             fn(ev)

@@ -117,7 +117,8 @@ def _link(s: Session, a: dict) -> Any:
 
 
 def _hidden(s: Session, a: dict) -> Any:
-    h = HiddenObstacle(str(a["name"]), tuple(_mm(a["size"], 3, "size") / 1000.0),
+    size = np.asarray(a["size"], float).reshape(-1) / 1000.0
+    h = HiddenObstacle(str(a["name"]), str(a.get("kind", "box")), tuple(size),
                        _pose(a.get("pose", [0, 0, 0, 0, 0, 0])))
     return s.set_hidden_obstacles([*s.hidden, h])
 
@@ -210,7 +211,7 @@ VERBS: dict[str, tuple[Verb, bool]] = {
 ARGS: dict[str, set[str]] = {
     "choose_robot": {"kind", "tool", "urdf", "package_dirs", "base_link", "tool_link"},
     "link": set(LinkSettings().to_json()),
-    "hidden_obstacle": {"name", "size", "pose"},
+    "hidden_obstacle": {"name", "kind", "size", "pose"},
     "goto": {"step"},
     "import_cad": {"file", "name", "units", "role", "pose", "extrude_mm"},
     "add_primitive": {"kind", "size", "name", "role", "pose"},

@@ -100,24 +100,32 @@ class Counters:
 
 @dataclass(frozen=True)
 class HiddenObstacle:
-    """An obstacle only the simulated robot knows (the thesis' O3), a box in the world frame."""
+    """An obstacle only the simulated robot knows (the thesis' O3): a primitive in the world
+    frame, in the same JSON shape as a sample cell's ``hidden.json`` entries."""
 
     name: str
-    size: tuple[float, float, float]
+    kind: str  # box (size x, y, z) | cylinder (radius, height) | sphere (radius,)
+    size: tuple[float, ...]
     T_world_object: Array
 
+    def __post_init__(self) -> None:
+        self.primitive()  # validates kind and size
+        T = np.asarray(self.T_world_object, dtype=float)
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise ValueError(f"hidden obstacle {self.name!r}: pose must be a finite 4x4")
+
+    def primitive(self) -> PrimitiveSpec:
+        return PrimitiveSpec(PrimitiveKind(self.kind), tuple(float(v) for v in self.size))
+
     def to_json(self) -> dict:
-        return {"name": self.name, "size": list(self.size),
+        return {"name": self.name, "kind": self.kind, "size": list(self.size),
                 "T_world_object": np.asarray(self.T_world_object).tolist()}
 
     @staticmethod
     def from_json(d: dict) -> HiddenObstacle:
-        size = tuple(float(v) for v in d["size"])
-        T = np.asarray(d["T_world_object"], dtype=float)
-        if len(size) != 3 or min(size) <= 0 or T.shape != (4, 4) or not np.all(np.isfinite(T)):
-            raise ValueError(f"hidden obstacle {d.get('name')!r}: need a positive size and a "
-                             "finite 4x4 pose")
-        return HiddenObstacle(str(d["name"]), size, T)  # type: ignore[arg-type]
+        return HiddenObstacle(str(d["name"]), str(d.get("kind", "box")),
+                              tuple(float(v) for v in d["size"]),
+                              np.asarray(d.get("T_world_object", np.eye(4)), dtype=float))
 
 
 class Session:
@@ -150,6 +158,7 @@ class Session:
         self._last_error: str = ""
         self._pointer: Any = None  # LivePointer while the camera step is open
         self.pending_point: Any = None  # the last dwell TaughtPoint, waiting for a name
+        self.sample: str | None = None  # the sample cell this session started from
 
     # ================================================================== queries
     @property
@@ -346,7 +355,7 @@ class Session:
         with self._lock:
             if self._link is None:
                 hidden = [Obstacle(h.name, inv_T(self.T_world_base()) @ h.T_world_object,
-                                   (_box_shape(h.size),)) for h in self.hidden]
+                                   (h.primitive().collision_shape(),)) for h in self.hidden]
                 link = make_link(self.link_settings, self.robot, hidden)
                 if self._q_sim is not None and hasattr(link, "set_joints"):
                     link.set_joints(self._q_sim)  # type: ignore[attr-defined]
@@ -368,6 +377,15 @@ class Session:
         if ev.q is not None:
             self._q_sim = np.asarray(ev.q, dtype=float)
             self.bus.emit(RobotMoved(self._q_sim.copy()))
+        if ev.kind == LinkEventKind.COLLISION_INDICATED and ev.q is not None:
+            # The executor/explorer feeds the world model; the session keeps the posture so a
+            # reloaded session knows it too.
+            with self._lock:
+                self.recorded_collisions.append(np.asarray(ev.q, float).copy())
+                self.counters.collision_indications += 1
+            self.bus.emit(CollisionRecorded(np.asarray(ev.q, float).copy(),
+                                            self.counters.collision_indications,
+                                            "operator" if "operator" in ev.message else "robot"))
         if ev.kind == LinkEventKind.LINK_LOST:
             self.machine.enter_error(f"robot link lost: {ev.message}")
             self._error(f"robot link lost: {ev.message}",
@@ -885,6 +903,145 @@ class Session:
         assert self._world is not None
         return self._world
 
+    def _mission_planner(self, backend: _Backend) -> Any:
+        from assistant.planning import MissionPlanner
+
+        if backend.planner is None:
+            backend.planner = MissionPlanner(self.robot, self.cell.collision_objects_in_base(),
+                                             backend.world, backend.roadmap, backend.checker)
+        return backend.planner
+
+    # ================================================================== 6. plan & execute
+    def start_plan(self) -> Future:
+        """Plan the mission in the known world (CAD + recorded collisions)."""
+        return self._run_busy("plan the mission", self._plan, ("plan", "explore", "export"))
+
+    def plan(self) -> dict:
+        return self.start_plan().result()
+
+    def _plan(self, progress: Progress) -> dict:
+        t0 = time.perf_counter()
+        backend = self._backend(progress.sub(0.0, 0.3, "world model"))
+        planner = self._mission_planner(backend)
+        plan = planner.plan_mission(self.mission, self.T_world_base(), self.current_joints(),
+                                    progress.sub(0.3, 1.0, "plan"))
+        with self._lock:
+            self.counters.planning_time_s += time.perf_counter() - t0
+            if not plan.ok:
+                self.trajectory, self.plan_report, self.program = None, None, None
+                raise SessionError(f"no plan: {plan.reason}")
+            self.trajectory = plan.trajectory
+            self.plan_report = _report_json(plan.report)
+            self.program = None
+        self.bus.emit(PlanReady(dict(self.plan_report)))
+        return dict(self.plan_report)
+
+    def start_execute(self) -> Future:
+        """Drive the mission on the robot; collisions (button or hidden obstacle) are learnt,
+        the plan repaired and resumed. Ends with a verified final plan ready to export."""
+        return self._run_busy("execute the mission", self._execute, ("plan",), moving=True)
+
+    def execute(self) -> dict:
+        return self.start_execute().result()
+
+    def resume_execution(self) -> Future:
+        """Continue after a lost link or a stop, re-planning from where the robot is."""
+        return self._run_busy("resume the mission", self._resume, ("plan",), moving=True)
+
+    def _executor(self, backend: _Backend, link: RobotLink) -> Any:
+        from assistant.planning import MissionExecutor
+
+        ex = backend.executor
+        if ex is None or ex.link is not link:
+            if ex is not None:
+                ex.link.unsubscribe(ex._on_event)
+            ex = MissionExecutor(self._mission_planner(backend), link)
+            backend.executor = ex
+        return ex
+
+    def _execute(self, progress: Progress) -> dict:
+        backend = self._backend(progress.sub(0.0, 0.1, "world model"))
+        link = self.link()
+        ex = self._executor(backend, link)
+        t0 = time.perf_counter()
+        report = ex.run(self.mission, self.T_world_base(), progress.sub(0.1, 1.0, "execute"))
+        return self._after_execution(report, time.perf_counter() - t0)
+
+    def _resume(self, progress: Progress) -> dict:
+        backend = self._backend(progress.sub(0.0, 0.1, "world model"))
+        ex = self._executor(backend, self.link())
+        t0 = time.perf_counter()
+        report = ex.resume(progress.sub(0.1, 1.0, "resume"))
+        return self._after_execution(report, time.perf_counter() - t0)
+
+    def _after_execution(self, report: Any, seconds: float) -> dict:
+        with self._lock:
+            self.counters.replans += report.replans
+            self.counters.replan_times_s += list(report.replan_seconds)
+            self.counters.planning_time_s += sum(report.replan_seconds)
+            final = report.final_plan
+            if report.ok and final is not None and final.ok:
+                self.trajectory = final.trajectory
+                self.plan_report = _report_json(final.report)
+                self.program = None
+        summary = {"ok": report.ok, "end": report.end.value if report.end else None,
+                   "reason": report.reason, "collision_indications":
+                   report.collision_indications, "replans": report.replans,
+                   "backoffs": report.backoffs, "executed_tcp_length_m":
+                   report.executed_tcp_length, "median_replan_s": report.median_replan_seconds,
+                   "seconds": seconds, "resumable": report.resumable}
+        if report.ok and self.plan_report is not None:
+            self.bus.emit(PlanReady(dict(self.plan_report)))
+        elif not report.ok:
+            raise SessionError(f"execution ended: {report.reason}" + (
+                " - press Resume to continue" if report.resumable else ""))
+        return summary
+
+    def start_explore(self, mode: str = "random", moves: int = 5, *, seed: int = 0) -> Future:
+        """Explore the workspace with the robot: random moves, replay the plan, or the roads."""
+        if mode not in ("random", "replay", "roads"):
+            raise SessionError(f"unknown exploration mode {mode!r} (random, replay, roads)")
+        return self._run_busy(f"explore ({mode})",
+                              lambda p: self._explore(p, mode, moves, seed),
+                              ("explore", "plan"), moving=True)
+
+    def explore(self, mode: str = "random", moves: int = 5, *, seed: int = 0) -> dict:
+        return self.start_explore(mode, moves, seed=seed).result()
+
+    def _explore(self, progress: Progress, mode: str, moves: int, seed: int) -> dict:
+        from assistant.planning import Explorer
+
+        backend = self._backend(progress.sub(0.0, 0.2, "world model"))
+        link = self.link()
+        if backend.explorer is None or backend.explorer.link is not link:
+            if backend.explorer is not None:
+                backend.explorer.link.unsubscribe(backend.explorer._on_event)
+            backend.explorer = Explorer(self._mission_planner(backend), link)
+        ex = backend.explorer
+        sub = progress.sub(0.2, 1.0, "explore")
+        if mode == "random":
+            rep = ex.random_moves(moves, seed=seed, progress=sub)
+        elif mode == "roads":
+            rep = ex.follow_roads(max_targets=moves, progress=sub)
+        else:
+            if self.trajectory is None:
+                raise SessionError("nothing to replay: plan the mission first")
+            rep = ex.replay(self.trajectory, progress=sub)
+        return {"ok": rep.ok, "description": rep.describe()}
+
+    def order_mission(self) -> list[str]:
+        """Order the application paths (shortest transfers) - shown, and used by Plan."""
+        from dataclasses import replace
+
+        from assistant.trajectory.ordering import order_mission
+
+        with self._action("order the mission", EDIT_MISSION, scene="mission"):
+            if self.mission.start is None or self.mission.goal is None:
+                raise SessionError("The mission needs a start and a goal")
+            ordering = order_mission(self.mission)
+            self.mission = replace(self.mission, order=list(ordering.order))
+        return [self.mission.paths[i].name for i in ordering.order]
+
     def occupancy_cells(self, min_p: float = 0.05) -> tuple[Array, Array, float] | None:
         """Octree leaves with occupancy >= min_p: (centres in world, probabilities, leaf size)."""
         b = self._world
@@ -966,12 +1123,52 @@ class Session:
                 raise SessionError("Plan the mission first: there is no verified trajectory yet")
             d = get_dialect(dialect or self.export_dialect)
             program = program_from_trajectory(self.trajectory, self.robot,
-                                              name=name or "CELLTEACH")
+                                              name=name or "MISSION")
             result = export_files(program, d, self.robot)
             self.export_dialect = d.name
             self.program = result
         self.bus.emit(ProgramReady(d.name, tuple(f.name for f in result.files)))
         return result
+
+    # ================================================================== samples
+    @staticmethod
+    def from_sample(name_or_path: str | Path = "thesis_rv2aj", folder: str | Path | None = None,
+                    *, with_objects: bool = True, with_mission: bool = True,
+                    autosave: bool = True) -> Session:
+        """A session on a sample cell: its robot, link, cameras and hidden obstacles; with its
+        placed objects and taught mission unless told otherwise (the operator then imports
+        and teaches them)."""
+        import json
+
+        from assistant.samples import SampleError, read_meta, sample_folder
+
+        src = sample_folder(name_or_path)
+        meta = read_meta(src)
+        s = Session(folder, autosave=False)
+        cell = load_cell(src / CELL_DIR)
+        s.cell = cell if with_objects else Cell(cell.robot_spec, cell.T_world_base, {},
+                                                dict(cell.frames))
+        try:
+            hidden_path = src / "hidden.json"
+            if hidden_path.exists():
+                doc = json.loads(hidden_path.read_text(encoding="utf-8"))
+                s.hidden = [HiddenObstacle.from_json(d) for d in doc.get("obstacles", [])]
+            if "link" in meta:
+                s.link_settings = LinkSettings.from_json(meta["link"])
+            s.pointer_config = dict(meta.get("pointer", {}))
+            s.export_dialect = str(meta.get("dialect", s.export_dialect))
+            mission_path = src / "mission.json"
+            if with_mission and mission_path.exists():
+                s.mission = Mission.from_json(json.loads(mission_path.read_text("utf-8")))
+                for loc in (s.mission.start, s.mission.goal):
+                    if loc is not None:
+                        s.locations[loc.name] = loc
+        except (OSError, ValueError, KeyError, TypeError) as exc:
+            raise SampleError(f"sample {src.name}: {exc}") from None
+        s.sample = src.name
+        s.autosave_enabled = autosave and folder is not None
+        s._autosave()
+        return s
 
     # ================================================================== persistence
     def _autosave(self) -> None:
@@ -998,6 +1195,7 @@ class Session:
                 "trajectory": trajectory_to_json(self.trajectory) if self.trajectory else None,
                 "plan_report": self.plan_report,
                 "export_dialect": self.export_dialect,
+                "sample": self.sample,
             }
             write_json_atomic(folder / SESSION_JSON, doc)
         return folder
@@ -1031,6 +1229,7 @@ class Session:
             s.trajectory = trajectory_from_json(t) if t else None
             s.plan_report = doc.get("plan_report")
             s.export_dialect = str(doc.get("export_dialect", "melfa"))
+            s.sample = doc.get("sample")
         except SessionFileError:
             raise
         except (KeyError, TypeError, ValueError) as exc:
@@ -1047,9 +1246,20 @@ class _Backend:
     world: Any
     roadmap: Any
     checker: CollisionChecker
+    planner: Any = None
+    executor: Any = None
+    explorer: Any = None
 
     def add_collision(self, q: Array) -> Any:
         return self.roadmap.add_collision(np.asarray(q, float))
+
+
+def _report_json(rep: Any) -> dict:
+    """The figures of a `MissionPlanReport` as plain JSON (saved with the session)."""
+    return {"ok": rep.ok, "reason": rep.reason, "min_clearance_m": rep.min_clearance,
+            "tcp_path_length_m": rep.tcp_length, "joint_path_length_rad": rep.joint_length,
+            "primitives": dict(rep.primitive_counts), "planning_time_s": rep.planning_seconds,
+            "order": list(rep.order), "description": rep.describe()}
 
 
 def _arc_points(a: Array, v: Array, b: Array, n: int = 48) -> Array:
@@ -1068,12 +1278,6 @@ def _arc_points(a: Array, v: Array, b: Array, n: int = 48) -> Array:
     ang_b = np.arctan2((b - c) @ e2, (b - c) @ e1) % (2 * np.pi)
     t = np.linspace(0, ang_b, n)
     return c + r * (np.outer(np.cos(t), e1) + np.outer(np.sin(t), e2))
-
-
-def _box_shape(size: tuple[float, float, float]):
-    from assistant.robot_model import CollisionShape, ShapeKind
-
-    return CollisionShape(ShapeKind.BOX, tuple(float(v) for v in size))
 
 
 def _hint_for(exc: BaseException) -> str:
