@@ -47,17 +47,34 @@ class SolvedLocation:
     T_base_tool: Array
 
 
+def branch_seed(q_ref: Array, p_base: Array) -> Array:
+    """A seed for IK at TCP point `p_base`: `q_ref` with J1 turned to face the point.
+
+    IK picks the solution nearest its seed; with the raw configuration of a far-away location
+    as seed, the nearest solution for a target on the other side of the robot can be the
+    "flipped" one (J1 + 180 deg, reaching back over the shoulder). Facing J1 to the target
+    first keeps the reference's arm branch (elbow up/down) without that flip. Assumes J1
+    turns about the base z axis (true for the arms we support; harmless otherwise).
+    """
+    q = np.array(q_ref, dtype=float, copy=True)
+    if np.hypot(p_base[0], p_base[1]) > 1e-6:
+        q[0] = float(np.arctan2(p_base[1], p_base[0]))
+    return q
+
+
 def solve_location(robot: Robot, checker: CollisionChecker | None, name: str,
                    T_world_tool: Array, T_world_base: Array, *, seed: Array | None = None,
                    q_hint: Array | None = None) -> SolvedLocation:
-    """The valid joint solution of a taught pose nearest `q_hint` (else `seed`).
+    """The valid joint solution of a taught pose nearest `q_hint` (else `seed`, turned to
+    face the location: `branch_seed`).
 
     Raises:
         LocationError naming the location and the problem (see the module docstring).
     """
     T_base_world = inv_T(np.asarray(T_world_base, dtype=float))
     T_base_tool = T_base_world @ np.asarray(T_world_tool, dtype=float)
-    pref = q_hint if q_hint is not None else seed
+    pref = q_hint if q_hint is not None else (
+        None if seed is None else branch_seed(seed, T_base_tool[:3, 3]))
     res = robot.ik(T_base_tool, pref)
     if not res.ok:
         p_mm = np.asarray(T_world_tool)[:3, 3] * 1000.0

@@ -39,7 +39,12 @@ from assistant.mission import Mission
 from assistant.motion import Motion, MotionKind, Trajectory, Waypoint
 from assistant.planning.config import MissionPlannerConfig
 from assistant.planning.known_world import KnownValidity, KnownVerifier, WorldAllowed
-from assistant.planning.locations import LocationError, SolvedLocation, solve_location
+from assistant.planning.locations import (
+    LocationError,
+    SolvedLocation,
+    branch_seed,
+    solve_location,
+)
 from assistant.planning.pieces import PieceKind, PlanPiece, join_pieces
 from assistant.planning.report import MissionPlanReport, PieceReport
 from assistant.progress import Progress
@@ -262,7 +267,9 @@ class MissionPlanner:
                             f"application path {path.name}")
             for rev in (False, True) if path.reversible else (False,):
                 p = reversed_path(path) if rev else path
-                am = application_motions(self.robot, p, q_seed=seed, T_base_world=T_bw,
+                p0 = (T_bw @ np.append(p.start, 1.0))[:3]
+                am = application_motions(self.robot, p, q_seed=branch_seed(seed, p0),
+                                         T_base_world=T_bw,
                                          verifier=self.verifier, params=self.config.application)
                 if not am.ok:
                     why = am.failure.describe() if am.failure else "cannot be planned"
