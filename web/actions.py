@@ -44,7 +44,7 @@ class Actions:
     def bind(self, handle: Any, fn: Callable[[viser.GuiEvent], Any], *,
              when: Callable[[], bool] | None = None) -> None:
         """Run fn on a click (buttons, commands) or an operator edit (inputs, uploads)."""
-        cb = self._guarded(handle, fn, when)
+        cb = self.guarded(handle, fn, when)
         if hasattr(handle, "on_upload"):
             handle.on_upload(cb)
         elif hasattr(handle, "on_click"):
@@ -54,7 +54,7 @@ class Actions:
         else:
             handle.on_update(cb)
 
-    def _guarded(self, handle: Any, fn: Callable[[Any], Any],
+    def guarded(self, handle: Any, fn: Callable[[Any], Any],
                  when: Callable[[], bool] | None) -> Callable[[Any], None]:
         def cb(event: Any) -> None:
             client = getattr(event, "client", None)
