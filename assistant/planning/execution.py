@@ -168,17 +168,27 @@ class MissionExecutor:
         self._final: MissionPlan | None = None
         self._progress: Progress | None = None
         self._resume_pending = False
+        self._given_plan: MissionPlan | None = None
         self._last_indication_s = 0.0
         link.subscribe(self._on_event)
 
     # ------------------------------------------------------------------ public
     def run(self, mission: Mission, T_world_base: Array, progress: Progress | None = None,
-            ) -> ExecutionReport:
-        """Plan (exploring), drive with re-planning, then plan and validate the final plan."""
+            *, plan: MissionPlan | None = None) -> ExecutionReport:
+        """Plan (exploring), drive with re-planning, then plan and validate the final plan.
+
+        Args:
+            mission: what to do (world frame).
+            T_world_base: where the robot base stands.
+            progress: reports per piece; cancelling it stops the robot.
+            plan: an exploring plan already made for this mission in this world (e.g. shown
+                to the operator first); planned here if None.
+        """
         self.report = ExecutionReport()
         self._mission, self._T_wb = mission, np.asarray(T_world_base, dtype=float)
         self._phase, self._queue, self._index, self._final = _Phase.EXPLORE, None, 0, None
         self._resume_pending = False
+        self._given_plan = plan
         return self._go(progress)
 
     def resume(self, progress: Progress | None = None) -> ExecutionReport:
@@ -245,8 +255,9 @@ class MissionExecutor:
         prog = self._progress
         assert prog is not None
         q_now = self._current_joints()
-        plan = self.planner.plan_mission(self._mission, self._T_wb, q_now,
-                                         prog.sub(0.0, 0.1, "planning"), exploring=True)
+        plan = self._given_plan or self.planner.plan_mission(
+            self._mission, self._T_wb, q_now, prog.sub(0.0, 0.1, "planning"), exploring=True)
+        self._given_plan = None
         self.report.first_plan = plan
         if not plan.ok:
             raise _End(EndReason.PLAN_FAILED, plan.report.reason
