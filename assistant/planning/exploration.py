@@ -7,8 +7,8 @@ Three modes, each with the same indication handling - record the stopped posture
 posture box, go on with the next target - and the same budgets and end reasons:
 
 * `random_moves`: targets sampled uniformly in the joint limits, kept if valid in the known
-  world (FCL against CAD, not near a recorded collision, TCP in a free leaf); each reached by
-  a smoothed (exploring) transfer.
+  world (FCL against CAD, not near a recorded collision, TCP in a free leaf); each reached
+  along the roadmap's joint path (exploring needs no smoothing, and it is much cheaper).
 * `replay`: drive a given joint path or trajectory (an existing program); after a collision,
   skip to the next posture past the indicated region and rejoin the path there.
 * `follow_roads`: visit road cells of the Voronoi roadmap in a tour (spread-out targets by
@@ -103,13 +103,8 @@ class Explorer:
                     raise _Stop(EndReason.NO_PATH, f"no valid configuration found in "
                                 f"{self.config.max_samples} samples")
                 rep.targets += 1
-                tr = self.planner.plan_transfer(self._q(), q_t, exploring=True,
-                                                label=f"random target {k + 1}")
-                if not tr.ok or tr.piece is None:
-                    rep.unplannable += 1
-                    rep.log.append(f"target {k + 1}: {tr.report.reason}")
-                    continue
-                if self._drive(tr.piece.dense(), rep):
+                path = self._road_path(q_t, rep, f"random target {k + 1}")
+                if path is not None and self._drive(path, rep):
                     rep.reached += 1
             rep.reason = f"{rep.reached} of {rep.targets} random targets reached"
 
@@ -134,18 +129,24 @@ class Explorer:
                 self._progress.update(i / (len(P) - 1), "replaying")
                 ev = self._move(P[i:], rep)
                 if ev.kind == LinkEventKind.REACHED:
-                    rep.reached = 1
-                    rep.reason = "the path was replayed to its end"
-                    return
+                    break
+                # rejoin the path past the indicated region; each failed attempt is new
+                # evidence (or moves the rejoin point on), so this ends within budget
                 k = i + int(ev.path_index or 0)
-                j = self._next_clear(P, k + 1)
-                if j is None:
-                    rep.reason = "replayed up to a collision; the rest of the path is blocked"
-                    rep.end = EndReason.COMPLETED
-                    return
-                rep.log.append(f"skipping from path index {k} to {j}")
-                self._go_to(P[j], rep, f"rejoin the path at {j}")
-                i = j
+                while True:
+                    j = self._next_clear(P, k + 1)
+                    if j is None:
+                        rep.reason = ("replayed up to a collision; the rest of the path is "
+                                      "blocked")
+                        return
+                    path = self._road_path(P[j], rep, f"rejoin the path at {j}")
+                    if path is None:
+                        k = j
+                        continue
+                    rep.log.append(f"skipping from path index {k} to {j}")
+                    if self._drive(path, rep):
+                        i = j
+                        break
             rep.reached = 1
             rep.reason = "the path was replayed to its end"
 
@@ -178,13 +179,8 @@ class Explorer:
                 q_now = self._q()
                 q_t = Qc[int(np.argmin(np.abs(Qc - q_now) @ weights))]
                 rep.targets += 1
-                plan = rp.plan(q_now, q_t)
-                if not plan.ok:
-                    rep.unplannable += 1
-                    rep.log.append(f"road target {n + 1}: {plan.reason}")
-                    continue
-                path = _densify(self.robot, np.array(plan.joint_path), self.config.step)
-                if self._drive(path, rep):
+                path = self._road_path(q_t, rep, f"road target {n + 1}")
+                if path is not None and self._drive(path, rep):
                     rep.reached += 1
             rep.reason = f"{rep.reached} of {rep.targets} road targets reached"
 
@@ -214,11 +210,20 @@ class Explorer:
         return ev.kind == LinkEventKind.REACHED
 
     def _go_to(self, q: Array, rep: ExplorationReport, label: str) -> None:
-        tr = self.planner.plan_transfer(self._q(), q, exploring=True, label=label)
-        if not tr.ok or tr.piece is None:
-            raise _Stop(EndReason.NO_PATH, f"{label}: {tr.report.reason}")
-        if not self._drive(tr.piece.dense(), rep):
+        path = self._road_path(q, rep, label)
+        if path is None:
+            raise _Stop(EndReason.NO_PATH, f"{label}: {rep.log[-1]}")
+        if not self._drive(path, rep):
             raise _Stop(EndReason.NO_PATH, f"{label}: blocked by a collision on the way")
+
+    def _road_path(self, q: Array, rep: ExplorationReport, label: str) -> Array | None:
+        """The roadmap's joint path to q, densified, unsmoothed (None: logged why not)."""
+        plan = self.planner.roadmap.plan(self._q(), q)
+        if not plan.ok:
+            rep.unplannable += 1
+            rep.log.append(f"{label}: {plan.reason}")
+            return None
+        return _densify(self.robot, np.array(plan.joint_path), self.config.step)
 
     def _move(self, path: Array, rep: ExplorationReport) -> LinkEvent:
         self._progress.check()
