@@ -1,32 +1,172 @@
-"""The `cellteach` command line: serve the UI (default), run scripted sessions, list cells."""
+"""The `cellteach` command line (also `python -m assistant`).
+
+    cellteach                          serve the default sample cell at http://127.0.0.1:8080
+    cellteach serve [--cell NAME|PATH] [--session DIR] [--empty] [--host H] [--port P]
+    cellteach run SCRIPT.yaml --out DIR
+    cellteach cells
+
+Exit codes: 0 ok, 1 the session ran but failed (report.json says why), 2 bad input.
+"""
 
 from __future__ import annotations
 
 import argparse
+import json
 import sys
+import time
+from pathlib import Path
+
+DEFAULT_PORT = 8080
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="cellteach", description=__doc__)
+    p = argparse.ArgumentParser(
+        prog="cellteach",
+        description="Program an industrial robot in minutes: web assistant and headless runs.")
     sub = p.add_subparsers(dest="command")
     serve = sub.add_parser("serve", help="start the web UI (the default command)")
-    serve.add_argument("--host", default="127.0.0.1")
-    serve.add_argument("--port", type=int, default=8080)
+    _serve_args(serve)
+    run = sub.add_parser("run", help="run a scripted session headless")
+    run.add_argument("script", type=Path, help="the session script (YAML)")
+    run.add_argument("--out", type=Path, required=True,
+                     help="folder for the program files, report.json and the session")
+    sub.add_parser("cells", help="list the sample cells")
+    _serve_args(p)  # `cellteach --port 9000` works without the word serve
     return p
+
+
+def _serve_args(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--cell", default=None,
+                   help="sample cell name or folder (default: thesis_rv2aj)")
+    p.add_argument("--session", type=Path, default=None,
+                   help="session folder: resumed if it holds a session, else created "
+                        "(autosaved after every action)")
+    p.add_argument("--empty", action="store_true",
+                   help="take only the sample's robot, link and cameras: import and teach "
+                        "everything yourself")
+    p.add_argument("--host", default="127.0.0.1",
+                   help="interface to listen on (default 127.0.0.1: this computer only)")
+    p.add_argument("--port", type=int, default=DEFAULT_PORT)
+    p.add_argument("--max-upload-mb", type=float, default=50.0)
 
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
-    if args.command in (None, "serve"):
-        host = getattr(args, "host", "127.0.0.1")
-        port = getattr(args, "port", 8080)
-        import time
+    try:
+        if args.command == "run":
+            return cmd_run(args.script, args.out)
+        if args.command == "cells":
+            return cmd_cells()
+        return cmd_serve(args)
+    except KeyboardInterrupt:
+        return 130
 
-        import viser
 
-        server = viser.ViserServer(host=host, port=port)
-        server.gui.add_markdown("# cellteach\nThe assistant UI is being built.")
-        print(f"cellteach: serving on http://{host}:{port}", file=sys.stderr)
+def cmd_cells() -> int:
+    from assistant.samples import list_samples, samples_root
+
+    samples = list_samples()
+    if not samples:
+        print(f"no sample cells under {samples_root()}", file=sys.stderr)
+        return 1
+    width = max(len(s.name) for s in samples)
+    for s in samples:
+        print(f"{s.name:<{width}}  {s.description}")
+    return 0
+
+
+def _default_session_dir() -> Path:
+    return Path.home() / ".local" / "share" / "cellteach" / "sessions" / \
+        time.strftime("%Y%m%d-%H%M%S")
+
+
+def open_session(cell: str | None, folder: Path | None, empty: bool):
+    """Resume `folder` if it holds a session, else start one on the sample cell."""
+    from assistant.samples import DEFAULT_SAMPLE
+    from assistant.session import Session
+    from assistant.session.store import SESSION_JSON
+
+    if folder is not None and (folder / SESSION_JSON).exists():
+        return Session.load(folder)
+    folder = folder or _default_session_dir()
+    return Session.from_sample(cell or DEFAULT_SAMPLE, folder, with_objects=not empty,
+                               with_mission=not empty)
+
+
+def cmd_serve(args: argparse.Namespace) -> int:
+    from assistant.samples import SampleError
+    from assistant.session.store import SessionFileError
+
+    try:
+        session = open_session(args.cell, args.session, args.empty)
+    except (SampleError, SessionFileError, ValueError) as exc:
+        print(f"cellteach: {exc}", file=sys.stderr)
+        return 2
+    if args.host not in ("127.0.0.1", "localhost", "::1"):
+        print(f"cellteach: WARNING: listening on {args.host}: anyone who can reach this "
+              "computer can drive the robot from a browser.", file=sys.stderr)
+    from web.app import serve
+
+    app = serve(session, host=args.host, port=args.port, max_upload_mb=args.max_upload_mb)
+    print(f"cellteach: serving {session.sample or 'a session'} at {app.url}", file=sys.stderr)
+    print(f"cellteach: session folder {session.folder} (autosaved)", file=sys.stderr)
+    try:
         while True:
             time.sleep(3600)
+    finally:
+        app.stop()
+
+
+def cmd_run(script_path: Path, out: Path) -> int:
+    from assistant.session import Session
+    from assistant.session.report import session_report
+    from assistant.session.script import ScriptError, parse_script, run_action
+
+    t0 = time.perf_counter()
+    try:
+        script = parse_script(script_path)
+    except ScriptError as exc:
+        print(f"cellteach: {exc}", file=sys.stderr)
+        return 2
+    out.mkdir(parents=True, exist_ok=True)
+    folder = out / "session"
+    try:
+        if script.cell:
+            base = script.path.parent
+            cell = script.cell if not (base / script.cell).is_dir() else base / script.cell
+            session = Session.from_sample(cell, folder, with_objects=script.with_objects,
+                                          with_mission=script.with_mission)
+        else:
+            session = Session(folder)
+    except (ValueError, OSError) as exc:
+        print(f"cellteach: {script_path}: {exc}", file=sys.stderr)
+        return 2
+    error = None
+    for action in script.actions:
+        try:
+            run_action(session, action, script.path.parent, script.path)
+        except ScriptError as exc:
+            error = str(exc)
+            break
+        except Exception as exc:  # noqa: BLE001 - reported in one line, never a traceback
+            error = f"{script_path}:{action.line}: {action.verb} failed: {exc}"
+            break
+    files: list[str] = []
+    if session.program is not None:
+        for f in session.program.files:
+            (out / f.name).write_bytes(f.data)
+            files.append(f.name)
+    report = session_report(session, wall_time_s=time.perf_counter() - t0, error=error,
+                            program_files=files)
+    (out / "report.json").write_text(json.dumps(report, indent=1), encoding="utf-8")
+    session.worker.join(5.0)
+    if error is not None:
+        print(f"cellteach: {error}", file=sys.stderr)
+        return 1
+    if not report["collision_free"] or not report["within_limits"]:
+        print(f"cellteach: the final program is not safe: {report.get('collision', '')}",
+              file=sys.stderr)
+        return 1
+    print(f"cellteach: wrote {', '.join(files) or 'no program'} and report.json to {out}",
+          file=sys.stderr)
     return 0
