@@ -258,7 +258,8 @@ def parse_script(path: str | Path) -> Script:
     try:
         root = yaml.compose(text, Loader=yaml.SafeLoader)
     except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
+        # The construct that failed to close (context) is where the operator must look.
+        mark = getattr(exc, "context_mark", None) or getattr(exc, "problem_mark", None)
         line = mark.line + 1 if mark is not None else 0
         raise ScriptError(f"{path}:{line}: not valid YAML ({getattr(exc, 'problem', exc)})") \
             from None

@@ -283,6 +283,7 @@ class Session:
             except TransitionRefused as exc:
                 self._error(str(exc))
                 raise
+            self.counters.operator_actions += 1
             self._autosave()
         self._emit_state()
         return state
@@ -294,6 +295,7 @@ class Session:
             except TransitionRefused as exc:
                 self._error(str(exc))
                 raise
+            self.counters.operator_actions += 1
             self._autosave()
         self._emit_state()
         return state
