@@ -424,8 +424,8 @@ class MissionExecutor:
             gain = old_len - new_len
             if gain > cfg.hysteresis_m and gain > cfg.hysteresis_ratio * old_len:
                 rep.switches += 1
-                rep.log.append(f"{item.piece.label}: switched to a path {gain * 1000:.0f} mm "
-                               "shorter")
+                rep.log.append(f"{item.piece.label}: switched to the re-planned path (TCP "
+                               f"{old_len * 1000:.0f} -> {new_len * 1000:.0f} mm)")
                 item.piece = tr.piece
 
     def _resume_piece(self) -> None:
