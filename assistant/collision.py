@@ -432,7 +432,8 @@ class CollisionChecker:
         frames = self.robot.link_poses(np.asarray(q, dtype=float))
         self._pose_robot(frames)
         best: Clearance | None = None
-        req = fcl.DistanceRequest(enable_nearest_points=True, enable_signed_distance=True)
+        req = fcl.DistanceRequest(enable_nearest_points=True)
+        signed = fcl.DistanceRequest(enable_nearest_points=True, enable_signed_distance=True)
         pairs = [(rs, es.obj, es.owner) for rs in self._rshapes if rs.link > 0
                  for es in self._env]
         if include_self:
@@ -441,6 +442,15 @@ class CollisionChecker:
         for rs, obj, owner in pairs:
             res = fcl.DistanceResult()
             d = float(fcl.distance(rs.obj, obj, req, res))
+            if d < 0.0:
+                # FCL answers -1 for shapes that touch or overlap. Its signed distance
+                # segfaults on a capsule that only touches a mesh (python-fcl 0.7), so it is
+                # asked only when the shapes really overlap; touching is distance 0.
+                if fcl.collide(rs.obj, obj, self._req, fcl.CollisionResult()):
+                    res = fcl.DistanceResult()
+                    d = float(fcl.distance(rs.obj, obj, signed, res))
+                else:
+                    d = 0.0
             if best is None or d < best.distance:
                 best = Clearance(d, self._link_names[rs.link], owner,
                                  np.array(res.nearest_points[0]), np.array(res.nearest_points[1]))
