@@ -187,10 +187,15 @@ class MissionPlanner:
         allowed = self.allowed()
         notes: list[str] = []
         asm: AssemblyResult | None = None
+        deadline = _Deadline(progress, cfg.smoothing_seconds)
         for k, params in enumerate(nets):
-            net = run_elastic_net(self.robot, joint_path, allowed=allowed, validity=validity,
-                                  params=params,
-                                  progress=progress.sub(0.0, 0.8) if progress else None)
+            try:
+                net = run_elastic_net(self.robot, joint_path, allowed=allowed,
+                                      validity=validity, params=params,
+                                      progress=deadline.sub(0.0, 0.8))
+            except _TimeUp:
+                notes.append(f"smoothing budget of {cfg.smoothing_seconds:.1f} s used up")
+                break
             for tol in tolerances:
                 fit = fit_primitives(net.particles.points, replace(cfg.fit, tolerance=tol))
                 asm = assemble_trajectory(self.robot, fit, net.particles, self.verifier,
@@ -206,7 +211,6 @@ class MissionPlanner:
                 if k > 0:
                     notes.append("smoothed with the exploring net")
                 return replace(asm, trajectory=snapped), notes
-        assert asm is not None
         if cfg.fallback_to_joint_moves:
             traj = _joint_moves(self.robot, joint_path, label, cfg.assembly)
             checked = verify(self.robot, traj, self.verifier,
@@ -214,6 +218,10 @@ class MissionPlanner:
             if checked.ok:
                 notes.append("joint moves along the roadmap path (smoothing failed)")
             return checked, notes
+        if asm is None:  # out of time before anything was assembled
+            traj = _joint_moves(self.robot, joint_path, label, cfg.assembly)
+            return AssemblyResult(None, replace(verify(self.robot, traj, None).report, ok=False,
+                                                reason="; ".join(notes)), traj), notes
         return asm, notes
 
     # ------------------------------------------------------------------ missions
@@ -415,6 +423,28 @@ class MissionPlanner:
                 return np.asarray(rev.start.q, dtype=float)
         assert e.q is not None
         return np.asarray(e.q, dtype=float)
+
+
+class _TimeUp(Exception):
+    """The smoothing budget is used up (raised from the net's progress reports)."""
+
+
+class _Deadline(Progress):
+    """Progress for the net that also ends it when its time is up (the net has iteration
+    caps, but its IK can be slow near joint limits); forwards to the caller's progress,
+    so a user's cancel still cancels."""
+
+    def __init__(self, parent: Progress | None, seconds: float):
+        super().__init__(parent.task if parent is not None else "smoothing")
+        self._parent = parent
+        self._end = time.perf_counter() + seconds
+
+    def update(self, fraction: float, message: str = "", *, force: bool = False) -> None:
+        if time.perf_counter() > self._end:
+            raise _TimeUp()
+        if self._parent is not None:
+            self._parent.update(fraction, message, force=force)
+        super().update(fraction, message, force=force)
 
 
 class _Failure:
