@@ -50,7 +50,7 @@ class MissionPlannerConfig:
     fallback_to_joint_moves: bool = True
     #: Seconds the elastic net may take per transfer (on top of its iteration caps): near
     #: joint limits its IK falls back to a slow analytic scan. Past it: joint moves.
-    smoothing_seconds: float = 4.0
+    smoothing_seconds: float = 10.0
 
 
 @dataclass(frozen=True)

@@ -243,7 +243,7 @@ class MissionPlanner:
         T_bw = inv_T(T_wb)
         q_cur = np.asarray(q_current, dtype=float)
         reports: list[PieceReport] = []
-        failed = _Failure(self, mission, T_wb, reports, t0, exploring)
+        failed = _Failure(T_wb, reports, t0, exploring)
         if mission.start is None and mission.goal is None and not mission.paths:
             return failed("mission", "mission", "the mission is empty: teach a start, a goal "
                           "or an application path")
@@ -450,10 +450,8 @@ class _Deadline(Progress):
 class _Failure:
     """Builds failed `MissionPlan`s with the reports gathered so far."""
 
-    def __init__(self, planner: MissionPlanner, mission: Mission, T_wb: Array,
-                 reports: list[PieceReport], t0: float, exploring: bool):
-        self.planner, self.mission, self.T_wb = planner, mission, T_wb
-        self.reports, self.t0, self.exploring = reports, t0, exploring
+    def __init__(self, T_wb: Array, reports: list[PieceReport], t0: float, exploring: bool):
+        self.T_wb, self.reports, self.t0, self.exploring = T_wb, reports, t0, exploring
 
     def __call__(self, label: str, kind: str, reason: str, *,
                  keep_report: bool = False) -> MissionPlan:
