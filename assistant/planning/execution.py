@@ -168,6 +168,7 @@ class MissionExecutor:
         self._final: MissionPlan | None = None
         self._progress: Progress | None = None
         self._resume_pending = False
+        self._running = False
         self._given_plan: MissionPlan | None = None
         self._last_indication_s = 0.0
         link.subscribe(self._on_event)
@@ -224,6 +225,7 @@ class MissionExecutor:
         self._progress = progress or Progress("execute mission")
         rep = self.report
         rep.end, rep.reason = None, ""
+        self._running = True
         try:
             if self._resume_pending:
                 self._resume_pending = False
@@ -247,6 +249,8 @@ class MissionExecutor:
         except Cancelled:
             self._safe_stop()
             rep.end, rep.reason = EndReason.CANCELLED, f"cancelled at {self._where()}"
+        finally:
+            self._running = False
         rep.log.append(f"end: {rep.end.value} - {rep.reason}")
         return rep
 
@@ -481,8 +485,9 @@ class MissionExecutor:
                    f"{ev.message}")
 
     def _on_event(self, ev: LinkEvent) -> None:
-        # Cancelling the progress stops the arm within one event period.
-        if (ev.kind == LinkEventKind.MOVED and self._progress is not None
+        # Cancelling the progress stops the arm within one event period - only while this
+        # executor drives (the link may outlive it and serve others).
+        if (self._running and ev.kind == LinkEventKind.MOVED and self._progress is not None
                 and self._progress.cancelled):
             self.link.stop()
 

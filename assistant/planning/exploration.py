@@ -86,6 +86,7 @@ class Explorer:
         self.config = config or ExplorationConfig()
         self.robot = planner.robot
         self._progress = Progress("explore")
+        self._running = False
         link.subscribe(self._on_event)
 
     # ------------------------------------------------------------------ modes
@@ -191,6 +192,7 @@ class Explorer:
              ) -> ExplorationReport:
         self._progress = progress or Progress(f"explore: {rep.mode}")
         t0 = time.perf_counter()
+        self._running = True
         try:
             body()
             if rep.end is None:
@@ -201,6 +203,8 @@ class Explorer:
             with contextlib.suppress(LinkError):
                 self.link.stop()
             rep.end, rep.reason = EndReason.CANCELLED, "exploration cancelled"
+        finally:
+            self._running = False
         rep.seconds = time.perf_counter() - t0
         return rep
 
@@ -294,7 +298,7 @@ class Explorer:
             raise _Stop(EndReason.LINK_LOST, f"cannot read the robot's joints: {exc}") from exc
 
     def _on_event(self, ev: LinkEvent) -> None:
-        if ev.kind == LinkEventKind.MOVED and self._progress.cancelled:
+        if self._running and ev.kind == LinkEventKind.MOVED and self._progress.cancelled:
             self.link.stop()
 
 

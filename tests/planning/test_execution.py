@@ -184,3 +184,16 @@ def test_cancel_stops_the_robot_and_resume_finishes(planner, robot, first_plan, 
     assert len(moved) <= 7  # stopped within an event or two
     rep = ex.resume(Progress("resume"))
     assert rep.end == EndReason.COMPLETED, rep.describe()
+
+
+def test_a_cancelled_executor_does_not_stop_the_next_one_on_the_same_link(
+        planner, robot, first_plan, scenario):
+    link = sim_robot(robot, (), first_plan.locations["P1"])
+    prog = Progress("execute")
+    prog.cancel()
+    rep = MissionExecutor(planner, link, QUICK).run(scenario.mission, np.eye(4), prog,
+                                                    plan=first_plan)
+    assert rep.end == EndReason.CANCELLED
+    rep = MissionExecutor(planner, link, QUICK).run(scenario.mission, np.eye(4),
+                                                    plan=first_plan)
+    assert rep.end == EndReason.COMPLETED, rep.describe()
