@@ -214,6 +214,10 @@ class MissionExecutor:
             self._resume_pending = True
         return self._go(progress)
 
+    def detach(self) -> None:
+        """Stop listening to the link's events (before replacing this executor)."""
+        self.link.unsubscribe(self._on_event)
+
     def cancel(self) -> None:
         """Stop the robot now; the run ends CANCELLED (resumable)."""
         if self._progress is not None:

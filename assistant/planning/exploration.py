@@ -89,6 +89,10 @@ class Explorer:
         self._running = False
         link.subscribe(self._on_event)
 
+    def detach(self) -> None:
+        """Stop listening to the link's events (before replacing this explorer)."""
+        self.link.unsubscribe(self._on_event)
+
     # ------------------------------------------------------------------ modes
     def random_moves(self, n: int, *, seed: int = 0, progress: Progress | None = None,
                      ) -> ExplorationReport:
