@@ -10,6 +10,7 @@ from __future__ import annotations
 import logging
 import queue
 import threading
+import time
 from collections.abc import Callable
 from typing import Any
 
@@ -19,6 +20,8 @@ log = logging.getLogger(__name__)
 
 #: Events of which only the newest in a burst matters.
 COALESCED: tuple[type, ...] = (RobotMoved, PointerUpdated)
+#: A burst that starts with a coalesced event waits this long to gather the rest (~30 Hz).
+BURST_S = 1.0 / 30.0
 
 _STOP = object()
 
@@ -68,8 +71,16 @@ class EventPump:
 
     # ------------------------------------------------------------------ UI thread
     def _run(self) -> None:
+        last = 0.0
         while True:
             batch = [self._q.get()]
+            if isinstance(batch[0], COALESCED):
+                # A fast robot (simulated at 20x) emits hundreds of poses a second: draw at
+                # most ~30 per second, the page cannot show more anyway.
+                wait = last + BURST_S - time.monotonic()
+                if wait > 0:
+                    time.sleep(wait)
+            last = time.monotonic()
             while True:
                 try:
                     batch.append(self._q.get_nowait())

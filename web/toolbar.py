@@ -40,7 +40,7 @@ def step_heading(state: str, mode: str, busy_task: str) -> str:
     spec = STATES[state]
     parent = STATES[state.split(".")[0]]
     where = spec.title if parent is spec else f"{parent.title} - {spec.title}"
-    head = f"### Step {NUMBER[state]} of {n_main}: {where}"
+    head = f"#### Step {NUMBER[state]} of {n_main}: {where}"
     if spec.help:
         head += f"\n\n{spec.help}"
     if mode == "busy":

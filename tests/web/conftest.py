@@ -4,6 +4,7 @@ CELLTEACH_REQUIRE_BROWSER=1 (CI)."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -37,10 +38,25 @@ def playwright_driver() -> Iterator[Any]:
         driver.stop()
 
 
+FAILED = pytest.StashKey[bool]()
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: Any) -> Any:
+    rep = yield
+    if rep.when == "call":
+        item.stash[FAILED] = rep.failed
+    return rep
+
+
+
 @pytest.fixture
-def open_ui(playwright_driver: Any, tmp_path: Path) -> Iterator[Callable[..., UI]]:
-    """Open a page on a URL in a fresh Chromium profile; screenshots go under tmp_path."""
+def open_ui(request: pytest.FixtureRequest, playwright_driver: Any, tmp_path: Path
+            ) -> Iterator[Callable[..., UI]]:
+    """Open a page on a URL in a fresh Chromium profile; screenshots go under tmp_path
+    (one per step, plus every page as it was when a test failed)."""
     contexts: list[Any] = []
+    uis: list[UI] = []
 
     def open_(url: str, name: str = "a") -> UI:
         try:
@@ -55,9 +71,14 @@ def open_ui(playwright_driver: Any, tmp_path: Path) -> Iterator[Callable[..., UI
         page.set_default_timeout(30_000)
         ui = UI(page, tmp_path / f"screens-{name}")
         ui.open(url)
+        uis.append(ui)
         return ui
 
     yield open_
+    if request.node.stash.get(FAILED, False):
+        for ui in uis:
+            with contextlib.suppress(Exception):  # the page may be gone
+                print(f"failure screenshot: {ui.shot('FAILED')}")
     for ctx in contexts:
         ctx.close()
 

@@ -38,16 +38,23 @@ class UI:
     def click(self, name: str) -> None:
         self.button(name).click()
 
-    def fill(self, label: str, value: Any) -> None:
-        box = self.row(label).locator("input:not([type=hidden])").first
-        box.fill(str(value))
+    @staticmethod
+    def _type(box: Any, text: str) -> None:
+        """Type like a person (select all, keys, Enter). Playwright's `fill` sets the value
+        in one go, which Mantine's number input ignores when it equals the last value the
+        input itself reported (even if the server changed the field since)."""
+        box.click()
+        box.press("Control+a")
+        box.press_sequentially(text)
         box.press("Enter")
+
+    def fill(self, label: str, value: Any) -> None:
+        self._type(self.row(label).locator("input:not([type=hidden])").first, f"{value}")
 
     def fill_vec(self, label: str, values: tuple[float, ...]) -> None:
         boxes = self.row(label).locator("input")
         for i, v in enumerate(values):
-            boxes.nth(i).fill(f"{v:g}")
-            boxes.nth(i).press("Enter")
+            self._type(boxes.nth(i), f"{v:g}")
 
     def choose(self, label: str, option: str) -> None:
         self.row(label).locator("input").first.click()
@@ -76,13 +83,29 @@ class UI:
         loc.wait_for(state="visible", timeout=timeout)
         return loc
 
+    def wait_cell(self, text: str, timeout: float = WAIT_MS) -> Any:
+        """A table cell (the page's lists are Markdown tables) with exactly this text."""
+        loc = self.page.get_by_role("cell", name=text, exact=True).first
+        loc.wait_for(state="visible", timeout=timeout)
+        return loc
+
     def step(self, number: str) -> None:
         self.wait_text(f"Step {number} of 7")
 
-    def wait_enabled(self, name: str, timeout: float = WAIT_MS) -> None:
-        self.page.wait_for_function(
-            "([n]) => [...document.querySelectorAll('button')].some("
-            "b => b.textContent.trim() === n && !b.disabled)", arg=[name], timeout=timeout)
+    def wait_enabled(self, name: str, timeout: float = WAIT_MS, *, errors: int = 0) -> None:
+        """Until the button is enabled; fails at once if an error notification beyond the
+        first `errors` ones shows up (long waits must not hide a failure)."""
+        handle = self.page.wait_for_function(
+            """([n, k]) => {
+                const errs = [...document.querySelectorAll('.mantine-Notification-root')]
+                    .filter(e => e.innerText.includes('Could not do that'));
+                if (errs.length > k) return 'ERROR: ' + errs[errs.length - 1].innerText;
+                return [...document.querySelectorAll('button')].some(
+                    b => b.textContent.trim() === n && !b.disabled) ? 'ok' : false;
+            }""", arg=[name, errors], timeout=timeout, polling=250)
+        result = handle.json_value()
+        if result != "ok":
+            raise AssertionError(f"waiting for {name!r}: the page shows {result}")
 
     def shot(self, name: str) -> Path:
         self.shots.mkdir(parents=True, exist_ok=True)

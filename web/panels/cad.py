@@ -5,11 +5,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
 import viser
 
 from assistant.cell import ObjectRole
 from assistant.session.events import Event, SceneChanged
 from web.panels.base import Panel
+from web.units import point_from_mm
 from web.uploads import check_upload_size
 
 UNITS = ("from the file", "mm", "m", "inch")
@@ -56,6 +58,8 @@ class CadPanel(Panel):
             self.size = g.add_vector3("Size (mm)", (100.0, 100.0, 100.0), step=1.0,
                                       hint="box: x, y, z; cylinder: radius, height, -; "
                                            "sphere: radius, -, -")
+            self.shape_at = g.add_vector3("Centre at (mm)", (0.0, 0.0, 0.0), step=1.0)
+            self.shape_role = g.add_dropdown("Shape role", ROLES, initial_value="obstacle")
             self.shape_name = g.add_text("Name", "")
             self.add_shape = g.add_button("Add shape")
         self.last: LastImport | None = None
@@ -101,8 +105,11 @@ class CadPanel(Panel):
         kind = self.shape.value
         v = [x / 1000.0 for x in self.size.value]
         size = {"box": tuple(v), "cylinder": (v[0], v[1]), "sphere": (v[0],)}[kind]
+        at = point_from_mm(self.shape_at.value)
+        T = np.eye(4)
+        T[:3, 3] = at
         self.session.add_primitive(kind, size, name=self.shape_name.value.strip() or None,
-                                   role=self.role.value)
+                                   role=self.shape_role.value, T_world_object=T)
 
     # ------------------------------------------------------------------ redraw
     def refresh(self) -> None:

@@ -11,7 +11,7 @@ import viser
 from assistant.session.events import CollisionRecorded, Event, SceneChanged, StateChanged
 from web.panels.base import Panel
 
-EXPLORE_MODES = {"random moves": "random", "along the roads": "roadmap"}
+EXPLORE_MODES = {"random moves": "random", "along the roads": "roads", "replay the plan": "replay"}
 
 
 class ExplorePanel(Panel):

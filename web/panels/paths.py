@@ -45,11 +45,13 @@ class PathsPanel(Panel):
         with g.add_folder("Mission"):
             self.table = g.add_markdown("")
             self.pick = g.add_dropdown("Path", ("-",))
+            self.order_btn = g.add_button("Order for the shortest transfers")
             self.up = g.add_button("Move up")
             self.down = g.add_button("Move down")
             self.set_actions = g.add_button("Use the Before/After above")
             self.delete = g.add_button("Delete path", color="red")
         self.bind(self.add, lambda e: self._add())
+        self.bind(self.order_btn, lambda e: self._order(e.client))
         self.bind(self.up, lambda e: self._move(-1))
         self.bind(self.down, lambda e: self._move(+1))
         self.bind(self.set_actions, lambda e: self.session.set_path_actions(
@@ -61,6 +63,11 @@ class PathsPanel(Panel):
         self.session.add_path(name, KINDS[self.kind.value], parse_points(self.points.value),
                               before=ACTIONS[self.before.value], after=ACTIONS[self.after.value],
                               speed=float(self.speed.value) / 1000.0)
+
+    def _order(self, client: object) -> None:
+        names = self.session.order_mission()
+        self.app.notifier.success("Paths in the order the robot will run them: "
+                                  + ", ".join(names), client=client)  # type: ignore[arg-type]
 
     def _move(self, delta: int) -> None:
         names = [p.name for p in self.session.mission.paths]
@@ -88,7 +95,7 @@ class PathsPanel(Panel):
             self.pick.options = names
         empty = not m.paths
         self.up.disabled = self.down.disabled = self.delete.disabled = empty
-        self.set_actions.disabled = empty
+        self.set_actions.disabled = self.order_btn.disabled = empty
         used = {p.name for p in m.paths}
         if self.name.value in used:
             k = 1

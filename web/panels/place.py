@@ -19,6 +19,7 @@ class PlacePanel(Panel):
         g = self.gui
         g.add_markdown("Choose a part, then type its pose or drag the gizmo in the scene.")
         self.pick = g.add_dropdown("Part", ("-",))
+        self.where = g.add_markdown("")
         self.xyz = g.add_vector3("Position (mm)", (0.0, 0.0, 0.0), step=0.1)
         self.abc = g.add_vector3("A, B, C (deg)", (0.0, 0.0, 0.0), step=0.1,
                                  hint="Rotations about Z, Y', X'' (KUKA convention)")
@@ -99,6 +100,12 @@ class PlacePanel(Panel):
         if obj is not None:
             xyz, abc = pose_fields(obj.T_world_object)
             self.xyz.value, self.abc.value = xyz, abc
+            # Written after the fields: once this line shows, the fields are the part's.
+            self.where.content = (f"<small>{obj.name} is at ({xyz[0]:g}, {xyz[1]:g}, "
+                                  f"{xyz[2]:g}) mm, A B C ({abc[0]:g}, {abc[1]:g}, "
+                                  f"{abc[2]:g}) deg</small>")
+        else:
+            self.where.content = ""
         self._sync_gizmo()
 
     def _sync_gizmo(self) -> None:

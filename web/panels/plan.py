@@ -10,6 +10,7 @@ import viser
 
 from assistant.session.events import (
     CollisionRecorded,
+    ErrorRaised,
     Event,
     PlanReady,
     SceneChanged,
@@ -55,6 +56,8 @@ class PlanPanel(Panel):
                                                           "the posture, re-plans")
         self.stop = g.add_button("Stop", color="orange", icon=viser.Icon.PLAYER_STOP,
                                  disabled=True)
+        self.resume = g.add_button("Resume", icon=viser.Icon.PLAYER_TRACK_NEXT, disabled=True,
+                                   hint="Continue a stopped mission from where the robot is")
         self.legend = g.add_markdown(legend())
         self.summary = g.add_markdown("")
         with g.add_folder("Planner report", expand_by_default=False):
@@ -63,6 +66,8 @@ class PlanPanel(Panel):
         self.bind(self.execute, lambda e: self.session.start_execute())
         self.bind(self.collision, lambda e: self.session.fire("collision"))
         self.bind(self.stop, lambda e: self.session.fire("stop"))
+        self.bind(self.resume, lambda e: self.session.resume_execution())
+        self._resumable = False
 
     def refresh(self) -> None:
         s = self.session
@@ -74,6 +79,7 @@ class PlanPanel(Panel):
         self.execute.disabled = not (idle and has_plan)
         self.collision.disabled = mode != "moving"
         self.stop.disabled = mode != "moving"
+        self.resume.disabled = not (idle and self._resumable)
         c = s.counters
         drawn = self.app.scene_layers.plan.motions_drawn
         state = "planned" if has_plan else "not planned yet"
@@ -83,6 +89,10 @@ class PlanPanel(Panel):
         self.report.content = report_markdown(s.plan_report)
 
     def on_event(self, ev: Event) -> None:
-        if isinstance(ev, (StateChanged, PlanReady, CollisionRecorded)) or \
+        if isinstance(ev, ErrorRaised):
+            self._resumable = "Resume" in ev.message
+        elif isinstance(ev, PlanReady):
+            self._resumable = False
+        if isinstance(ev, (StateChanged, PlanReady, CollisionRecorded, ErrorRaised)) or \
                 isinstance(ev, SceneChanged) and ev.what in ("all", "mission", "plan", "world"):
             self.refresh()

@@ -35,6 +35,8 @@ class TeachPanel(Panel):
             self.point = g.add_vector3("Point (mm)", (300.0, 0.0, 100.0), step=1.0,
                                        hint="Synthetic camera: where the simulated hand holds "
                                             "the ball")
+            self.seed = g.add_number("Simulation seed", 0, min=0, max=2**31 - 1, step=1,
+                                     hint="Synthetic camera only: seed of its image noise")
             self.dwell = g.add_button("Teach by pointer dwell")
             self.pending = g.add_button("Teach the point just held", disabled=True)
         with g.add_folder("From the robot or by numbers", expand_by_default=False):
@@ -52,7 +54,7 @@ class TeachPanel(Panel):
             self.set_goal = g.add_button("Make it the goal")
             self.delete = g.add_button("Delete it", color="red")
         self.bind(self.dwell, lambda e: self._teach(lambda n: self.session.teach_by_pointer_dwell(
-            n, point_from_mm(self.point.value), seed=0)))
+            n, point_from_mm(self.point.value), seed=int(self.seed.value))))
         self.bind(self.pending, lambda e: self._teach(self.session.teach_pending_point))
         self.bind(self.from_robot, lambda e: self._teach(self.session.teach_from_robot))
         self.bind(self.typed, lambda e: self._teach(lambda n: self.session.teach(

@@ -54,7 +54,7 @@ class WorldLayer(Layer):
             self.roads_drawn = len(centres)
             self._nodes["roads"] = self.scene.add_point_cloud(
                 f"{self.root}/roads", np.asarray(centres, np.float32), ROAD_COLOR,
-                point_size=float(leaf) * 0.35, point_shape="circle", precision="float32",
+                point_size=float(leaf) * 0.12, point_shape="circle", precision="float32",
                 visible=self.show_roads)
         qs = list(s.recorded_collisions)
         if qs:
@@ -78,7 +78,7 @@ class WorldLayer(Layer):
             batched_wxyzs=np.tile(np.array([1.0, 0, 0, 0], np.float32), (n, 1)),
             batched_positions=np.asarray(centres, np.float32),
             batched_scales=np.full(n, 0.92 * leaf, np.float32),
-            batched_colors=probability_colors(p), opacity=0.45, lod="off",
+            batched_colors=probability_colors(p), opacity=0.3, lod="off",
             cast_shadow=False, receive_shadow=False, flat_shading=True,
             visible=self.show_occupancy)
 

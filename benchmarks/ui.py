@@ -1,0 +1,170 @@
+"""The web page's speed, measured in a real headless Chromium (software WebGL on this machine):
+
+1. page usable: from `page.goto` on the sample cell to the toolbar shown and two frames drawn;
+2. plan drawn: from the planner finishing (`PlanReady`, server clock) to the page showing the
+   drawn path (the plan panel's "N motions drawn" line, written right after the path's scene
+   nodes, plus two frames) - same machine, so the clocks agree;
+3. octree: 50 000 occupied cells as ONE batched mesh; frame times from requestAnimationFrame
+   while the camera is orbited with the mouse, against the same page without the octree.
+
+Also saves the page on the sample cell (planned) as docs/screenshot.png for the README.
+
+    python benchmarks/ui.py [--quick] [--no-screenshot]
+
+Targets (issue 7): usable < 3 s, plan drawn < 1 s, octree interactive. The last line is one
+JSON object with the figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from assistant.session import Session  # noqa: E402
+from assistant.session.events import PlanReady  # noqa: E402
+from web import serve  # noqa: E402
+
+CHROMIUM = "/usr/bin/chromium"
+ARGS = ["--no-sandbox", "--disable-gpu", "--use-gl=swiftshader", "--enable-unsafe-swiftshader",
+        "--disable-background-networking", "--disable-component-update", "--disable-sync",
+        "--no-first-run"]
+VIEWPORT = {"width": 1400, "height": 900}
+
+FRAMES_JS = """() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))"""
+START_FRAME_LOG_JS = """() => {
+  window.__ft = []; window.__ftRun = true; let last = performance.now();
+  function tick(t) { window.__ft.push(t - last); last = t;
+                     if (window.__ftRun) requestAnimationFrame(tick); }
+  requestAnimationFrame(tick);
+}"""
+STOP_FRAME_LOG_JS = "() => { window.__ftRun = false; return window.__ft.slice(1); }"
+
+
+def frame_times(page, seconds: float) -> np.ndarray:
+    """Frame intervals (ms) while the mouse orbits the camera for `seconds`."""
+    page.evaluate(START_FRAME_LOG_JS)
+    cx, cy = 500, 450
+    page.mouse.move(cx, cy)
+    page.mouse.down()
+    t_end = time.monotonic() + seconds
+    k = 0
+    while time.monotonic() < t_end:
+        k += 1
+        page.mouse.move(cx + 150 * np.sin(k / 10), cy + 40 * np.cos(k / 13), steps=2)
+    page.mouse.up()
+    return np.array(page.evaluate(STOP_FRAME_LOG_JS), float)
+
+
+def synthetic_octree(n: int, leaf: float = 0.02, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """n distinct leaf centres in a 1.2 m cube around the robot, with probabilities."""
+    rng = np.random.default_rng(seed)
+    side = int(round(1.2 / leaf))
+    flat = rng.choice(side**3, size=n, replace=False)
+    ijk = np.stack(np.unravel_index(flat, (side, side, side)), axis=1)
+    centres = (ijk + 0.5) * leaf - np.array([0.6, 0.6, 0.1])
+    return centres, rng.uniform(0.05, 1.0, size=n)
+
+
+def stats(ft: np.ndarray) -> dict:
+    if not len(ft):
+        return {"frames": 0}
+    return {"frames": int(len(ft)), "p50_ms": round(float(np.median(ft)), 1),
+            "p95_ms": round(float(np.percentile(ft, 95)), 1),
+            "fps": round(1000.0 / float(np.mean(ft)), 1)}
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true", help="shorter frame-time windows")
+    ap.add_argument("--no-screenshot", action="store_true")
+    ap.add_argument("--cells", type=int, default=50_000)
+    args = ap.parse_args()
+    window_s = 2.0 if args.quick else 4.0
+
+    from playwright.sync_api import sync_playwright
+
+    session = Session.from_sample("thesis_rv2aj", None)
+    app = serve(session, port=0)
+    ready_at: list[float] = []
+    session.bus.subscribe(lambda ev: ready_at.append(time.time())
+                          if isinstance(ev, PlanReady) else None)
+    out: dict = {}
+    try:
+        with sync_playwright() as pw, tempfile.TemporaryDirectory() as profile:
+            ctx = pw.chromium.launch_persistent_context(
+                profile, executable_path=CHROMIUM, headless=True, args=ARGS, viewport=VIEWPORT)
+            page = ctx.pages[0] if ctx.pages else ctx.new_page()
+            page.set_default_timeout(120_000)
+            # 1. usable
+            t0 = time.perf_counter()
+            page.goto(app.url)
+            page.get_by_text("Step 1 of 7").first.wait_for()
+            page.get_by_role("button", name="Next", exact=True).wait_for()
+            page.evaluate(FRAMES_JS)
+            out["page_usable_s"] = round(time.perf_counter() - t0, 3)
+            # 2. plan drawn (the sample cell's mission, planned from step 6)
+            session.goto("plan")
+            page.get_by_text("Step 6 of 7").first.wait_for()
+            page.get_by_role("button", name="Plan", exact=True).click()
+            page.wait_for_function(
+                "() => /Mission planned; [1-9]\\d* motions drawn/.test(document.body.innerText)",
+                polling="raf", timeout=600_000)
+            page.evaluate(FRAMES_JS)
+            t_drawn = page.evaluate("() => Date.now()") / 1000.0
+            out["plan_drawn_after_ready_s"] = round(t_drawn - ready_at[-1], 3)
+            out["plan_motions"] = app.scene_layers.plan.motions_drawn
+            app.wait_idle(10)
+            if not args.no_screenshot:
+                page.mouse.move(10, 890)
+                time.sleep(0.5)
+                shot = ROOT / "docs" / "screenshot.png"
+                page.screenshot(path=str(shot))
+                out["screenshot"] = str(shot.relative_to(ROOT))
+            # 3. octree: baseline (world of the sample cell) vs 50 k cells in one mesh
+            base = frame_times(page, window_s)
+            centres, p = synthetic_octree(args.cells)
+            done = threading.Event()
+            t_send = time.perf_counter()
+            app.pump.post(lambda: (app.scene_layers.world.draw_occupancy(centres, p, 0.02),
+                                   done.set()))
+            done.wait(60)
+            out["octree_send_s"] = round(time.perf_counter() - t_send, 3)
+            page.evaluate(FRAMES_JS)
+            out["octree_first_frames_s"] = round(time.perf_counter() - t_send, 3)
+            nodes = [k for k in app.scene_layers.world._nodes if k == "occupancy"]  # noqa: SLF001
+            out["octree_cells"] = app.scene_layers.world.cells_drawn
+            out["octree_scene_nodes"] = len(nodes)
+            heavy = frame_times(page, window_s)
+            out["frames_baseline"] = stats(base)
+            out["frames_octree_50k"] = stats(heavy)
+            # The toolbar still answers while the octree is on screen.
+            t1 = time.perf_counter()
+            page.get_by_text("Planner report", exact=True).first.click()
+            page.get_by_text("Planner report", exact=True).first.click()
+            out["click_with_octree_s"] = round(time.perf_counter() - t1, 3)
+            ctx.close()
+    finally:
+        app.stop()
+    print(f"page usable after            {out['page_usable_s']:.2f} s   (target < 3 s)")
+    print(f"plan drawn after PlanReady   {out['plan_drawn_after_ready_s']:.2f} s   "
+          "(target < 1 s)")
+    print(f"octree {out['octree_cells']:,} cells in {out['octree_scene_nodes']} scene node(s); "
+          f"frames p50/p95 {out['frames_octree_50k'].get('p50_ms')}/"
+          f"{out['frames_octree_50k'].get('p95_ms')} ms vs baseline "
+          f"{out['frames_baseline'].get('p50_ms')}/{out['frames_baseline'].get('p95_ms')} ms")
+    print(json.dumps(out))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,118 @@
+"""The page's own pieces without a browser: event pump, picking, colours, units, guards."""
+
+from __future__ import annotations
+
+import threading
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import trimesh
+
+from assistant.session import Session
+from assistant.session.events import Notice, PointerUpdated, RobotMoved, StateChanged
+from web.pump import EventPump, _coalesce
+from web.scene.base import node_key
+from web.scene.picking import pick
+from web.scene.world import probability_colors, unit_box
+from web.units import pose_fields, pose_from_fields
+
+
+def test_coalescing_keeps_order_and_only_the_newest_pose():
+    a, b, c = (RobotMoved(np.full(5, k, float)) for k in (1, 2, 3))
+    s = StateChanged("setup", "1", "Set up", "idle")
+    n = Notice("x")
+    p1, p2 = PointerUpdated(None), PointerUpdated(np.zeros(3))
+    out = _coalesce([a, s, b, p1, n, c, p2])
+    assert out == [s, n, c, p2]
+
+
+def test_pump_applies_events_on_its_own_thread_in_order():
+    seen: list[tuple[str, str]] = []
+    pump = EventPump(lambda ev: seen.append((threading.current_thread().name, ev.message)))
+    session = Session()
+    pump.attach(session.bus)
+    for k in range(20):
+        session.bus.emit(Notice(str(k)))
+    assert pump.wait_idle(10)
+    pump.stop()
+    assert [m for _, m in seen] == [str(k) for k in range(20)]
+    assert {t for t, _ in seen} == {"cellteach-ui"}
+
+
+def test_a_failing_redraw_does_not_stop_the_pump():
+    calls: list[str] = []
+
+    def dispatch(ev: Notice) -> None:
+        calls.append(ev.message)
+        if ev.message == "bad":
+            raise RuntimeError("boom")
+
+    pump = EventPump(dispatch)
+    bus = Session().bus
+    pump.attach(bus)
+    for m in ("a", "bad", "b"):
+        bus.emit(Notice(m))
+    assert pump.wait_idle(10)
+    pump.stop()
+    assert calls == ["a", "bad", "b"] and len(pump.errors) == 1
+
+
+def test_pick_finds_the_face_the_ray_meets_first():
+    box = trimesh.creation.box((0.1, 0.1, 0.2))  # centred, z from -0.1 to 0.1
+    T = np.eye(4)
+    T[:3, 3] = (0.3, -0.1, 0.1)
+    hit = pick(box, T, np.array([0.31, -0.12, 1.0]), np.array([0.0, 0.0, -1.0]))
+    assert hit is not None
+    assert np.allclose(hit.point_world, [0.31, -0.12, 0.2])
+    assert np.allclose(hit.normal_world, [0, 0, 1])
+    assert pick(box, T, np.array([1.0, 1.0, 1.0]), np.array([0.0, 0.0, -1.0])) is None
+
+
+def test_probability_colours_run_from_pale_to_red():
+    c = probability_colors(np.array([0.0, 0.5, 1.0, 2.0]))
+    assert c.dtype == np.uint8 and c.shape == (4, 3)
+    assert tuple(c[0]) == (250, 230, 120) and tuple(c[2]) == (200, 25, 25)
+    assert tuple(c[3]) == tuple(c[2])  # clipped
+
+
+def test_unit_box_is_a_closed_outward_cube():
+    v, f = unit_box()
+    mesh = trimesh.Trimesh(v, f, process=False)
+    assert mesh.is_watertight and mesh.is_winding_consistent
+    assert mesh.volume == pytest.approx(1.0)
+
+
+def test_pose_fields_round_trip_in_mm_and_degrees():
+    T = pose_from_fields((220.0, -200.5, 10.0), (30.0, -20.0, 175.0))
+    xyz, abc = pose_fields(T)
+    assert xyz == (220.0, -200.5, 10.0)
+    assert np.allclose(abc, (30.0, -20.0, 175.0))
+
+
+def test_node_keys_are_safe_and_distinct():
+    assert node_key("O1") == "O1"
+    assert "/" not in node_key("a/b") and node_key("a/b") != node_key("a_b")
+
+
+def test_a_click_from_a_stale_page_on_a_disabled_button_does_nothing():
+    """viser only greys buttons out in the browser: the server re-checks before acting."""
+    from web import serve
+
+    session = Session()
+    app = serve(session, port=0)
+    try:
+        app.wait_idle(10)
+        prev = app.toolbar.prev
+        assert prev.disabled  # step 1 has no Previous
+        fired: list[str] = []
+        cb = app.actions.guarded(prev, lambda e: fired.append("x"), None)
+        cb(SimpleNamespace(client=SimpleNamespace(add_notification=lambda *a, **k: None)))
+        assert fired == [] and session.machine.state == "setup"
+        # A programmatic value change (no client) is never an operator action either.
+        nxt = app.toolbar.next
+        cb = app.actions.guarded(nxt, lambda e: fired.append("y"), None)
+        cb(SimpleNamespace(client=None))
+        assert fired == []
+    finally:
+        app.stop()
