@@ -116,3 +116,28 @@ def test_a_click_from_a_stale_page_on_a_disabled_button_does_nothing():
         assert fired == []
     finally:
         app.stop()
+
+
+def test_loading_a_session_replaces_what_every_page_shows(tmp_path):
+    from web import serve
+
+    first = Session()
+    app = serve(first, port=0)
+    try:
+        saved = Session()
+        saved.fire("next")
+        saved.add_primitive("box", (0.1, 0.1, 0.1), name="crate")
+        saved.save(tmp_path / "s")
+        app.replace_session(Session.load(tmp_path / "s", autosave=False))
+        assert app.wait_idle(10)
+        assert app.session is not first
+        assert "crate" in app.panels["Import CAD"].table.content
+        assert "Step 2 of 7" in app.toolbar.heading.content
+        assert app.panels["Import CAD"].folder.visible
+        # Events of the old session no longer reach the page; the new one's do.
+        first.bus.emit(Notice("old"))
+        app.session.add_primitive("sphere", (0.05,), name="ball")
+        assert app.wait_idle(10)
+        assert "ball" in app.panels["Import CAD"].table.content
+    finally:
+        app.stop()
