@@ -956,7 +956,7 @@ class Session:
         ex = backend.executor
         if ex is None or ex.link is not link:
             if ex is not None:
-                ex.link.unsubscribe(ex._on_event)
+                ex.detach()
             ex = MissionExecutor(self._mission_planner(backend), link)
             backend.executor = ex
         return ex
@@ -1017,7 +1017,7 @@ class Session:
         link = self.link()
         if backend.explorer is None or backend.explorer.link is not link:
             if backend.explorer is not None:
-                backend.explorer.link.unsubscribe(backend.explorer._on_event)
+                backend.explorer.detach()
             backend.explorer = Explorer(self._mission_planner(backend), link)
         ex = backend.explorer
         sub = progress.sub(0.2, 1.0, "explore")
