@@ -394,6 +394,13 @@ class RV2AJ(Robot):
             "custom", np.asarray(T_flange_tool, dtype=float))
         return RV2AJ(replace(self.config, tool=tool))
 
+    @functools.cached_property
+    def pinocchio_model(self):
+        """The same arm as a pinocchio model (built from `urdf()`; frame "tool" is the TCP)."""
+        import pinocchio as pin
+
+        return pin.buildModelFromXML(self.urdf())
+
     def urdf(self) -> str:
         return urdf_from_chain("rv2aj", self.chain, self.joint_names, self.limits, self.links,
                                self.T_flange_tool)

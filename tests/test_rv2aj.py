@@ -150,3 +150,14 @@ def test_urdf_has_one_revolute_joint_per_axis():
     assert text.count('type="revolute"') == 5
     for name in ("J1", "J2", "J3", "J5", "J6"):
         assert f'name="{name}"' in text
+
+
+def test_pinocchio_model_agrees_with_the_closed_form(rv2aj, rng):
+    import pinocchio as pin
+
+    model = rv2aj.pinocchio_model
+    data = model.createData()
+    fid = model.getFrameId("tool")
+    for q in rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper, size=(50, 5)):
+        pin.framesForwardKinematics(model, data, q)
+        assert np.allclose(data.oMf[fid].homogeneous, rv2aj.fk(q), atol=1e-9)

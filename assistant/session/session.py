@@ -828,6 +828,14 @@ class Session:
         self.bus.emit(CollisionRecorded(np.asarray(q, float).copy(),
                                         self.counters.collision_indications, source))
 
+    def close(self) -> None:
+        """Stop the robot and background work, close the link and the cameras."""
+        self.stop()
+        self.worker.join(5.0)
+        self.stop_pointer()
+        with self._lock:
+            self._drop_link()
+
     def cancel(self) -> None:
         self.worker.cancel()
         link = self._link
