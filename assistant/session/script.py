@@ -161,6 +161,34 @@ def _add_path(s: Session, a: dict) -> Any:
                       reversible=bool(a.get("reversible", False)))
 
 
+def _frame_point(v: Any, what: str) -> Any:
+    """A measured point: a taught location's name, or x, y, z in mm."""
+    return v if isinstance(v, str) else _point(v, what)
+
+
+def _calibrate_frame(s: Session, a: dict) -> Any:
+    return s.calibrate_frame(a["name"], _frame_point(a["origin"], "origin"),
+                             _frame_point(a["x_point"], "x_point"),
+                             _frame_point(a["xy_point"], "xy_point"))
+
+
+def _add_drawing(s: Session, a: dict) -> Any:
+    kinds = [k for k in ("drawing", "points") if k in a]
+    if len(kinds) != 1:
+        raise ValueError("a drawing needs exactly one of drawing (1..9) or points (mm)")
+    if "drawing" in a:
+        drawing: Any = int(a["drawing"])
+    else:
+        drawing = np.asarray(a["points"], float) / 1000.0
+    at = _mm(a.get("at", [0, 0]), 2, "at") / 1000.0
+    return s.add_drawing(a["name"], a["frame"], drawing, at=(float(at[0]), float(at[1])),
+                         angle=float(np.radians(float(a.get("angle_deg", 0.0)))),
+                         lift=float(a.get("lift_mm", 30.0)) / 1000.0,
+                         before=_actions(a.get("before")), after=_actions(a.get("after")),
+                         speed=float(a.get("speed_mm_s", 50.0)) / 1000.0,
+                         reversible=bool(a.get("reversible", False)))
+
+
 def _jog(s: Session, a: dict) -> Any:
     if "joints_deg" in a:
         return s.jog_joints(np.radians(np.asarray(a["joints_deg"], float)))
@@ -182,6 +210,9 @@ VERBS: dict[str, tuple[Verb, bool]] = {
     "remove_object": (lambda s, a: s.remove_object(a["name"]), False),
     "place": (lambda s, a: s.place_object(a["object"], _pose(a["pose"])), False),
     "place_by_points": (_place_by_points, False),
+    "calibrate_frame": (_calibrate_frame, False),
+    "place_in_frame": (lambda s, a: s.place_object_in_frame(
+        a["object"], a["frame"], _pose(a["pose"])), False),
     "teach": (lambda s, a: s.teach(a["name"], _pose(a["pose"])), False),
     "teach_pointer": (_teach_pointer, False),
     "teach_robot": (lambda s, a: s.teach_from_robot(a["name"]), False),
@@ -192,6 +223,7 @@ VERBS: dict[str, tuple[Verb, bool]] = {
     "set_start": (lambda s, a: s.set_start(a["name"]), False),
     "set_goal": (lambda s, a: s.set_goal(a["name"]), False),
     "add_path": (_add_path, False),
+    "add_drawing": (_add_drawing, False),
     "remove_path": (lambda s, a: s.remove_path(a["name"]), False),
     "move_path": (lambda s, a: s.move_path(a["name"], int(a["index"])), False),
     "jog": (_jog, False),
@@ -202,7 +234,7 @@ VERBS: dict[str, tuple[Verb, bool]] = {
     "plan": (lambda s, a: s.plan(), False),
     "execute": (lambda s, a: s.execute(), False),
     "indicate_collision": (lambda s, a: s.indicate_collision(), False),
-    "export": (lambda s, a: s.export(a.get("dialect")), False),
+    "export": (lambda s, a: s.export(a.get("dialect"), frame=a.get("frame")), False),
     "undo": (lambda s, a: s.undo(), False),
     "redo": (lambda s, a: s.redo(), False),
 }
@@ -218,6 +250,8 @@ ARGS: dict[str, set[str]] = {
     "remove_object": {"name"},
     "place": {"object", "pose"},
     "place_by_points": {"object", "model", "measured"},
+    "calibrate_frame": {"name", "origin", "x_point", "xy_point"},
+    "place_in_frame": {"object", "frame", "pose"},
     "teach": {"name", "pose"},
     "teach_pointer": {"name", "at", "seed"},
     "teach_robot": {"name"},
@@ -227,16 +261,20 @@ ARGS: dict[str, set[str]] = {
     "set_goal": {"name"},
     "add_path": {"name", "line", "arc", "bezier", "before", "after", "speed_mm_s",
                  "reversible"},
+    "add_drawing": {"name", "frame", "drawing", "points", "at", "angle_deg", "lift_mm",
+                    "before", "after", "speed_mm_s", "reversible"},
     "remove_path": {"name"},
     "move_path": {"name", "index"},
     "jog": {"joints_deg", "pose"},
     "explore": {"mode", "moves", "seed"},
-    "export": {"dialect"},
+    "export": {"dialect", "frame"},
 }
 REQUIRED: dict[str, set[str]] = {
     "goto": {"step"}, "import_cad": {"file"}, "add_primitive": {"kind", "size"},
     "remove_object": {"name"}, "place": {"object", "pose"},
     "place_by_points": {"object", "model", "measured"}, "teach": {"name", "pose"},
+    "calibrate_frame": {"name", "origin", "x_point", "xy_point"},
+    "place_in_frame": {"object", "frame", "pose"}, "add_drawing": {"name", "frame"},
     "teach_pointer": {"name", "at"}, "teach_robot": {"name"}, "teach_cad_click": {"name", "at"},
     "remove_location": {"name"}, "set_start": {"name"}, "set_goal": {"name"},
     "add_path": {"name"}, "remove_path": {"name"}, "move_path": {"name", "index"},

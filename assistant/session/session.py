@@ -477,6 +477,42 @@ class Session:
         """The robot TCP position (world frame) - touch a point of the part with the tool."""
         return self.tcp_world()[:3, 3].copy()
 
+    def calibrate_frame(self, name: str, origin: Array | str, x_point: Array | str,
+                        xy_point: Array | str) -> FrameCalibration:
+        """A named frame from three measured points (the controllers' 3-point base method):
+        its origin, a point on its +x axis and a point in its XY plane on the +y side. Each
+        point is a position (world, metres) or the name of a taught location (e.g. the tip
+        of the tool touched to the pallet and taught from the robot pose). Re-calibrating an
+        existing frame replaces it."""
+        with self._action(f"calibrate the frame {name}", EDIT_PLACEMENT, scene="frames"):
+            pts = [self._point_of(p) for p in (origin, x_point, xy_point)]
+            cal = frame_from_three_points(name, *pts)
+            self.cell.add_frame(name, cal.T_world_frame, replace_existing=True)
+            self.bus.emit(Notice(cal.describe()))
+        return cal
+
+    def place_object_in_frame(self, name: str, frame: str, T_frame_object: Array) -> CellObject:
+        """Place an object relative to a named (e.g. calibrated) frame."""
+        with self._action(f"place {name} on {frame}", EDIT_PLACEMENT, scene="objects"):
+            T_world_frame = self._frame(frame)
+            obj = self.cell.set_object_pose(name, T_world_frame @ np.asarray(T_frame_object,
+                                                                             dtype=float))
+        return obj
+
+    def _point_of(self, p: Array | str) -> Array:
+        if isinstance(p, str):
+            return self._loc(p).position.copy()
+        a = np.asarray(p, dtype=float)
+        if a.shape != (3,) or not np.all(np.isfinite(a)):
+            raise SessionError("a measured point needs 3 finite coordinates")
+        return a
+
+    def _frame(self, name: str) -> Array:
+        if name not in self.cell.frames:
+            known = ", ".join(self.cell.frames) or "none yet"
+            raise SessionError(f"no frame named {name!r} (frames: {known}); calibrate it first")
+        return np.asarray(self.cell.frames[name], dtype=float)
+
     # ================================================================== 4. teach
     def teach(self, name: str, T_world_tool: Array, *,
               source: LocationSource = LocationSource.TYPED, q_hint: Array | None = None,
@@ -734,6 +770,36 @@ class Session:
             paths.insert(max(0, min(index, len(paths))), p)
             self.mission = replace(self.mission, paths=paths, order=None)
 
+    def add_drawing(self, name: str, frame: str, drawing: int | Array, *,
+                    at: tuple[float, float] = (0.0, 0.0), angle: float = 0.0,
+                    lift: float = 0.03, before: list[ToolAction] = (),
+                    after: list[ToolAction] = (), speed: float = 0.05,
+                    reversible: bool = False) -> ApplicationPath:
+        """A pen drawing on a frame's XY plane as one application path: a line down to the
+        paper (`lift` metres along the frame's -z), the chained cubic Bezier segments, a line
+        back up; the pen stays perpendicular to the paper (tool z = -frame z).
+
+        Args:
+            name: the path's name (a controller identifier).
+            frame: a named frame, e.g. the pallet calibrated from three points.
+            drawing: one of the cell's drawings 1..9 (source 000: frames 1-3, keyboards 4-6,
+                screens 7-9) or control points (1 + 3k, metres, 2-D in the frame).
+            at: where the drawing's origin goes on the frame's XY plane (metres).
+            angle: rotation of the drawing about the frame's z axis (rad).
+            lift: approach and retreat height above the paper (m, > 0).
+        """
+        from dataclasses import replace
+
+        with self._action(f"add the drawing {name}", EDIT_MISSION, scene="mission"):
+            _check_identifier(name, "path")
+            if any(p.name == name for p in self.mission.paths):
+                raise SessionError(f"a path named {name!r} exists already")
+            path = drawing_path(name, self._frame(frame), _drawing_control(drawing),
+                                at=at, angle=angle, lift=lift, before=before, after=after,
+                                speed=speed, reversible=reversible)
+            self.mission = replace(self.mission, paths=[*self.mission.paths, path], order=None)
+        return path
+
     def set_path_actions(self, name: str, before: list[ToolAction],
                          after: list[ToolAction]) -> None:
         from dataclasses import replace
@@ -916,10 +982,31 @@ class Session:
     def _mission_planner(self, backend: _Backend) -> Any:
         from assistant.planning import MissionPlanner
 
-        if backend.planner is None:
+        config = self._planner_config()
+        if backend.planner is None or backend.planner.config != config:
             backend.planner = MissionPlanner(self.robot, self.cell.collision_objects_in_base(),
-                                             backend.world, backend.roadmap, backend.checker)
+                                             backend.world, backend.roadmap, backend.checker,
+                                             config)
         return backend.planner
+
+    def _planner_config(self) -> Any:
+        """The planner's defaults; Bezier chains become SPLINE moves when the export dialect
+        writes splines (KRL SPLINE ... ENDSPLINE), else linear moves within the tolerance."""
+        from dataclasses import replace
+
+        from assistant.export import get_dialect
+        from assistant.planning.config import MissionPlannerConfig
+        from assistant.trajectory.application import BezierMode
+
+        config = MissionPlannerConfig()
+        try:
+            splines = bool(getattr(get_dialect(self.export_dialect), "spline", False))
+        except (KeyError, ValueError):
+            splines = False
+        if splines:
+            config = replace(config, application=replace(config.application,
+                                                         bezier_mode=BezierMode.SPLINE))
+        return config
 
     # ================================================================== 6. plan & execute
     def start_plan(self) -> Future:
@@ -1123,17 +1210,25 @@ class Session:
         return out
 
     # ================================================================== 7. export
-    def export(self, dialect: str | None = None, *, name: str | None = None) -> Any:
-        """Write the planned mission as a robot program; returns the files (and a zip)."""
+    def export(self, dialect: str | None = None, *, name: str | None = None,
+               frame: str | None = None) -> Any:
+        """Write the planned mission as a robot program; returns the files (and a zip).
+        With `frame` (a named, e.g. calibrated, frame) the targets are written in that frame
+        (KRL $BASE, RAPID wobj, URScript pose_trans, ...) instead of the robot base."""
         from assistant.export import export_files, get_dialect, program_from_trajectory
+        from assistant.export.program import Frame
 
         with self._action("export the program", ("export", "plan"), undoable=False,
                           scene="program"):
             if self.trajectory is None:
                 raise SessionError("Plan the mission first: there is no verified trajectory yet")
             d = get_dialect(dialect or self.export_dialect)
+            work = None
+            if frame is not None:
+                self._frame(frame)
+                work = Frame(frame, self.cell.T_base_frame(frame))
             program = program_from_trajectory(self.trajectory, self.robot,
-                                              name=name or "MISSION")
+                                              name=name or "MISSION", work=work)
             result = export_files(program, d, self.robot)
             self.export_dialect = d.name
             self.program = result
@@ -1156,6 +1251,7 @@ class Session:
         meta = read_meta(src)
         s = Session(folder, autosave=False)
         cell = load_cell(src / CELL_DIR)
+        cell.robot_spec = sample_robot_spec(cell.robot_spec, src)
         s.cell = cell if with_objects else Cell(cell.robot_spec, cell.T_world_base, {},
                                                 dict(cell.frames))
         try:
@@ -1343,3 +1439,140 @@ def _segments(kind: SegmentKind, pts: list[Array]) -> list[PathSegment]:
         raise SessionError("a Bezier chain needs 1 + 3k points (start, then control, control, "
                            "end for each segment)")
     return [PathSegment(kind, tuple(pts[i:i + 4])) for i in range(0, len(pts) - 1, 3)]
+
+
+# ---------------------------------------------------------------------- frames and drawings
+#: Three-point calibration: smallest distance between the points (m) and the angle range
+#: (deg) between the x axis and the XY-plane point; outside them the frame is ill-defined.
+MIN_CALIBRATION_SPAN = 0.02
+CALIBRATION_ANGLES_DEG = (15.0, 165.0)
+
+
+@dataclass(frozen=True)
+class FrameCalibration:
+    """A frame from the 3-point method (origin, +x point, XY-plane point), world frame."""
+
+    name: str
+    T_world_frame: Array
+    points: Array  # (3, 3) the measured points
+    #: Angle between the frame's z axis and the world z axis (how far the plane is tilted).
+    tilt: float
+    #: Distance of the XY-plane point from the x axis (m): the lever that fixes the tilt
+    #: about x; the frame's rotation error about x is about (point error / this).
+    lever_y: float
+
+    def describe(self) -> str:
+        o = self.T_world_frame[:3, 3] * 1000.0
+        return (f"frame {self.name} calibrated from 3 points: origin ({o[0]:.1f}, {o[1]:.1f}, "
+                f"{o[2]:.1f}) mm, tilted {np.degrees(self.tilt):.2f} deg from the world XY "
+                f"plane")
+
+
+def frame_from_three_points(name: str, origin: Array, x_point: Array,
+                            xy_point: Array) -> FrameCalibration:
+    """x along origin -> x_point; z normal to the plane of the three points with xy_point on
+    the +y side; y = z cross x. Refuses points too close or (nearly) on one line."""
+    o, px, pxy = (np.asarray(p, dtype=float).reshape(3) for p in (origin, x_point, xy_point))
+    ex, ey = px - o, pxy - o
+    for v, what in ((ex, "the x point"), (ey, "the XY-plane point")):
+        if np.linalg.norm(v) < MIN_CALIBRATION_SPAN:
+            raise SessionError(f"frame {name}: {what} is within "
+                               f"{MIN_CALIBRATION_SPAN * 1000:.0f} mm of the origin; measure "
+                               "points further apart")
+    x = ex / np.linalg.norm(ex)
+    cos_a = float(np.clip(x @ ey / np.linalg.norm(ey), -1.0, 1.0))
+    ang = np.degrees(np.arccos(cos_a))
+    lo, hi = CALIBRATION_ANGLES_DEG
+    if not lo <= ang <= hi:
+        raise SessionError(f"frame {name}: the three points are almost on one line "
+                           f"({ang:.1f} deg between the x axis and the XY-plane point; "
+                           f"{lo:.0f}-{hi:.0f} deg needed)")
+    z = np.cross(x, ey)
+    z /= np.linalg.norm(z)
+    y = np.cross(z, x)
+    T = np.eye(4)
+    T[:3, :3] = np.column_stack([x, y, z])
+    T[:3, 3] = o
+    tilt = float(np.arccos(np.clip(z[2], -1.0, 1.0)))
+    return FrameCalibration(name, T, np.array([o, px, pxy]), tilt, float(ey @ y))
+
+
+def _drawing_control(drawing: int | Array) -> Array:
+    """Control points (1 + 3k, 2-D metres) of drawing 1..9 or of the points given."""
+    from assistant.export.bezier_drawings import drawing as numbered
+
+    if isinstance(drawing, (int, np.integer)):
+        try:
+            chain = numbered(int(drawing))
+        except ValueError as exc:
+            raise SessionError(str(exc)) from None
+        segs = [np.asarray(s.control, dtype=float) for s in chain.segments]
+        return np.vstack([segs[0][:1]] + [c[1:] for c in segs])
+    P = np.asarray(drawing, dtype=float)
+    if P.ndim != 2 or P.shape[1] not in (2, 3) or not np.all(np.isfinite(P)):
+        raise SessionError("drawing points must be finite (x, y) pairs in the frame")
+    if len(P) < 4 or (len(P) - 1) % 3:
+        raise SessionError("a Bezier chain needs 1 + 3k points (start, then control, "
+                           "control, end for each segment)")
+    return P
+
+
+def drawing_path(name: str, T_world_frame: Array, control: Array, *,
+                 at: tuple[float, float] = (0.0, 0.0), angle: float = 0.0, lift: float = 0.03,
+                 before: list[ToolAction] = (), after: list[ToolAction] = (),
+                 speed: float = 0.05, reversible: bool = False) -> ApplicationPath:
+    """The application path of a pen drawing on a frame's XY plane (see
+    `Session.add_drawing`); `control` holds 1 + 3k points, 2-D (or 3-D) metres."""
+    if not lift > 0.0:
+        raise SessionError("the pen lift above the paper must be > 0")
+    P = np.asarray(control, dtype=float)
+    if P.shape[1] == 2:
+        P = np.column_stack([P, np.zeros(len(P))])
+    c, s = np.cos(angle), np.sin(angle)
+    T_frame_drawing = np.eye(4)
+    T_frame_drawing[:3, :3] = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
+    T_frame_drawing[:2, 3] = at
+    T = np.asarray(T_world_frame, dtype=float) @ T_frame_drawing
+    W = P @ T[:3, :3].T + T[:3, 3]
+    up = np.asarray(T_world_frame, dtype=float)[:3, 2] * lift
+    segs = [PathSegment(SegmentKind.LINE, (W[0] + up, W[0].copy()))]
+    segs += [PathSegment(SegmentKind.BEZIER, tuple(W[i:i + 4])) for i in range(0, len(W) - 1, 3)]
+    segs.append(PathSegment(SegmentKind.LINE, (W[-1].copy(), W[-1] + up)))
+    # The pen points into the paper: tool z = -frame z, tool x along the drawing's x.
+    R_world_tool = T[:3, :3] @ np.diag([1.0, -1.0, -1.0])
+    return ApplicationPath(name, segs, R_world_tool, list(before), list(after), float(speed),
+                           bool(reversible))
+
+
+# ---------------------------------------------------------------------- sample robots
+def robot_data_dirs() -> list[Path]:
+    """Installed robot description folders (example-robot-data's ``share``), found at run
+    time in the interpreter's site-packages (the `test` extra installs it)."""
+    import site
+    import sys
+
+    out: list[Path] = []
+    for sp in [*site.getsitepackages(), site.getusersitepackages(), *sys.path]:
+        share = Path(sp) / "cmeel.prefix" / "share"
+        if share.is_dir() and share not in out:
+            out.append(share)
+    return out
+
+
+def sample_robot_spec(spec: RobotSpec, folder: Path) -> RobotSpec:
+    """A sample cell's URDF robot with its relative path resolved: first against the sample
+    folder (a URDF shipped with the sample), then against the installed robot descriptions
+    (``example-robot-data/robots/...``), so a committed cell names no machine's paths.
+    Absolute paths and built-in robots are returned unchanged."""
+    from dataclasses import replace
+
+    if spec.kind != "urdf" or not spec.urdf_path or Path(spec.urdf_path).is_absolute():
+        return spec
+    rel = Path(spec.urdf_path)
+    candidates = [folder / rel] + [d / rel for d in robot_data_dirs()]
+    for cand in candidates:
+        if cand.is_file():
+            return replace(spec, urdf_path=str(cand.resolve()))
+    tried = ", ".join(str(c) for c in candidates)
+    raise SessionError(f"robot description {spec.urdf_path!r} not found (tried: {tried}); "
+                       "example-robot-data comes with the test extra: pip install -e '.[test]'")
