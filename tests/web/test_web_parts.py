@@ -141,3 +141,38 @@ def test_loading_a_session_replaces_what_every_page_shows(tmp_path):
         assert "ball" in app.panels["Import CAD"].table.content
     finally:
         app.stop()
+
+
+def test_the_tcp_gizmo_jogs_by_ik_and_says_when_it_turned_the_pose():
+    """RV-2AJ, 5 axes: a gizmo pose outside the arm plane is projected, and the page says so."""
+    from assistant.transforms import rot_x
+    from web import serve
+    from web.units import T_from_wxyz_position, wxyz_position
+
+    session = Session()
+    notes: list[str] = []
+    session.bus.subscribe(lambda ev: notes.append(ev.message) if isinstance(ev, Notice)
+                          else None)
+    app = serve(session, port=0)
+    try:
+        app.wait_idle(10)
+        jog = app.panels["Jog the robot"]
+        assert jog.visible  # step 1 shows jogging
+        jog.tcp_gizmo.value = True
+        assert jog._gizmo is not None
+        T_goal = np.eye(4)  # tool down, tilted 25 deg sideways: out of the arm plane
+        T_goal[:3, :3] = rot_x(np.radians(25.0)) @ np.diag([1.0, -1.0, -1.0])
+        T_goal[:3, 3] = [0.30, 0.10, 0.20]
+        jog._gizmo.wxyz, jog._gizmo.position = wxyz_position(T_goal)
+        client = SimpleNamespace(add_notification=lambda *a, **k: None)
+        jog._gizmo_moved(SimpleNamespace(phase="end", client=client))
+        session.worker.join(30)
+        assert app.wait_idle(10)
+        reached = session.tcp_world()
+        assert np.linalg.norm(reached[:3, 3] - T_goal[:3, 3]) < 1e-3
+        assert any("plane" in n for n in notes), notes
+        # The gizmo follows the robot: it now shows the reached (projected) pose.
+        shown = T_from_wxyz_position(jog._gizmo.wxyz, jog._gizmo.position)
+        assert np.allclose(shown, reached, atol=1e-6)
+    finally:
+        app.stop()

@@ -24,7 +24,7 @@ class SceneLayers:
         scene.set_up_direction("+z")
         scene.add_grid("/grid", width=1.6, height=1.6, cell_size=0.1, section_size=0.5,
                        plane="xy", shadow_opacity=0.0)
-        app.server.initial_camera.position = (1.35, -1.15, 0.95)
+        app.server.initial_camera.position = (1.1, -0.95, 0.75)
         app.server.initial_camera.look_at = (0.2, 0.0, 0.15)
         self.robot = RobotLayer(app)
         self.objects = ObjectsLayer(app)

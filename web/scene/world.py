@@ -64,7 +64,8 @@ class WorldLayer(Layer):
                 point_shape="sparkle", precision="float32")
 
     def draw_occupancy(self, centres: np.ndarray, p: np.ndarray, leaf: float) -> None:
-        """One batched mesh for all cells (50 k cells stay one draw call)."""
+        """One batched mesh for all cells (50 k cells stay one draw call). Toon shading: the
+        default PBR material costs several times more per pixel where there is no GPU."""
         old = self._nodes.pop("occupancy", None)
         if old is not None:
             old.remove()
@@ -79,7 +80,7 @@ class WorldLayer(Layer):
             batched_positions=np.asarray(centres, np.float32),
             batched_scales=np.full(n, 0.92 * leaf, np.float32),
             batched_colors=probability_colors(p), opacity=0.3, lod="off",
-            cast_shadow=False, receive_shadow=False, flat_shading=True,
+            cast_shadow=False, receive_shadow=False, material="toon3",
             visible=self.show_occupancy)
 
     def set_visibility(self, *, occupancy: bool | None = None, roads: bool | None = None) -> None:
