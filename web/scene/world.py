@@ -79,7 +79,7 @@ class WorldLayer(Layer):
             batched_wxyzs=np.tile(np.array([1.0, 0, 0, 0], np.float32), (n, 1)),
             batched_positions=np.asarray(centres, np.float32),
             batched_scales=np.full(n, 0.92 * leaf, np.float32),
-            batched_colors=probability_colors(p), opacity=0.3, lod="off",
+            batched_colors=probability_colors(p), opacity=0.2, lod="off",
             cast_shadow=False, receive_shadow=False, material="toon3",
             visible=self.show_occupancy)
 
