@@ -123,10 +123,11 @@ class App:
         if isinstance(ev, ErrorRaised):
             self.notifier.error(ev.message, ev.hint)
         elif isinstance(ev, Notice):
-            self.notifier.notice(ev.message)
+            key = "pointer" if ev.message.startswith("pointer") else None
+            self.notifier.notice(ev.message, key=key)
         elif isinstance(ev, CollisionRecorded):
             self.notifier.notice(f"Collision #{ev.count} recorded ({ev.source}): that posture "
-                                 "is now known as blocked.")
+                                 "is now known as blocked.", key="collision")
         elif isinstance(ev, PlanReady):
             self.notifier.success("The mission is planned: the path is drawn in the scene.")
         elif isinstance(ev, ProgramReady):

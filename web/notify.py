@@ -25,6 +25,9 @@ class Notifier:
         self._server = server
         self._lock = threading.Lock()
         self._recent: deque[tuple[float, str]] = deque(maxlen=32)
+        #: The notice on screen per (key, client): a burst (26 collisions) replaces it
+        #: instead of stacking up and pushing errors out of view.
+        self._keyed: dict[tuple[str, int], viser.NotificationHandle] = {}
         #: Called with (kind, text) for every message (the toolbar's status line).
         self.on_message: Callable[[str, str], None] | None = None
 
@@ -43,13 +46,15 @@ class Notifier:
     def error(self, message: str, hint: str = "", *, client: viser.ClientHandle | None = None
               ) -> None:
         """A failure: red, stays until closed, with the next step to take."""
-        body = message if not hint else f"{message}\n\nWhat to do: {hint}"
-        body += "\n\nNothing you did was lost."
+        parts = [_sentence(message)] + ([f"What to do: {_sentence(hint)}"] if hint else [])
+        body = " ".join(parts + ["Nothing you did was lost."])
         self._show("Could not do that", body, color="red", auto_close=None, client=client)
         self._status("error", message + (f" - {hint}" if hint else ""))
 
-    def notice(self, message: str, *, client: viser.ClientHandle | None = None) -> None:
-        self._show("Note", message, color="blue", auto_close=10.0, client=client)
+    def notice(self, message: str, *, client: viser.ClientHandle | None = None,
+               key: str | None = None) -> None:
+        """Information; with a `key`, it replaces the previous notice of that key."""
+        self._show("Note", message, color="blue", auto_close=10.0, client=client, key=key)
         self._status("notice", message)
 
     def success(self, message: str, *, client: viser.ClientHandle | None = None) -> None:
@@ -61,11 +66,22 @@ class Notifier:
             self.on_message(kind, text)
 
     def _show(self, title: str, body: str, *, color: str, auto_close: float | None,
-              client: viser.ClientHandle | None) -> None:
+              client: viser.ClientHandle | None, key: str | None = None) -> None:
         clients = [client] if client is not None else list(self._server.get_clients().values())
         for c in clients:
             try:
-                c.add_notification(title, body, color=color,  # type: ignore[arg-type]
-                                   auto_close_seconds=auto_close, with_close_button=True)
+                if key is not None:
+                    old = self._keyed.pop((key, c.client_id), None)
+                    if old is not None and not old._impl.removed:  # noqa: SLF001
+                        old.remove()
+                h = c.add_notification(title, body, color=color,  # type: ignore[arg-type]
+                                       auto_close_seconds=auto_close, with_close_button=True)
+                if key is not None:
+                    self._keyed[(key, c.client_id)] = h
             except Exception:  # noqa: BLE001 - a closing tab must not break the others
                 log.debug("notification to a closing client failed", exc_info=True)
+
+
+def _sentence(text: str) -> str:
+    text = str(text).strip()
+    return text if text.endswith((".", "!", "?")) else text + "."

@@ -143,6 +143,7 @@ def test_thesis_scenario_in_the_browser_equals_the_script(cellteach_serve, open_
     ui.shot("6-collision")
     ui.wait_enabled("Next", timeout=LONG_MS)
     ui.shot("6-executed")
+    assert not ui.errors(), ui.errors()  # the execution ended with a verified plan
     ui.click("Next")
     ui.step("7")
     ui.choose("Robot language", "Mitsubishi MELFA BASIC IV")

@@ -107,6 +107,11 @@ class UI:
         if result != "ok":
             raise AssertionError(f"waiting for {name!r}: the page shows {result}")
 
+    def errors(self) -> list[str]:
+        """The error notifications on screen now."""
+        loc = self.page.locator(".mantine-Notification-root", has_text="Could not do that")
+        return [t.strip() for t in loc.all_inner_texts()]
+
     def shot(self, name: str) -> Path:
         self.shots.mkdir(parents=True, exist_ok=True)
         self._n += 1
