@@ -88,7 +88,7 @@ class App:
         with self._swap_lock:
             old = self._session
             self.pump.detach()
-            old.stop_pointer()
+            old.close()  # its robot, link and cameras stop with it
             self._session = new
             self.pump.attach(new.bus)
         self.refresh()
@@ -145,8 +145,9 @@ class App:
         return self.pump.wait_idle(timeout)
 
     def stop(self) -> None:
+        """Stop the page; the robot, link and cameras of the session stop too."""
         self.pump.stop()
-        self._session.stop_pointer()
+        self._session.close()
         self.server.stop()
 
 

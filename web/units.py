@@ -29,6 +29,20 @@ def point_from_mm(xyz_mm: tuple[float, ...]) -> Array:
     return p / 1000.0
 
 
+def point_or_name(text: str, names: set[str]) -> Array | str:
+    """A taught location's name, or "x y z" / "x, y, z" in mm (-> metres)."""
+    t = text.strip()
+    if t in names:
+        return t
+    parts = t.replace(",", " ").replace(";", " ").split()
+    try:
+        return point_from_mm(tuple(float(v) for v in parts))
+    except ValueError:
+        known = ", ".join(sorted(names)) or "none yet"
+        raise ValueError(f"{t!r} is neither a taught location ({known}) nor three numbers "
+                         "in mm") from None
+
+
 def wxyz_position(T: Array) -> tuple[Array, Array]:
     """A viser node pose (quaternion w, x, y, z and position) from a 4x4 transform."""
     T = np.asarray(T, float)

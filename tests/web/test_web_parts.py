@@ -176,3 +176,39 @@ def test_the_tcp_gizmo_jogs_by_ik_and_says_when_it_turned_the_pose():
         assert np.allclose(shown, reached, atol=1e-6)
     finally:
         app.stop()
+
+
+def test_a_frame_calibrated_from_three_taught_points_places_parts_in_it():
+    from web import serve
+
+    session = Session()
+    session.fire("next")
+    session.add_primitive("box", (0.1, 0.1, 0.02), name="plate")
+    session.goto("teach.locations")
+    down = np.diag([1.0, -1.0, -1.0])
+    for name, p in (("A", (0.25, -0.05, 0.15)), ("B", (0.32, -0.05, 0.15)),
+                    ("C", (0.25, 0.05, 0.15))):
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = down, p
+        session.teach(name, T)
+    session.goto("place.objects")
+    app = serve(session, port=0)
+    try:
+        app.wait_idle(10)
+        place = app.panels["Place objects"]
+        place.frame_name.value = "pallet"
+        place.f_origin.value, place.f_x.value = "A", "B"
+        place.f_xy.value = "250 50 150"  # typed in mm works as well as a location name
+        place._calibrate()
+        assert app.wait_idle(10)
+        assert "pallet" in session.cell.frames
+        assert "pallet" in app.scene_layers.frames._nodes
+        assert "pallet" in place.relative.options
+        place.pick.value = "plate"
+        place.relative.value = "pallet"
+        place.xyz.value, place.abc.value = (50.0, 50.0, 10.0), (0.0, 0.0, 0.0)
+        place._place()
+        assert np.allclose(session.cell.objects["plate"].T_world_object[:3, 3],
+                           [0.30, 0.0, 0.16], atol=1e-9)
+    finally:
+        app.stop()

@@ -14,6 +14,7 @@ from web.panels.base import Panel
 DIALECT_LABELS = {"melfa": "Mitsubishi MELFA BASIC IV", "krl": "KUKA KRL",
                   "rapid": "ABB RAPID", "urscript": "Universal Robots URScript"}
 PREVIEW_LINES = 400
+BASE = "robot base"
 
 
 def preview_markdown(result: Any) -> str:
@@ -36,6 +37,9 @@ class ExportPanel(Panel):
         g = self.gui
         self.dialect = g.add_dropdown("Robot language",
                                       tuple(DIALECT_LABELS.get(d, d) for d in DIALECT_NAMES))
+        self.frame = g.add_dropdown("Positions in", (BASE,),
+                                    hint="The robot base, or a calibrated frame (KRL $BASE, "
+                                         "RAPID wobj, URScript pose_trans, ...)")
         self.write = g.add_button("Write program", icon=viser.Icon.FILE_CODE)
         self.summary = g.add_markdown("")
         self.download = g.add_button("Download", icon=viser.Icon.DOWNLOAD, disabled=True,
@@ -50,7 +54,8 @@ class ExportPanel(Panel):
                     self.dialect.value)
 
     def _write(self) -> None:
-        self.session.export(self._dialect())
+        frame = None if self.frame.value == BASE else self.frame.value
+        self.session.export(self._dialect(), frame=frame)
 
     def _download(self, event: viser.GuiEvent) -> None:
         result = self.session.program
@@ -61,6 +66,9 @@ class ExportPanel(Panel):
 
     def refresh(self) -> None:
         s = self.session
+        frames = (BASE, *s.cell.frames)
+        if tuple(self.frame.options) != frames:
+            self.frame.options = frames
         result = s.program
         self.write.disabled = s.trajectory is None or s.machine.mode.value != "idle"
         self.download.disabled = result is None

@@ -3,6 +3,8 @@ the gripper actions before and after; reorder and delete them."""
 
 from __future__ import annotations
 
+import numpy as np
+
 from assistant.motion import ToolAction, ToolActionKind
 from assistant.session.events import Event, SceneChanged, StateChanged
 from web.panels.base import Panel
@@ -42,6 +44,17 @@ class PathsPanel(Panel):
         self.after = g.add_dropdown("After", tuple(ACTIONS), initial_value="open the gripper")
         self.speed = g.add_number("Speed (mm/s)", 50.0, min=1.0, max=2000.0, step=1.0)
         self.add = g.add_button("Add path")
+        with g.add_folder("Pen drawing on a frame", expand_by_default=False):
+            g.add_markdown("One of the cell's drawings (1-3 frames, 4-6 keyboards, 7-9 screens) "
+                           "as chained Bezier curves on a calibrated frame (step 3.1).")
+            self.d_name = g.add_text("Drawing name", "DRAW1")
+            self.d_frame = g.add_dropdown("On frame", ("-",))
+            self.d_number = g.add_number("Drawing", 1, min=1, max=9, step=1)
+            self.d_at = g.add_vector2("At (mm)", (0.0, 0.0), step=1.0,
+                                      hint="Where the drawing's origin goes in the frame")
+            self.d_angle = g.add_number("Turned (deg)", 0.0, step=1.0)
+            self.d_lift = g.add_number("Pen lift (mm)", 30.0, min=1.0, max=200.0, step=1.0)
+            self.add_drawing = g.add_button("Add drawing")
         with g.add_folder("Mission"):
             self.table = g.add_markdown("")
             self.pick = g.add_dropdown("Path", ("-",))
@@ -51,6 +64,7 @@ class PathsPanel(Panel):
             self.set_actions = g.add_button("Use the Before/After above")
             self.delete = g.add_button("Delete path", color="red")
         self.bind(self.add, lambda e: self._add())
+        self.bind(self.add_drawing, lambda e: self._add_drawing())
         self.bind(self.order_btn, lambda e: self._order(e.client))
         self.bind(self.up, lambda e: self._move(-1))
         self.bind(self.down, lambda e: self._move(+1))
@@ -68,6 +82,16 @@ class PathsPanel(Panel):
         names = self.session.order_mission()
         self.app.notifier.success("Paths in the order the robot will run them: "
                                   + ", ".join(names), client=client)  # type: ignore[arg-type]
+
+    def _add_drawing(self) -> None:
+        at = tuple(v / 1000.0 for v in self.d_at.value)
+        self.session.add_drawing(self.d_name.value.strip(), self.d_frame.value,
+                                 int(self.d_number.value), at=at,  # type: ignore[arg-type]
+                                 angle=float(np.radians(self.d_angle.value)),
+                                 lift=float(self.d_lift.value) / 1000.0,
+                                 before=ACTIONS[self.before.value],
+                                 after=ACTIONS[self.after.value],
+                                 speed=float(self.speed.value) / 1000.0)
 
     def _move(self, delta: int) -> None:
         names = [p.name for p in self.session.mission.paths]
@@ -90,6 +114,10 @@ class PathsPanel(Panel):
         else:
             lines.append("\n*No application paths yet.*")
         self.table.content = "\n".join(lines)
+        frames = tuple(s.cell.frames) or ("-",)
+        if tuple(self.d_frame.options) != frames:
+            self.d_frame.options = frames
+        self.add_drawing.disabled = not s.cell.frames
         names = tuple(p.name for p in m.paths) or ("-",)
         if tuple(self.pick.options) != names:
             self.pick.options = names
@@ -104,6 +132,7 @@ class PathsPanel(Panel):
             self.name.value = f"L{k}"
 
     def on_event(self, ev: Event) -> None:
-        if isinstance(ev, SceneChanged) and ev.what in ("mission", "locations", "all") or \
+        if isinstance(ev, SceneChanged) and ev.what in ("mission", "locations", "frames",
+                                                        "all") or \
                 isinstance(ev, StateChanged):
             self.refresh()

@@ -7,8 +7,11 @@ import numpy as np
 import viser
 
 from assistant.session.events import Event, SceneChanged, StateChanged
+from assistant.transforms import inv_T
 from web.panels.base import Panel
-from web.units import fmt_mm, pose_fields, pose_from_fields
+from web.units import fmt_mm, point_or_name, pose_fields, pose_from_fields
+
+WORLD = "world"
 
 
 class PlacePanel(Panel):
@@ -19,6 +22,8 @@ class PlacePanel(Panel):
         g = self.gui
         g.add_markdown("Choose a part, then type its pose or drag the gizmo in the scene.")
         self.pick = g.add_dropdown("Part", ("-",))
+        self.relative = g.add_dropdown("Relative to", (WORLD,),
+                                       hint="Type the pose in the world or in a named frame")
         self.where = g.add_markdown("")
         self.xyz = g.add_vector3("Position (mm)", (0.0, 0.0, 0.0), step=0.1)
         self.abc = g.add_vector3("A, B, C (deg)", (0.0, 0.0, 0.0), step=0.1,
@@ -36,8 +41,20 @@ class PlacePanel(Panel):
             self.clear_pairs = g.add_button("Clear pairs")
             self.fit = g.add_button("Fit pose")
             self.fit_report = g.add_markdown("")
+        with g.add_folder("Frames (3-point calibration)", expand_by_default=False):
+            g.add_markdown("Name a frame and give three measured points - taught locations "
+                           "(e.g. the tool touched to the pallet) or x y z in mm: the origin, "
+                           "a point on +x, a point in the XY plane on the +y side.")
+            self.frame_name = g.add_text("Frame name", "pallet")
+            self.f_origin = g.add_text("Origin", "")
+            self.f_x = g.add_text("On +x", "")
+            self.f_xy = g.add_text("In XY (+y side)", "")
+            self.calibrate = g.add_button("Calibrate frame")
+            self.frames_md = g.add_markdown("")
         self.pairs: list[tuple[np.ndarray, np.ndarray]] = []
         self.pick.on_update(lambda e: self._show_pose())
+        self.relative.on_update(lambda e: self._show_pose())
+        self.bind(self.calibrate, lambda e: self._calibrate())
         self.gizmo.on_update(lambda e: self._sync_gizmo())
         self.bind(self.apply, lambda e: self._place())
         self.bind(self.measure, lambda e: self._measure())
@@ -48,9 +65,22 @@ class PlacePanel(Panel):
         self.app.scene_layers.objects.click_handlers.append(self._clicked)
 
     # ------------------------------------------------------------------ actions
+    def _frame(self) -> str | None:
+        v = self.relative.value
+        return None if v == WORLD or v not in self.session.cell.frames else v
+
     def _place(self) -> None:
         T = pose_from_fields(self.xyz.value, self.abc.value)
-        self.session.place_object(self.pick.value, T)
+        frame = self._frame()
+        if frame is None:
+            self.session.place_object(self.pick.value, T)
+        else:
+            self.session.place_object_in_frame(self.pick.value, frame, T)
+
+    def _calibrate(self) -> None:
+        pts = [point_or_name(box.value, set(self.session.locations))
+               for box in (self.f_origin, self.f_x, self.f_xy)]
+        self.session.calibrate_frame(self.frame_name.value.strip(), *pts)
 
     def _gizmo_released(self, name: str, T: np.ndarray, ev: viser.TransformControlsEvent
                         ) -> None:
@@ -97,13 +127,17 @@ class PlacePanel(Panel):
 
     def _show_pose(self) -> None:
         obj = self.session.cell.objects.get(self.pick.value)
+        frame = self._frame()
         if obj is not None:
-            xyz, abc = pose_fields(obj.T_world_object)
+            T = obj.T_world_object if frame is None else \
+                inv_T(np.asarray(self.session.cell.frames[frame])) @ obj.T_world_object
+            xyz, abc = pose_fields(T)
             self.xyz.value, self.abc.value = xyz, abc
             # Written after the fields: once this line shows, the fields are the part's.
+            rel = "" if frame is None else f" in {frame}"
             self.where.content = (f"<small>{obj.name} is at ({xyz[0]:g}, {xyz[1]:g}, "
                                   f"{xyz[2]:g}) mm, A B C ({abc[0]:g}, {abc[1]:g}, "
-                                  f"{abc[2]:g}) deg</small>")
+                                  f"{abc[2]:g}) deg{rel}</small>")
         else:
             self.where.content = ""
         self._sync_gizmo()
@@ -114,6 +148,11 @@ class PlacePanel(Panel):
         self.app.scene_layers.objects.show_gizmo(self.pick.value if on else None)
 
     def refresh(self) -> None:
+        frames = (WORLD, *self.session.cell.frames)
+        if tuple(self.relative.options) != frames:
+            self.relative.options = frames
+        self.frames_md.content = "" if len(frames) == 1 else \
+            "<small>Frames: " + ", ".join(frames[1:]) + "</small>"
         names = tuple(self.session.cell.objects) or ("-",)
         if tuple(self.pick.options) != names:
             self.pick.options = names
@@ -126,7 +165,7 @@ class PlacePanel(Panel):
         self._sync_gizmo()
 
     def on_event(self, ev: Event) -> None:
-        if isinstance(ev, SceneChanged) and ev.what in ("objects", "all") or \
+        if isinstance(ev, SceneChanged) and ev.what in ("objects", "frames", "all") or \
                 isinstance(ev, StateChanged):
             self.refresh()
 

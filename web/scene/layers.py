@@ -6,6 +6,7 @@ from typing import TYPE_CHECKING
 
 from assistant.session.events import Event
 from web.scene.base import Layer
+from web.scene.frames import FramesLayer
 from web.scene.locations import LocationsLayer
 from web.scene.objects import ObjectsLayer
 from web.scene.paths import PathsLayer
@@ -29,12 +30,13 @@ class SceneLayers:
         self.robot = RobotLayer(app)
         self.objects = ObjectsLayer(app)
         self.locations = LocationsLayer(app)
+        self.frames = FramesLayer(app)
         self.paths = PathsLayer(app)
         self.world = WorldLayer(app)
         self.plan = PlanLayer(app)
         self.pointer = PointerLayer(app)
-        self.all: tuple[Layer, ...] = (self.robot, self.objects, self.locations, self.paths,
-                                       self.world, self.plan, self.pointer)
+        self.all: tuple[Layer, ...] = (self.robot, self.objects, self.locations, self.frames,
+                                       self.paths, self.world, self.plan, self.pointer)
 
     def refresh(self) -> None:
         for layer in self.all:
