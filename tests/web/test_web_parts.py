@@ -212,3 +212,34 @@ def test_a_frame_calibrated_from_three_taught_points_places_parts_in_it():
                            [0.30, 0.0, 0.16], atol=1e-9)
     finally:
         app.stop()
+
+
+def test_clicking_a_part_in_click_mode_teaches_the_surface_point():
+    """viser reports the click ray; the page finds the surface point and the session teaches
+    it with the tool against the surface."""
+    from web import serve
+
+    session = Session()
+    session.fire("next")
+    T = np.eye(4)
+    T[:3, 3] = (0.30, 0.0, 0.05)
+    session.add_primitive("box", (0.1, 0.1, 0.1), name="crate", T_world_object=T)
+    session.goto("teach.locations")
+    app = serve(session, port=0)
+    try:
+        app.wait_idle(10)
+        teach = app.panels["Teach locations"]
+        teach.name.value = "TOP"
+        client = SimpleNamespace(add_notification=lambda *a, **k: None)
+        click = SimpleNamespace(client=client, ray_origin=(0.31, 0.01, 1.0),
+                                ray_direction=(0.0, 0.0, -1.0))
+        app.scene_layers.objects._clicked("crate", click)  # click mode off: nothing
+        assert "TOP" not in session.locations
+        teach.click_mode.value = True
+        app.scene_layers.objects._clicked("crate", click)
+        loc = session.locations["TOP"]
+        assert loc.source.value == "cad_click"
+        assert np.allclose(loc.position, [0.31, 0.01, 0.10], atol=1e-6)
+        assert np.allclose(loc.T_world_tool[:3, 2], [0, 0, -1], atol=1e-6)  # tool down
+    finally:
+        app.stop()
