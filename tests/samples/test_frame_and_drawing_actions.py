@@ -189,3 +189,22 @@ def test_bezier_chains_are_planned_as_splines_for_a_dialect_that_writes_them(ses
     assert s._planner_config().application.bezier_mode == BezierMode.SPLINE
     s.export_dialect = "rapid"
     assert s._planner_config().application.bezier_mode == BezierMode.LINEAR
+
+
+def test_the_action_after_a_scripted_jog_is_never_refused_as_moving(tmp_path):
+    """The worker resolves a long action's future before it ends the moving mode; a script
+    must wait for that (here: jog, then teach from the robot pose, 30 times)."""
+    s = Session.from_sample("thesis_rv2aj", None, with_objects=False, with_mission=False)
+    s.next()
+    s.add_primitive("box", (0.1, 0.1, 0.1), T_world_object=pose_from_mm_deg([0, 300, 50, 0,
+                                                                              0, 0]))
+    s.next()
+    lines = []
+    for i in range(30):
+        lines.append(f"  - jog: {{joints_deg: [{-10 * (i % 2)}, 20, 60, 0, 0]}}\n")
+        lines.append(f"  - teach_robot: T{i}\n")
+    script = tmp_path / "jogs.yaml"
+    script.write_text("actions:\n" + "".join(lines))
+    for a in parse_script(script).actions:
+        run_action(s, a, tmp_path, script)
+    assert len(s.locations) == 30
