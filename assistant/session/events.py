@@ -67,6 +67,15 @@ class ProgramReady(Event):
 
 
 @dataclass(frozen=True)
+class ExecutionFinished(Event):
+    """A robot run (execute, resume, explore) ended; `resumable` after a lost link or stop."""
+
+    ok: bool
+    summary: dict = field(default_factory=dict)
+    resumable: bool = False
+
+
+@dataclass(frozen=True)
 class ErrorRaised(Event):
     """Something the operator asked for failed; `hint` says what to do next."""
 

@@ -45,6 +45,7 @@ from assistant.session.events import (
     CollisionRecorded,
     ErrorRaised,
     EventBus,
+    ExecutionFinished,
     Notice,
     PlanReady,
     ProgramReady,
@@ -208,10 +209,14 @@ class Session:
     def _action(self, label: str, steps: tuple[str, ...] | None, *, undoable: bool = True,
                 scene: str = "", count: bool = True) -> Iterator[None]:
         with self._lock:
-            if steps is not None:
-                self.machine.require(steps, label)
-            elif self.machine.mode not in (Mode.IDLE,):
-                self.machine.require((self.machine.main,), label)
+            try:
+                if steps is not None:
+                    self.machine.require(steps, label)
+                elif self.machine.mode not in (Mode.IDLE,):
+                    self.machine.require((self.machine.main,), label)
+            except TransitionRefused as exc:
+                self._error(str(exc))
+                raise
             before = self.document()
             mission_before = self.mission
             try:
@@ -221,7 +226,7 @@ class Session:
             except Exception as exc:
                 mission = before.restore(self.cell, self.locations)
                 self.mission = mission if mission_before is not None else Mission()
-                self._error(f"{label}: {exc}", _hint_for(exc))
+                self._error(f"{label}: {exc}", hint_for(exc))
                 raise
             if undoable:
                 self.history.record(label, before)
@@ -631,6 +636,12 @@ class Session:
                                  f"({p[0]:.1f}, {p[1]:.1f}, {p[2]:.1f}) mm "
                                  f"+- {state.taught.uncertainty * 1000:.1f} mm"))
 
+    def pointer_state(self) -> Any:
+        """The last `vision.PointerState` of the live pointer (None when it is not running):
+        camera views with frames and detections for the UI."""
+        p = self._pointer
+        return None if p is None else p.last_state
+
     def teach_pending_point(self, name: str) -> Location:
         """Teach the last point the pointer dwell produced."""
         tp = self.pending_point
@@ -858,7 +869,7 @@ class Session:
                 self.machine.end_mode()
                 exc = fut.exception()
                 if exc is not None and not isinstance(exc, Cancelled):
-                    self._error(f"{task}: {exc}", _hint_for(exc))
+                    self._error(f"{task}: {exc}", hint_for(exc))
                 self._autosave()
             self._emit_state()
 
@@ -926,7 +937,7 @@ class Session:
                 self.machine.end_mode()
                 exc = fut.exception()
                 if exc is not None and not isinstance(exc, Cancelled):
-                    self._error(f"{task}: {exc}", _hint_for(exc))
+                    self._error(f"{task}: {exc}", hint_for(exc))
                 elif isinstance(exc, Cancelled):
                     self.bus.emit(Notice(f"{task} cancelled; nothing was lost"))
                 self._autosave()
@@ -1087,6 +1098,7 @@ class Session:
                    "backoffs": report.backoffs, "executed_tcp_length_m":
                    report.executed_tcp_length, "median_replan_s": report.median_replan_seconds,
                    "seconds": seconds, "resumable": report.resumable}
+        self.bus.emit(ExecutionFinished(report.ok, dict(summary), report.resumable))
         if report.ok and self.plan_report is not None:
             self.bus.emit(PlanReady(dict(self.plan_report)))
         elif not report.ok:
@@ -1235,6 +1247,16 @@ class Session:
         self.bus.emit(ProgramReady(d.name, tuple(f.name for f in result.files)))
         return result
 
+    def upload_program(self) -> str:
+        """Send the exported program to the robot controller; returns its name there."""
+        with self._action("upload the program", ("export",), undoable=False):
+            if self.program is None:
+                raise SessionError("Export the program first")
+            files = {f.name: f.data for f in self.program.files}
+            name = self.link().upload_program(self.program.files[0].name.split(".")[0], files)
+        self.bus.emit(Notice(f"program uploaded to the robot as {name}"))
+        return name
+
     # ================================================================== samples
     @staticmethod
     def from_sample(name_or_path: str | Path = "thesis_rv2aj", folder: str | Path | None = None,
@@ -1305,6 +1327,14 @@ class Session:
             }
             write_json_atomic(folder / SESSION_JSON, doc)
         return folder
+
+    def save_as(self, folder: str | Path) -> Path:
+        """Save to a new folder and autosave there from now on."""
+        folder = Path(folder)
+        with self._lock:
+            self.folder = folder
+            self.autosave_enabled = True
+            return self.save(folder)
 
     @staticmethod
     def load(folder: str | Path, *, autosave: bool = True) -> Session:
@@ -1386,7 +1416,8 @@ def _arc_points(a: Array, v: Array, b: Array, n: int = 48) -> Array:
     return c + r * (np.outer(np.cos(t), e1) + np.outer(np.sin(t), e2))
 
 
-def _hint_for(exc: BaseException) -> str:
+def hint_for(exc: BaseException) -> str:
+    """What the operator can do about a failed action (shown under the error)."""
     if isinstance(exc, UnreachableError):
         return "Move the point closer to the robot or change the tool orientation."
     if isinstance(exc, CellError):
