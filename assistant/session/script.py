@@ -186,7 +186,8 @@ def _add_drawing(s: Session, a: dict) -> Any:
                          lift=float(a.get("lift_mm", 30.0)) / 1000.0,
                          before=_actions(a.get("before")), after=_actions(a.get("after")),
                          speed=float(a.get("speed_mm_s", 50.0)) / 1000.0,
-                         reversible=bool(a.get("reversible", False)))
+                         reversible=bool(a.get("reversible", False)),
+                         tool_angle=float(np.radians(float(a.get("tool_angle_deg", 0.0)))))
 
 
 def _jog(s: Session, a: dict) -> Any:
@@ -262,7 +263,7 @@ ARGS: dict[str, set[str]] = {
     "add_path": {"name", "line", "arc", "bezier", "before", "after", "speed_mm_s",
                  "reversible"},
     "add_drawing": {"name", "frame", "drawing", "points", "at", "angle_deg", "lift_mm",
-                    "before", "after", "speed_mm_s", "reversible"},
+                    "before", "after", "speed_mm_s", "reversible", "tool_angle_deg"},
     "remove_path": {"name"},
     "move_path": {"name", "index"},
     "jog": {"joints_deg", "pose"},

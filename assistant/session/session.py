@@ -785,7 +785,7 @@ class Session:
                     at: tuple[float, float] = (0.0, 0.0), angle: float = 0.0,
                     lift: float = 0.03, before: list[ToolAction] = (),
                     after: list[ToolAction] = (), speed: float = 0.05,
-                    reversible: bool = False) -> ApplicationPath:
+                    reversible: bool = False, tool_angle: float = 0.0) -> ApplicationPath:
         """A pen drawing on a frame's XY plane as one application path: a line down to the
         paper (`lift` metres along the frame's -z), the chained cubic Bezier segments, a line
         back up; the pen stays perpendicular to the paper (tool z = -frame z).
@@ -798,6 +798,9 @@ class Session:
             at: where the drawing's origin goes on the frame's XY plane (metres).
             angle: rotation of the drawing about the frame's z axis (rad).
             lift: approach and retreat height above the paper (m, > 0).
+            tool_angle: the pen's turn about its own axis (rad; 0: tool x along the
+                drawing's x). A pen draws the same either way; the wrist may not (e.g. a
+                6-axis arm's last joint near its limit).
         """
         from dataclasses import replace
 
@@ -807,7 +810,7 @@ class Session:
                 raise SessionError(f"a path named {name!r} exists already")
             path = drawing_path(name, self._frame(frame), _drawing_control(drawing),
                                 at=at, angle=angle, lift=lift, before=before, after=after,
-                                speed=speed, reversible=reversible)
+                                speed=speed, reversible=reversible, tool_angle=tool_angle)
             self.mission = replace(self.mission, paths=[*self.mission.paths, path], order=None)
         return path
 
@@ -1551,7 +1554,8 @@ def _drawing_control(drawing: int | Array) -> Array:
 def drawing_path(name: str, T_world_frame: Array, control: Array, *,
                  at: tuple[float, float] = (0.0, 0.0), angle: float = 0.0, lift: float = 0.03,
                  before: list[ToolAction] = (), after: list[ToolAction] = (),
-                 speed: float = 0.05, reversible: bool = False) -> ApplicationPath:
+                 speed: float = 0.05, reversible: bool = False,
+                 tool_angle: float = 0.0) -> ApplicationPath:
     """The application path of a pen drawing on a frame's XY plane (see
     `Session.add_drawing`); `control` holds 1 + 3k points, 2-D (or 3-D) metres."""
     if not lift > 0.0:
@@ -1569,8 +1573,11 @@ def drawing_path(name: str, T_world_frame: Array, control: Array, *,
     segs = [PathSegment(SegmentKind.LINE, (W[0] + up, W[0].copy()))]
     segs += [PathSegment(SegmentKind.BEZIER, tuple(W[i:i + 4])) for i in range(0, len(W) - 1, 3)]
     segs.append(PathSegment(SegmentKind.LINE, (W[-1].copy(), W[-1] + up)))
-    # The pen points into the paper: tool z = -frame z, tool x along the drawing's x.
-    R_world_tool = T[:3, :3] @ np.diag([1.0, -1.0, -1.0])
+    # The pen points into the paper: tool z = -frame z, tool x along the drawing's x turned
+    # by tool_angle about the pen.
+    ct, st = np.cos(tool_angle), np.sin(tool_angle)
+    R_turn = np.array([[ct, -st, 0.0], [st, ct, 0.0], [0.0, 0.0, 1.0]])
+    R_world_tool = T[:3, :3] @ R_turn @ np.diag([1.0, -1.0, -1.0])
     return ApplicationPath(name, segs, R_world_tool, list(before), list(after), float(speed),
                            bool(reversible))
 

@@ -83,8 +83,10 @@ PEN_HOLDER_MM_DEG = (60.0, -150.0, 0.0, 0.0, 0.0, 0.0)
 #: lower-left corner, a point 200 mm along x, a point 200 mm along y.
 PAPER_ORIGIN_MM = (-120.0, -120.0)
 CALIBRATION_POINTS_MM = ((0.0, 0.0), (200.0, 0.0), (0.0, 200.0))
-#: HOME: pen down, above the pallet.
-HOME_MM_DEG = (300.0, 0.0, 250.0, 0.0, 0.0, 180.0)
+#: HOME: pen down, above the pallet; the pen turned so that A6 is near 0 (with A6 near
+#: +-180 deg one name could stand for two postures). The drawings turn the pen alike.
+HOME_MM_DEG = (300.0, 0.0, 250.0, 180.0, 0.0, 180.0)
+PEN_TURN = np.pi
 #: The drawings (source 000's numbering) and where their origin goes on the paper (mm).
 DRAWINGS = (("FRAME1", 1, (120.0, 120.0)), ("SCREEN8", 8, (120.0, 120.0)),
             ("KEYS4", 4, (120.0, 120.0)))
@@ -242,7 +244,8 @@ def make_cell(out: Path = HERE) -> Cell:
 def make_mission() -> Mission:
     home = Location("HOME", pose_from_mm_deg(np.array(HOME_MM_DEG)))
     paths = [drawing_path(name, T_world_paper(), _drawing_control(number),
-                          at=(x / 1000, y / 1000), lift=PEN_LIFT, speed=DRAW_SPEED)
+                          at=(x / 1000, y / 1000), lift=PEN_LIFT, speed=DRAW_SPEED,
+                          tool_angle=PEN_TURN)
              for name, number, (x, y) in DRAWINGS]
     return Mission(home, home, paths)
 

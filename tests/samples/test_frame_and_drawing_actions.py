@@ -152,7 +152,7 @@ def test_script_verbs_take_mm_and_names(session, tmp_path):
         "  - place_in_frame: {object: pallet, frame: PAL, pose: [150, 100, -20, 0, 0, 0]}\n"
         "  - goto: teach.paths\n"
         "  - add_drawing: {name: KEYS, frame: PAL, drawing: 4, at: [100, 100], lift_mm: 30,\n"
-        "                  speed_mm_s: 80, after: [{wait_s: 0.5}]}\n"
+        "                  speed_mm_s: 80, after: [{wait_s: 0.5}], tool_angle_deg: 180}\n"
         "  - add_drawing: {name: V, frame: PAL, points: [[0, 0], [10, 0], [20, 10], [30, 30]]}\n")
     for a in parse_script(script).actions:
         run_action(session, a, tmp_path, script)
@@ -162,6 +162,10 @@ def test_script_verbs_take_mm_and_names(session, tmp_path):
                                (T @ [0.15, 0.1, -0.02, 1.0])[:3])
     keys, v = session.mission.paths
     assert keys.speed == pytest.approx(0.08) and keys.actions_after[0].seconds == 0.5
+    # the pen turned half a turn about itself: tool x against the frame's x, still into it
+    np.testing.assert_allclose(keys.R_world_tool[:, 0], -T[:3, 0], atol=1e-12)
+    np.testing.assert_allclose(keys.R_world_tool[:, 2], -T[:3, 2], atol=1e-12)
+    np.testing.assert_allclose(v.R_world_tool[:, 0], T[:3, 0], atol=1e-12)
     assert len(v.segments) == 3 and v.segments[1].kind == SegmentKind.BEZIER
     np.testing.assert_allclose(v.segments[1].end, (T @ [0.03, 0.03, 0.0, 1.0])[:3])
 
