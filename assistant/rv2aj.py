@@ -345,6 +345,106 @@ class RV2AJ(Robot):
                 sols += _angle_variants(np.array([q1, q2, q3, q5, q6]), self.limits)
         return sols, reach_ok
 
+    def batch_position_ik(self, targets: Array, seeds: Array, reference: Array | None = None,
+                          *, gain: float = 0.5, max_jump: float = 0.25,
+                          pitch_window: float = np.radians(40.0),
+                          pitch_step: float = np.radians(1.0)) -> tuple[Array, Array] | None:
+        """Position-only IK next to seeds for many TCP points at once, in closed form.
+
+        Why: the elastic net asks this for every moved particle in every iteration. After
+        J1 the arm is planar, so with the tool on the flange axis a TCP point and a tool
+        pitch s = q2 + q3 + q5 fix the arm: J1 faces the point (the seed's side), the wrist
+        sits (L6 + tool) back along the pitch, and J2/J3 solve a two-link triangle on the
+        seed's elbow branch. The pitch is the position's free joint (J6 too, it does not
+        move an on-axis TCP): both are pulled `gain` of the way from the seed's towards the
+        reference's, like the null-space pull of a Newton step. If that pitch leaves the
+        limits or cannot reach, pitches up to `pitch_window` away are tried, nearest first,
+        all particles at once (no per-call Python scan).
+
+        Args:
+            targets: TCP points (N, 3), base frame.
+            seeds: the particles' current joints (N, 5): keeps their J1 side and elbow.
+            reference: joints (N, 5) the free joints are pulled towards (None: no pull).
+            gain: fraction of the pull (0 keeps the seed's pitch and J6).
+            max_jump: a solution farther than this (rad, any joint) from its seed is refused.
+            pitch_window, pitch_step: the pitch search around the pulled pitch (rad).
+
+        Returns:
+            (joints (N, 5), ok (N,)) with refused rows holding their seeds; None when the
+            tool's TCP is off the flange axis (the closed form above does not apply: the
+            caller uses a general method).
+        """
+        p_ft = self.T_flange_tool[:3, 3]
+        if abs(p_ft[0]) > 1e-12 or abs(p_ft[1]) > 1e-12:
+            return None
+        targets = np.atleast_2d(np.asarray(targets, dtype=float))
+        seeds = np.atleast_2d(np.asarray(seeds, dtype=float))
+        n = len(seeds)
+        s_seed = seeds[:, 1] + seeds[:, 2] + seeds[:, 3]
+        pitch = s_seed.copy()
+        q6 = seeds[:, 4].copy()
+        if reference is not None and gain > 0.0:
+            reference = np.atleast_2d(np.asarray(reference, dtype=float))
+            s_ref = reference[:, 1] + reference[:, 2] + reference[:, 3]
+            pitch += gain * _wrap(s_ref - s_seed)
+            q6 += gain * (reference[:, 4] - q6)
+        Q = seeds.copy()
+        ok = np.zeros(n, dtype=bool)
+        Q0, ok0 = self._planar_ik(targets, seeds, pitch[:, None], q6, float(p_ft[2]), max_jump)
+        ok0 = ok0[:, 0]
+        Q[ok0], ok[ok0] = Q0[ok0, 0], True
+        rest = np.nonzero(~ok)[0]
+        if len(rest) and pitch_window > 0.0:
+            k = np.arange(1, int(np.floor(pitch_window / pitch_step)) + 1) * pitch_step
+            offsets = np.stack([k, -k], axis=1).reshape(-1)  # +1, -1, +2, -2, ... steps
+            cand = pitch[rest, None] + offsets[None]
+            Qc, okc = self._planar_ik(targets[rest], seeds[rest], cand, q6[rest],
+                                      float(p_ft[2]), max_jump)
+            found = okc.any(axis=1)
+            first = np.argmax(okc, axis=1)
+            rows = rest[found]
+            Q[rows] = Qc[found, first[found]]
+            ok[rows] = True
+        return Q, ok
+
+    def _planar_ik(self, targets: Array, seeds: Array, pitch: Array, q6: Array,
+                   tool_length: float, max_jump: float) -> tuple[Array, Array]:
+        """Closed-form position IK for each row and each candidate pitch: (N, K, 5), (N, K).
+
+        A candidate is ok when reachable, inside the joint limits and within `max_jump` of
+        its seed in every joint; every angle is taken as the copy nearest the seed's.
+        """
+        n, k = pitch.shape
+        q1s = seeds[:, 0]
+        face = np.arctan2(targets[:, 1], targets[:, 0])
+        # J1 faces the point or turns away from it (reaching back): the seed's side.
+        a = q1s + _wrap(face - q1s)
+        b = q1s + _wrap(face + np.pi - q1s)
+        q1 = np.where(np.abs(a - q1s) <= np.abs(b - q1s), a, b)
+        r = targets[:, 0] * np.cos(q1) + targets[:, 1] * np.sin(q1)  # signed, in the plane
+        zt = targets[:, 2] - L1
+        le = L6 + tool_length
+        wr = r[:, None] - le * np.sin(pitch)
+        wz = zt[:, None] - le * np.cos(pitch)
+        D = (wr * wr + wz * wz - L2 * L2 - L3 * L3) / (2.0 * L2 * L3)
+        reach = np.abs(D) <= 1.0
+        ac = np.arccos(np.clip(D, -1.0, 1.0))
+        s3 = seeds[:, 2:3]
+        q3 = np.where(np.abs(ac - s3) <= np.abs(-ac - s3), ac, -ac)
+        q2 = np.arctan2(wr, wz) - np.arctan2(L3 * np.sin(q3), L2 + L3 * np.cos(q3))
+        q2 = seeds[:, 1:2] + _wrap(q2 - seeds[:, 1:2])
+        q5 = seeds[:, 3:4] + _wrap(pitch - q2 - q3 - seeds[:, 3:4])
+        Q = np.empty((n, k, 5))
+        Q[..., 0] = q1[:, None]
+        Q[..., 1] = q2
+        Q[..., 2] = q3
+        Q[..., 3] = q5
+        Q[..., 4] = q6[:, None]
+        lim = self.limits
+        ok = reach & np.all((Q >= lim.lower - 1e-9) & (Q <= lim.upper + 1e-9), axis=2)
+        ok &= np.abs(Q - seeds[:, None, :]).max(axis=2) <= max_jump
+        return Q, ok
+
     def _ik_position_only(self, p_target: Array, seed: Array | None) -> IKResult:
         """Any orientation: scan the approach pitch in the arm plane, keep solutions in limits.
 
@@ -440,3 +540,8 @@ def _dedupe(sols: list[Array]) -> list[Array]:
         if all(np.linalg.norm(q - o) > 1e-6 for o in out):
             out.append(q)
     return out
+
+
+def _wrap(a: Array) -> Array:
+    """Angles into [-pi, pi)."""
+    return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi

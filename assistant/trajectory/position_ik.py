@@ -75,6 +75,17 @@ class BatchPositionIK:
         n, dof = Q.shape
         if n == 0:
             return PositionIKResult(Q, np.zeros(0, dtype=bool), np.zeros(0))
+        fast = getattr(self.robot, "batch_position_ik", None)
+        if fast is not None:
+            out = fast(targets, seeds, reference, gain=p.nullspace_gain,
+                       max_jump=p.max_joint_jump)
+            if out is not None:
+                Q, ok = out
+                P = np.asarray(self.robot.batch_fk(Q).positions, dtype=float)
+                err = np.linalg.norm(targets - P, axis=1)
+                ok &= err <= p.tolerance * 10.0
+                Q[~ok] = seeds[~ok]
+                return PositionIKResult(Q, ok, err)
         lam2 = p.damping ** 2
         err = np.full(n, np.inf)
         active = np.ones(n, dtype=bool)
