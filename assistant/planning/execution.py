@@ -352,6 +352,13 @@ class MissionExecutor:
     def _drive_transfer(self, item: _Item, final: bool) -> None:
         cfg, rep = self.config, self.report
         path = item.piece.dense()
+        # Every posture driven on this transfer so far, over all its drives. The retreat
+        # after an indication may have to go back further than the current drive: if that
+        # drive never left the previous indication's box before meeting the next one, a
+        # retreat to its beginning would end inside that box, the re-plan would start there
+        # (exempt from it, to be able to leave) and could lead through the very same posture
+        # again - the robot would shuttle between two indications until the budget ends.
+        history: Array | None = None
         while True:
             ev = self._move(path, final)
             if ev.kind == LinkEventKind.REACHED:
@@ -366,7 +373,9 @@ class MissionExecutor:
                 raise _End(EndReason.REPLAN_BUDGET,
                            f"re-plan budget of {cfg.max_replans} used up at {item.piece.label}")
             rep.replans += 1
-            executed = self._executed(path, ev)
+            drive = self._executed(path, ev)
+            history = drive if history is None else np.concatenate([history, drive[1:]])
+            executed = history
             # retreat out of the indication's posture box, re-plan from there
             blocked = self.planner.world.near_recorded_collision(executed)
             i_r = retreat_index(executed, blocked)

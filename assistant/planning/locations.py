@@ -3,9 +3,9 @@
 The operator needs to know *which* location fails and *why*: out of reach, an orientation a
 5-axis arm cannot take (then the nearest reachable orientation is offered - never used
 silently), every arm configuration outside the limits, or every configuration colliding
-(and with what). Among valid solutions the one nearest the seed is taken: the configuration
-the location was taught with if known, else where the arm comes from, so transfers stay on
-one arm branch.
+(and with what). Among valid solutions the one nearest the seed is taken: the posture the
+robot was taught in if it was taught by driving the robot (`branch_hint`), else where the arm
+comes from turned to face the location, so transfers stay on one arm branch.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from enum import Enum
 import numpy as np
 
 from assistant.collision import CollisionChecker
+from assistant.mission import Location, LocationSource
 from assistant.robot_model import IKFailure, Robot
 from assistant.transforms import inv_T
 
@@ -60,6 +61,22 @@ def branch_seed(q_ref: Array, p_base: Array) -> Array:
     if np.hypot(p_base[0], p_base[1]) > 1e-6:
         q[0] = float(np.arctan2(p_base[1], p_base[0]))
     return q
+
+
+def branch_hint(location: Location) -> Array | None:
+    """The arm configuration to keep for a location, if it has one that means something.
+
+    A location taught by driving the robot there (`ROBOT_POSE`) carries the posture it was
+    taught in: that arm branch is the operator's choice and is kept. Typed, clicked and
+    pointer locations carry whatever IK solution was nearest the arm when they were taught
+    - for a point on the far side that can be the flipped branch (J1 + 180 deg, reaching
+    back over the shoulder), which turns every transfer to it into a swing over the robot.
+    For those the planner chooses the branch (`branch_seed`: where the arm comes from,
+    turned to face the location).
+    """
+    if location.source == LocationSource.ROBOT_POSE and location.q_hint is not None:
+        return np.asarray(location.q_hint, dtype=float)
+    return None
 
 
 def solve_location(robot: Robot, checker: CollisionChecker | None, name: str,

@@ -7,9 +7,10 @@ verified `Trajectory` (SPEC §6).
 
 Steps, each ending with a reason that names the failing piece:
 
-1. Locations: start and goal solved by IK (seeded: the taught configuration, else where the
-   arm is), refusing unreachable poses, 5-axis orientations (offering the projection) and
-   poses where every arm configuration collides (`locations`).
+1. Locations: start and goal solved by IK (seeded: the configuration the robot was taught
+   in, else where the arm comes from, facing the location), refusing unreachable poses,
+   5-axis orientations (offering the projection) and poses where every arm configuration
+   collides (`locations`).
 2. Application paths into motions (`trajectory.application_motions`), verified against the
    known world; reversible paths in both directions.
 3. Order (`trajectory.order_paths`): estimated TCP distances first, then measured ones - the
@@ -42,6 +43,7 @@ from assistant.planning.known_world import KnownValidity, KnownVerifier, WorldAl
 from assistant.planning.locations import (
     LocationError,
     SolvedLocation,
+    branch_hint,
     branch_seed,
     solve_location,
 )
@@ -187,15 +189,23 @@ class MissionPlanner:
         allowed = self.allowed()
         notes: list[str] = []
         asm: AssemblyResult | None = None
-        deadline = _Deadline(progress, cfg.smoothing_seconds)
+        deadline = _Deadline(progress, cfg.smoothing_safety_seconds)
         for k, params in enumerate(nets):
             try:
                 net = run_elastic_net(self.robot, joint_path, allowed=allowed,
                                       validity=validity, params=params,
                                       progress=deadline.sub(0.0, 0.8))
             except _TimeUp:
-                notes.append(f"smoothing budget of {cfg.smoothing_seconds:.1f} s used up")
-                break
+                # Never a shortcut to another answer: what the net would have given depends
+                # on its iteration budgets only, so running out of wall time is a failure.
+                why = (f"smoothing stopped by its safety limit of "
+                       f"{cfg.smoothing_safety_seconds:.0f} s of wall time (is the machine "
+                       "overloaded?); no trajectory is offered, as one cut short by time "
+                       "would depend on the machine's speed")
+                notes.append(why)
+                traj = _joint_moves(self.robot, joint_path, label, cfg.assembly)
+                rep = replace(verify(self.robot, traj, None).report, ok=False, reason=why)
+                return AssemblyResult(None, rep, traj), notes
             for tol in tolerances:
                 fit = fit_primitives(net.particles.points, replace(cfg.fit, tolerance=tol))
                 asm = assemble_trajectory(self.robot, fit, net.particles, self.verifier,
@@ -218,10 +228,7 @@ class MissionPlanner:
             if checked.ok:
                 notes.append("joint moves along the roadmap path (smoothing failed)")
             return checked, notes
-        if asm is None:  # out of time before anything was assembled
-            traj = _joint_moves(self.robot, joint_path, label, cfg.assembly)
-            return AssemblyResult(None, replace(verify(self.robot, traj, None).report, ok=False,
-                                                reason="; ".join(notes)), traj), notes
+        assert asm is not None  # every net was fitted and assembled at least once
         return asm, notes
 
     # ------------------------------------------------------------------ missions
@@ -254,7 +261,7 @@ class MissionPlanner:
             try:
                 s = solve_location(self.robot, self.checker, mission.start.name,
                                    mission.start.T_world_tool, T_wb, seed=q_cur,
-                                   q_hint=mission.start.q_hint)
+                                   q_hint=branch_hint(mission.start))
             except LocationError as exc:
                 return failed(f"start {exc.name}", "location", str(exc))
             start_label = mission.start.name
@@ -300,7 +307,7 @@ class MissionPlanner:
             try:
                 goal = solve_location(self.robot, self.checker, mission.goal.name,
                                       mission.goal.T_world_tool, T_wb, seed=gseed,
-                                      q_hint=mission.goal.q_hint)
+                                      q_hint=branch_hint(mission.goal))
             except LocationError as exc:
                 return failed(f"goal {exc.name}", "location", str(exc))
             locations[goal.name] = goal.q
@@ -328,7 +335,9 @@ class MissionPlanner:
         for k, (q_to, to_label, am, rev) in enumerate(steps):
             if time.perf_counter() - t0 > self.config.max_seconds:
                 return failed(f"{here_label} -> {to_label}", "transfer",
-                              f"planning budget of {self.config.max_seconds:.0f} s exhausted")
+                              f"planning stopped by its safety limit of "
+                              f"{self.config.max_seconds:.0f} s of wall time (is the machine "
+                              "overloaded?)")
             sub = progress.sub(0.2 + 0.75 * k / n_steps, 0.2 + 0.75 * (k + 1) / n_steps,
                                f"{here_label} -> {to_label}")
             if float(np.abs(q_to - here_q).max()) > 1e-9:
@@ -426,13 +435,17 @@ class MissionPlanner:
 
 
 class _TimeUp(Exception):
-    """The smoothing budget is used up (raised from the net's progress reports)."""
+    """The smoothing's wall-time safety limit is reached (raised from the net's progress)."""
 
 
 class _Deadline(Progress):
-    """Progress for the net that also ends it when its time is up (the net has iteration
-    caps, but its IK can be slow near joint limits); forwards to the caller's progress,
-    so a user's cancel still cancels."""
+    """Progress for the net that also ends it at a wall-time safety limit; forwards to the
+    caller's progress, so a user's cancel still cancels.
+
+    The net's result is decided by iteration budgets alone (the same operator actions must
+    give the same program on any machine, under any load); this limit only keeps a stuck
+    computation from hanging the session, and reaching it fails the transfer loudly.
+    """
 
     def __init__(self, parent: Progress | None, seconds: float):
         super().__init__(parent.task if parent is not None else "smoothing")
