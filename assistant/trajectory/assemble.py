@@ -150,16 +150,18 @@ def assemble_trajectory(
                  and nxt.kind == PrimitiveKind.LINE else 0.0)
         q_ref = np.asarray(particles.joints[prim.last_node], dtype=float)
         R_end = robot.fk(q_ref)[:3, :3]
-        motion, note = _cartesian_motion(robot, prim, current, R_end, q_ref, params, blend, k)
+        vias = np.asarray(particles.joints[prim.first_node + 1 : prim.last_node], dtype=float)
+        made, note = _cartesian_motion(robot, prim, current, R_end, q_ref, params, blend, k,
+                                       vias, verifier)
         if note:
             fallbacks.append(note)
-        if motion is None:
+        if not made:
             report = _report(robot, None, fit, fallbacks, False,
                              f"primitive {k + 1} ({prim.kind.value}) cannot be reached", None,
                              None)
             return AssemblyResult(None, report)
-        motions.append(motion)
-        current = motion.target
+        motions += made
+        current = made[-1].target
     traj = Trajectory(start, motions)
     return verify(robot, traj, verifier, max_deviation=fit.max_deviation,
                   fallbacks=tuple(fallbacks), clearance_step=params.clearance_step)
@@ -167,7 +169,15 @@ def assemble_trajectory(
 
 def _cartesian_motion(robot: Robot, prim: Primitive, current: Waypoint, R_end: Array,
                       q_ref: Array, params: AssemblyParams, blend: float, k: int,
-                      ) -> tuple[Motion | None, str]:
+                      vias: Array, verifier: PathVerifier | None,
+                      ) -> tuple[list[Motion], str]:
+    """The primitive as one LINEAR/CIRCULAR motion, or else as joint moves to its end.
+
+    The joint moves keep the particles' arm branch; a straight joint move that the verifier
+    refuses is split at the middle one of the net particles it covers (`vias`), recursively,
+    so the fallback follows the net (where the arm was checked) with as few moves as the
+    obstacles allow. Verification of the whole trajectory still follows.
+    """
     u, pts = sample_primitive(prim, params.step)
     R = slerp_rotations(current.T_base_tool[:3, :3], R_end, u)
     follow = follow_poses(robot, poses_from(pts, R), current.q,
@@ -181,8 +191,8 @@ def _cartesian_motion(robot: Robot, prim: Primitive, current: Waypoint, R_end: A
         if kind == MotionKind.CIRCULAR:
             m = len(u) // 2
             via = Waypoint(robot.fk(Q[m]), Q[m])
-        return Motion(kind, target, via=via, joint_path=Q, label=params.label,
-                      speed=params.speed, blend_radius=blend), ""
+        return [Motion(kind, target, via=via, joint_path=Q, label=params.label,
+                       speed=params.speed, blend_radius=blend)], ""
     # Fallback: a joint move to the primitive's end, keeping the particle's arm branch.
     T_end = np.eye(4)
     T_end[:3, :3], T_end[:3, 3] = R_end, prim.end
@@ -192,13 +202,32 @@ def _cartesian_motion(robot: Robot, prim: Primitive, current: Waypoint, R_end: A
     if not res.ok:
         res = robot.ik(T_end, q_ref, position_only=True)
     if not res.ok:
-        return None, f"primitive {k + 1}: end unreachable ({res.message})"
+        return [], f"primitive {k + 1}: end unreachable ({res.message})"
     q_end = np.asarray(res.best(q_ref), dtype=float)
-    Q = joint_interpolation(robot, current.q, q_end, params.step)
-    note = (f"primitive {k + 1} ({prim.kind.value}) became a joint move: {follow.message} "
+    chain = np.vstack([np.asarray(current.q, dtype=float)[None], vias, q_end[None]])
+    keep = _joint_splits(robot, chain, 0, len(chain) - 1, verifier, params.step)
+    motions = []
+    for a, b in zip(keep[:-1], keep[1:], strict=True):
+        Q = joint_interpolation(robot, chain[a], chain[b], params.step)
+        motions.append(Motion(MotionKind.JOINT, Waypoint(robot.fk(chain[b]), chain[b]),
+                              joint_path=Q, label=params.label, speed=params.joint_speed,
+                              blend_radius=0.0))
+    what = "a joint move" if len(motions) == 1 else f"{len(motions)} joint moves"
+    note = (f"primitive {k + 1} ({prim.kind.value}) became {what}: {follow.message} "
             f"at {100.0 * (follow.fail_index or 0) / max(1, len(u) - 1):.0f}%")
-    return Motion(MotionKind.JOINT, Waypoint(robot.fk(q_end), q_end), joint_path=Q,
-                  label=params.label, speed=params.joint_speed, blend_radius=0.0), note
+    return motions, note
+
+
+def _joint_splits(robot: Robot, chain: Array, a: int, b: int, verifier: PathVerifier | None,
+                  step: float) -> list[int]:
+    """Indices a..b of `chain` to move through in straight joint moves: a -> b if the verifier
+    accepts it, else split at the middle index and recurse (no split below one step)."""
+    if b - a < 2 or verifier is None or verifier.check_path(
+            list(joint_interpolation(robot, chain[a], chain[b], step))) is None:
+        return [a, b]
+    m = (a + b) // 2
+    left = _joint_splits(robot, chain, a, m, verifier, step)
+    return left + _joint_splits(robot, chain, m, b, verifier, step)[1:]
 
 
 def joint_interpolation(robot: Robot, q0: Array, q1: Array, step: float) -> Array:
