@@ -1,0 +1,74 @@
+"""The same operator actions give the same program (a browser run and a headless run are
+compared byte for byte), so planning results are decided by counted budgets - iterations,
+expansions, edge checks - and never by the clock. A process slowed tenfold (here: a clock that
+runs ten times too fast) plans the same trajectory; a clock so fast that the wall-time safety
+nets trip makes the plan fail with that reason instead of quietly changing it."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pytest
+from planning_fixtures import make_planner
+
+from assistant.export import export_files, program_from_trajectory
+from assistant.planning.config import MissionPlannerConfig
+from assistant.planning.scenario import load_scenario
+
+
+@pytest.fixture(scope="module")
+def scenario():
+    return load_scenario()
+
+
+@pytest.fixture(scope="module")
+def planner(scenario):
+    # the production budgets: the old 10 s smoothing budget was reached under such load
+    return make_planner(scenario.cell.robot(), scenario.known_obstacles(),
+                        config=MissionPlannerConfig())
+
+
+def _clock_runs_fast(monkeypatch: pytest.MonkeyPatch, factor: float) -> None:
+    """Make time.perf_counter and time.monotonic advance `factor` times faster than real."""
+    real_pc, real_mono = time.perf_counter, time.monotonic
+    pc0, mono0 = real_pc(), real_mono()
+    monkeypatch.setattr(time, "perf_counter", lambda: pc0 + factor * (real_pc() - pc0))
+    monkeypatch.setattr(time, "monotonic", lambda: mono0 + factor * (real_mono() - mono0))
+
+
+def _program(plan, robot) -> bytes:
+    files = export_files(program_from_trajectory(plan.trajectory, robot, name="SAME"), "melfa",
+                         robot).files
+    return b"".join(f.data for f in files)
+
+
+def _transfer_seconds(plan) -> list[float]:
+    return [p.seconds for p in plan.report.pieces if p.kind == "transfer"]
+
+
+def test_a_slowed_process_plans_the_same_trajectory(planner, scenario, monkeypatch):
+    robot = planner.robot
+    T_wb = scenario.cell.T_world_base
+    normal = planner.plan_mission(scenario.mission, T_wb, np.zeros(5))
+    assert normal.ok, normal.report.describe()
+    # At least ten times slower, and slow enough that every transfer takes over 20 s of
+    # (apparent) wall time: the old 10 s smoothing budget would have cut them all short.
+    factor = max(10.0, 20.0 / min(_transfer_seconds(normal)))
+    _clock_runs_fast(monkeypatch, factor)
+    slowed = planner.plan_mission(scenario.mission, T_wb, np.zeros(5))
+    assert slowed.ok, slowed.report.describe()
+    assert min(_transfer_seconds(slowed)) > 10.0
+    a, b = normal.trajectory, slowed.trajectory
+    assert [m.kind for m in a.motions] == [m.kind for m in b.motions]
+    for ma, mb in zip(a.motions, b.motions, strict=True):
+        assert np.array_equal(ma.target.q, mb.target.q)
+        assert np.array_equal(ma.joint_path, mb.joint_path)
+    assert _program(normal, robot) == _program(slowed, robot)
+
+
+def test_a_tripped_safety_net_fails_loudly(planner, scenario, monkeypatch):
+    _clock_runs_fast(monkeypatch, 1e7)  # every microsecond of work "takes" ten seconds
+    plan = planner.plan_mission(scenario.mission, scenario.cell.T_world_base, np.zeros(5))
+    assert not plan.ok and plan.trajectory is None
+    assert "safety limit" in plan.reason, plan.reason
