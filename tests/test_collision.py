@@ -134,3 +134,43 @@ def test_clearance_to_a_box_is_the_analytic_distance(rv2aj):
     c = chk.clearance(q)
     assert c.other == "wall" and c.link == "J3_forearm"
     assert c.distance == pytest.approx(0.30 - 0.01 - 0.045, abs=1e-5)
+
+
+def _clearance_at_every_sample(checker, path, max_step=0.01) -> float:
+    best = np.inf
+    for a, b in zip(path[:-1], path[1:], strict=True):
+        n = checker.motion_samples(a, b, max_step)
+        for f in np.arange(0, n + 1) / n:
+            best = min(best, checker.clearance(a + f * (b - a)).distance)
+    return best
+
+
+def test_path_clearance_is_the_minimum_over_every_sample(cell_obstacles, rv2aj):
+    """The bounded search asks FCL for few pairs, yet returns the brute-force minimum - also
+    when the path passes through an obstacle (penetration depths are not bounded)."""
+    checker = CollisionChecker(rv2aj, cell_obstacles[:2])  # no table: varied minima
+    rng = np.random.default_rng(11)
+    found = []
+    for _ in range(8):
+        path = rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper, size=(3, 5))
+        fast = checker.min_clearance_along(list(path))
+        assert fast == pytest.approx(_clearance_at_every_sample(checker, path), abs=1e-12)
+        found.append(fast)
+    assert min(found) < 0.0 < max(found)  # through an obstacle and clear of both
+
+
+def test_path_check_finds_the_same_first_contact_as_segment_by_segment(checker, rv2aj):
+    rng = np.random.default_rng(12)
+    outcomes = set()
+    for _ in range(10):
+        path = list(rng.uniform(rv2aj.limits.lower * 0.8, rv2aj.limits.upper * 0.8, (4, 5)))
+        hit = checker.check_path(path)
+        ref = next(((i, mc) for i in range(len(path) - 1)
+                    if not (mc := checker.check_motion(path[i], path[i + 1])).valid), None)
+        assert (hit is None) == (ref is None)
+        outcomes.add(hit is None)
+        if hit is not None:
+            assert hit[0] == ref[0]
+            assert hit[1].first_invalid_fraction == ref[1].first_invalid_fraction
+            assert hit[1].samples == ref[1].samples
+    assert outcomes == {True, False}

@@ -382,5 +382,6 @@ class _Net:
         acc = np.nonzero(ok)[0]
         pos = np.searchsorted(cand, acc)
         self.Q[idx[acc]] = Qn[pos]
-        self.P[idx[acc]] = np.asarray(self.robot.batch_fk(Qn[pos]).positions, dtype=float)
+        self.P[idx[acc]] = (res.points[pos] if res.points is not None else
+                            np.asarray(self.robot.batch_fk(Qn[pos]).positions, dtype=float))
         return ok

@@ -46,6 +46,9 @@ class PositionIKResult:
     joints: Array  # (N, dof); rows where `ok` is False hold the seed
     ok: Array  # (N,) bool
     residual: Array  # (N,) TCP position error (m)
+    #: TCP positions of `joints` where `ok` (FK, computed anyway for the residual; the net
+    #: reuses them instead of running FK again). None if not computed.
+    points: Array | None = None
 
 
 class BatchPositionIK:
@@ -81,11 +84,11 @@ class BatchPositionIK:
                        max_jump=p.max_joint_jump)
             if out is not None:
                 Q, ok = out
-                P = np.asarray(self.robot.batch_fk(Q).positions, dtype=float)
+                P = np.array(self.robot.batch_fk(Q).positions, dtype=float)
                 err = np.linalg.norm(targets - P, axis=1)
                 ok &= err <= p.tolerance * 10.0
                 Q[~ok] = seeds[~ok]
-                return PositionIKResult(Q, ok, err)
+                return PositionIKResult(Q, ok, err, P)
         lam2 = p.damping ** 2
         err = np.full(n, np.inf)
         active = np.ones(n, dtype=bool)

@@ -70,3 +70,51 @@ def test_unreachable_or_jumping_targets_are_refused(rv2aj, coarse_path):
     res = ik.solve(targets, q)
     assert not res.ok.any()
     assert np.array_equal(res.joints, q)  # refused rows keep their seeds
+
+
+def test_closed_form_ik_lands_on_the_targets_next_to_the_seeds(rv2aj, rng):
+    """The RV-2AJ's batched closed form: exact, on the seed's J1 side and elbow, and the
+    free pitch pulled towards the reference."""
+    lim = rv2aj.limits
+    seeds = rng.uniform(lim.lower * 0.8, lim.upper * 0.8, size=(400, 5))
+    targets = rv2aj.batch_fk(seeds).positions + rng.uniform(-0.004, 0.004, (400, 3))
+    ref = seeds + np.array([0.0, 0.0, 0.0, 0.15, 0.0])  # another tool pitch
+    Q, ok = rv2aj.batch_position_ik(targets, seeds, ref, gain=0.5, max_jump=0.25)
+    assert ok.mean() > 0.95
+    reached = rv2aj.batch_fk(Q[ok]).positions
+    assert np.linalg.norm(reached - targets[ok], axis=1).max() < 1e-9
+    assert lim.contains_batch(Q[ok]).all()
+    assert np.abs(Q[ok] - seeds[ok]).max() <= 0.25
+    assert np.all(np.sign(Q[ok, 2]) == np.sign(seeds[ok, 2]))  # same elbow
+    pitch = lambda q: q[:, 1] + q[:, 2] + q[:, 3]  # noqa: E731
+    moved = np.abs(pitch(Q[ok]) - pitch(ref[ok])) < np.abs(pitch(seeds[ok]) - pitch(ref[ok]))
+    assert moved.mean() > 0.9
+    assert np.array_equal(Q[~ok], seeds[~ok])  # refused rows keep their seeds
+
+
+def test_closed_form_ik_turns_the_pitch_away_from_a_joint_limit(rv2aj):
+    """At the seed's pitch the target needs J5 beyond its limit: a nearby pitch is found (the
+    old fallback scanned pitches in Python per particle)."""
+    seed = np.array([0.2, 0.6, 1.0, np.radians(89.0), 0.0])
+    p = rv2aj.batch_fk(seed[None]).positions[0]
+    # raise the target: at the seed's pitch J2/J3 open up and J5 must exceed +90 deg
+    target = p + np.array([0.0, 0.0, 0.004])
+    _, fixed_ok = rv2aj.batch_position_ik(target[None], seed[None], None, gain=0.0,
+                                          max_jump=0.25, pitch_window=0.0)
+    Q, ok = rv2aj.batch_position_ik(target[None], seed[None], None, gain=0.0, max_jump=0.25)
+    assert not fixed_ok[0]
+    assert ok[0] and rv2aj.limits.contains(Q[0])
+    assert np.linalg.norm(rv2aj.batch_fk(Q[:1]).positions[0] - target) < 1e-9
+    assert 0.0 < seed[1:4].sum() - Q[0, 1:4].sum() < np.radians(5.0)  # a nearby pitch
+
+
+def test_off_axis_tools_use_the_general_method(rv2aj, coarse_path):
+    T = np.eye(4)
+    T[:3, 3] = [0.03, 0.0, 0.1]  # TCP off the flange axis: no closed form
+    robot = rv2aj.with_tool(T)
+    parts = resample_joint_path(robot, coarse_path, 0.02)
+    assert robot.batch_position_ik(parts.points, parts.joints) is None
+    res = BatchPositionIK(robot).solve(parts.points + 0.002, parts.joints)
+    assert res.ok.all()
+    assert np.linalg.norm(robot.batch_fk(res.joints).positions - parts.points - 0.002,
+                          axis=1).max() < 1e-6
