@@ -42,7 +42,7 @@ sys.path.insert(0, str(HERE.parents[1]))
 from assistant.cad import load_cad  # noqa: E402
 from assistant.cell import Cell, CellObject, ObjectRole  # noqa: E402
 from assistant.cell_io import save_cell  # noqa: E402
-from assistant.mission import Location, Mission  # noqa: E402
+from assistant.mission import Location, LocationSource, Mission  # noqa: E402
 from assistant.robot_catalog import RobotSpec, ToolSpec  # noqa: E402
 from assistant.session.session import _drawing_control, drawing_path  # noqa: E402
 from assistant.transforms import pose_from_mm_deg  # noqa: E402
@@ -83,9 +83,10 @@ PEN_HOLDER_MM_DEG = (60.0, -150.0, 0.0, 0.0, 0.0, 0.0)
 #: lower-left corner, a point 200 mm along x, a point 200 mm along y.
 PAPER_ORIGIN_MM = (-120.0, -120.0)
 CALIBRATION_POINTS_MM = ((0.0, 0.0), (200.0, 0.0), (0.0, 200.0))
-#: HOME: pen down, above the pallet; the pen turned so that A6 is near 0 (with A6 near
-#: +-180 deg one name could stand for two postures). The drawings turn the pen alike.
-HOME_MM_DEG = (300.0, 0.0, 250.0, 180.0, 0.0, 180.0)
+#: HOME: pen down over the pallet at (300, 0, 250) mm, A6 near 0 (joints, deg), taught from
+#: the robot pose. The drawings turn the pen half a turn about itself so that A6 stays near
+#: 0 too (the pen draws alike).
+HOME_Q_DEG = (0.0, -77.5154, 112.7979, 0.0, 54.7175, 0.0)
 PEN_TURN = np.pi
 #: The drawings (source 000's numbering) and where their origin goes on the paper (mm).
 DRAWINGS = (("FRAME1", 1, (120.0, 120.0)), ("SCREEN8", 8, (120.0, 120.0)),
@@ -242,7 +243,12 @@ def make_cell(out: Path = HERE) -> Cell:
 
 
 def make_mission() -> Mission:
-    home = Location("HOME", pose_from_mm_deg(np.array(HOME_MM_DEG)))
+    from assistant.session.session import sample_robot_spec
+
+    q = np.radians(np.array(HOME_Q_DEG))
+    robot = sample_robot_spec(robot_spec(), HERE).build()
+    # rounded: the file must not depend on the last bits of the forward kinematics
+    home = Location("HOME", np.round(robot.fk(q), 9), LocationSource.ROBOT_POSE, q)
     paths = [drawing_path(name, T_world_paper(), _drawing_control(number),
                           at=(x / 1000, y / 1000), lift=PEN_LIFT, speed=DRAW_SPEED,
                           tool_angle=PEN_TURN)
