@@ -242,13 +242,24 @@ def make_cell(out: Path = HERE) -> Cell:
     return cell
 
 
+def tidy_pose(T: np.ndarray) -> np.ndarray:
+    """A pose from forward kinematics as stored in mission.json: rounded (the file must not
+    depend on the last bits of the kinematics), then the rotation made orthonormal again (a
+    rounded rotation is off by ~1e-9, and numeric IK refuses such a target)."""
+    T = np.round(np.asarray(T, dtype=float), 9)
+    x = T[:3, 0] / np.sqrt(T[:3, 0] @ T[:3, 0])
+    z = np.cross(x, T[:3, 1])
+    z = z / np.sqrt(z @ z)
+    T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+    return T
+
+
 def make_mission() -> Mission:
     from assistant.session.session import sample_robot_spec
 
     q = np.radians(np.array(HOME_Q_DEG))
     robot = sample_robot_spec(robot_spec(), HERE).build()
-    # rounded: the file must not depend on the last bits of the forward kinematics
-    home = Location("HOME", np.round(robot.fk(q), 9), LocationSource.ROBOT_POSE, q)
+    home = Location("HOME", tidy_pose(robot.fk(q)), LocationSource.ROBOT_POSE, q)
     paths = [drawing_path(name, T_world_paper(), _drawing_control(number),
                           at=(x / 1000, y / 1000), lift=PEN_LIFT, speed=DRAW_SPEED,
                           tool_angle=PEN_TURN)

@@ -111,15 +111,25 @@ def make_cell(out: Path = HERE) -> Cell:
     return cell
 
 
+def tidy_pose(T: np.ndarray) -> np.ndarray:
+    """A pose from forward kinematics as stored in mission.json: rounded (the file must not
+    depend on the last bits of the kinematics), then the rotation made orthonormal again (a
+    rounded rotation is off by ~1e-9, and numeric IK refuses such a target)."""
+    T = np.round(np.asarray(T, dtype=float), 9)
+    x = T[:3, 0] / np.sqrt(T[:3, 0] @ T[:3, 0])
+    z = np.cross(x, T[:3, 1])
+    z = z / np.sqrt(z @ z)
+    T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+    return T
+
+
 def _taught(name: str, q_deg: tuple[float, ...]) -> Location:
-    """A location taught from the robot pose (rounded: the file must not depend on the last
-    bits of the forward kinematics)."""
+    """A location taught from the robot pose."""
     from assistant.session.session import sample_robot_spec
 
     robot = sample_robot_spec(robot_spec(), HERE).build()
     q = np.radians(np.array(q_deg))
-    T = np.round(robot.fk(q), 9)
-    return Location(name, T, LocationSource.ROBOT_POSE, q)
+    return Location(name, tidy_pose(robot.fk(q)), LocationSource.ROBOT_POSE, q)
 
 
 def make_mission() -> Mission:

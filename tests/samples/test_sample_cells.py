@@ -174,3 +174,20 @@ def test_make_cell_reproduces_the_committed_files(name, tmp_path):
     assert sorted(made) == sorted(committed), "files the generator writes but the sample lacks"
     differ = [k for k in made if made[k] != committed[k]]
     assert not differ, f"{name}: make_cell.py writes different bytes for {differ}"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", [n for n in NAMES if (SAMPLES / n / "mission.json").is_file()])
+def test_the_taught_mission_a_sample_opens_with_plans(name, tmp_path):
+    """`cellteach serve --cell NAME` opens the sample with its objects and mission.json: that
+    mission must plan in that cell (collision free, every path in the order)."""
+    from assistant.session import Session
+
+    s = Session.from_sample(name, tmp_path / "s")
+    s.goto("plan")
+    rep = s.plan()
+    s.worker.join()
+    assert rep["ok"], rep["description"]
+    assert sorted(re.sub(r" \(reversed\)$", "", p) for p in rep["order"]) == \
+        sorted(p.name for p in s.mission.paths)
+    assert s.trajectory is not None
