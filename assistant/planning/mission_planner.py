@@ -50,7 +50,7 @@ from assistant.planning.locations import (
 from assistant.planning.pieces import PieceKind, PlanPiece, join_pieces
 from assistant.planning.report import MissionPlanReport, PieceReport
 from assistant.progress import Progress
-from assistant.roadmap.planner import RoadmapPlan, RoadmapPlanner
+from assistant.roadmap.planner import PlanFailure, RoadmapPlan, RoadmapPlanner
 from assistant.robot_model import Robot
 from assistant.trajectory.application import (
     ApplicationMotions,
@@ -315,7 +315,10 @@ class MissionPlanner:
         progress.update(0.15, "ordering")
         # 4. order (estimated, then measured transfer lengths)
         cache: dict[tuple[bytes, bytes], RoadmapPlan] = {}
-        ordering = self._order(mission, s, goal, apps, cache, progress)
+        try:
+            ordering = self._order(mission, s, goal, apps, cache, progress)
+        except _SafetyStop as stop:
+            return failed("ordering", "ordering", f"measuring the transfers: {stop}")
         if not np.isfinite(ordering.cost):
             return failed("ordering", "ordering", "no order of the application paths has a "
                           "transfer path between every pair (see the transfers' reasons)")
@@ -418,6 +421,8 @@ class MissionPlanner:
                     progress.check()
                     cache[key] = self.roadmap.plan(qa, qb)
                 plan = cache[key]
+                if plan.failure == PlanFailure.SAFETY_LIMIT:
+                    raise _SafetyStop(plan.reason)  # no answer: not an unreachable pair
                 return _tcp_length(self.robot, plan.joint_path) if plan.ok else float("inf")
         return order_paths(ends, start, gend, measure=measure, params=self.config.ordering)
 
@@ -432,6 +437,10 @@ class MissionPlanner:
                 return np.asarray(rev.start.q, dtype=float)
         assert e.q is not None
         return np.asarray(e.q, dtype=float)
+
+
+class _SafetyStop(Exception):
+    """A roadmap query behind the ordering tripped its wall-time safety net."""
 
 
 class _TimeUp(Exception):

@@ -8,7 +8,8 @@ closed neighbours over edges not known to be invalid is recomputed and re-queued
 search stays complete and, the heuristic being consistent, optimal for the edges that pass.
 
 Every search ends with a clear reason: the goal was reached, the queue ran empty ("no path"),
-or a budget (expansions, edge checks, seconds) ran out ("budget exhausted").
+or a counted budget (expansions, edge checks) ran out ("budget exhausted"); a wall-time
+safety net ("safety limit") only stops a search the machine cannot finish in time.
 """
 
 from __future__ import annotations
@@ -28,6 +29,9 @@ Array = np.ndarray
 REASON_FOUND = "found"
 REASON_NO_PATH = "no path"
 REASON_BUDGET = "budget exhausted"
+#: The wall-time safety net tripped (not a counted budget: the caller must not treat the
+#: query as answered, e.g. as "no path", since the answer would depend on the machine).
+REASON_SAFETY = "safety limit"
 _UNKNOWN = object()
 
 
@@ -175,8 +179,8 @@ def lazy_astar(graph: JointGraph, start: int, goal: int, checker: EdgeChecker,
         if expansions > budget.max_expansions:
             return result(False, REASON_BUDGET, f"{budget.max_expansions} expansions")
         if time.monotonic() - t0 > budget.max_seconds:
-            return result(False, REASON_BUDGET, f"safety limit of {budget.max_seconds:g} s of "
-                          "wall time - is the machine overloaded?")
+            return result(False, REASON_SAFETY, f"{budget.max_seconds:g} s of wall time - is "
+                          "the machine overloaded?")
         if progress is not None and expansions % 256 == 0:
             progress.update(min(0.99, expansions / budget.max_expansions), "searching roads")
         vs, cost = graph.successors(u)

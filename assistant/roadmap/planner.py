@@ -34,7 +34,13 @@ from enum import Enum
 import numpy as np
 
 from assistant.progress import Progress
-from assistant.roadmap.astar import REASON_BUDGET, SearchBudget, SearchResult, lazy_astar
+from assistant.roadmap.astar import (
+    REASON_BUDGET,
+    REASON_SAFETY,
+    SearchBudget,
+    SearchResult,
+    lazy_astar,
+)
 from assistant.roadmap.graph import JointGraph
 from assistant.roadmap.grid_ops import components26
 from assistant.roadmap.sources import SourceLabels, label_sources, relabel
@@ -54,6 +60,8 @@ class PlanFailure(str, Enum):
     NO_PATH_REGIONS = "no_path_regions"
     NO_PATH = "no_path"
     BUDGET = "budget"
+    #: The search's wall-time safety net tripped: no answer (not "no path").
+    SAFETY_LIMIT = "safety_limit"
 
 
 @dataclass(frozen=True)
@@ -288,7 +296,7 @@ class RoadmapPlanner:
         res, graph = self._search(q_s, q_g, sc, gc, (on_roads & free) | escape, progress,
                                   timings)
         searched = "roads"
-        if (not res.found and res.reason != REASON_BUDGET
+        if (not res.found and res.reason not in (REASON_BUDGET, REASON_SAFETY)
                 and self.config.fallback_to_free_cells):
             b = self.config.budget
             left = replace(b, max_expansions=max(1, b.max_expansions - res.expansions),
@@ -303,6 +311,11 @@ class RoadmapPlanner:
                                res.seconds + res2.seconds, res2.budget_detail)
         timings["total"] = time.perf_counter() - t0
         if not res.found:
+            if res.reason == REASON_SAFETY:
+                return RoadmapPlan(False, f"search stopped by its safety limit of "
+                                   f"{res.budget_detail}", PlanFailure.SAFETY_LIMIT,
+                                   expansions=res.expansions, edge_checks=res.edge_checks,
+                                   rejected_edges=res.rejected_edges, timings=timings)
             if res.reason == REASON_BUDGET:
                 return RoadmapPlan(False, f"budget exhausted ({res.budget_detail})",
                                    PlanFailure.BUDGET, expansions=res.expansions,

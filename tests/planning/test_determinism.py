@@ -15,6 +15,7 @@ from planning_fixtures import make_planner
 from assistant.export import export_files, program_from_trajectory
 from assistant.planning.config import MissionPlannerConfig
 from assistant.planning.scenario import load_scenario
+from assistant.roadmap.planner import PlanFailure
 
 
 @pytest.fixture(scope="module")
@@ -68,7 +69,12 @@ def test_a_slowed_process_plans_the_same_trajectory(planner, scenario, monkeypat
 
 
 def test_a_tripped_safety_net_fails_loudly(planner, scenario, monkeypatch):
+    normal = planner.plan_mission(scenario.mission, scenario.cell.T_world_base, np.zeros(5))
+    q1, q10 = normal.locations["P1"], normal.locations["P10"]
     _clock_runs_fast(monkeypatch, 1e7)  # every microsecond of work "takes" ten seconds
     plan = planner.plan_mission(scenario.mission, scenario.cell.T_world_base, np.zeros(5))
     assert not plan.ok and plan.trajectory is None
     assert "safety limit" in plan.reason, plan.reason
+    # a search stopped by the clock is no answer - neither "no path" nor a counted budget
+    search = planner.roadmap.plan(q1, q10)
+    assert search.failure == PlanFailure.SAFETY_LIMIT and "safety limit" in search.reason
