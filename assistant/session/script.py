@@ -363,8 +363,3 @@ def run_action(session: Session, action: ScriptAction, base_dir: Path, script_pa
         raise
     except Exception as exc:
         raise ScriptError(f"{script_path}:{action.line}: {action.verb} failed: {exc}") from exc
-    finally:
-        # A long action (jog, build_world, plan, execute) returns when its result is set;
-        # the worker then still ends the busy/moving mode. Let it, so the next action of
-        # the script is not refused with "the robot is moving".
-        session.worker.join()

@@ -21,11 +21,11 @@ class Worker:
         self._lock = threading.Lock()
         self._progress: Progress | None = None
         self._thread: threading.Thread | None = None
+        self._active = False  # cleared before the caller's future resolves (no join race)
 
     @property
     def busy(self) -> bool:
-        t = self._thread
-        return t is not None and t.is_alive()
+        return self._active
 
     def cancel(self) -> bool:
         with self._lock:
@@ -45,23 +45,36 @@ class Worker:
         progress = Progress(task, forward)
 
         def run() -> None:
+            # The outcome is handed to `on_done` (which ends the busy/moving mode) *before* the
+            # caller's future resolves, so `submit(...).result()` returns to a session that is
+            # idle again and the next action is accepted.
+            outcome: Future = Future()
             try:
-                fut.set_result(fn(progress))
+                outcome.set_result(fn(progress))
             except BaseException as exc:  # noqa: BLE001 - delivered through the future
-                fut.set_exception(exc)
+                outcome.set_exception(exc)
+            with self._lock:
+                self._progress = None
+            cancelled = isinstance(outcome.exception(), Cancelled)
+            self._bus.emit(ProgressChanged(task, 1.0 if not cancelled else progress.fraction,
+                                           "cancelled" if cancelled else "done", done=True))
+            try:
+                if on_done is not None:
+                    on_done(outcome)
             finally:
                 with self._lock:
-                    self._progress = None
-                cancelled = isinstance(fut.exception(), Cancelled)
-                self._bus.emit(ProgressChanged(task, 1.0 if not cancelled else progress.fraction,
-                                               "cancelled" if cancelled else "done", done=True))
-                if on_done is not None:
-                    on_done(fut)
+                    self._active = False
+                exc = outcome.exception()
+                if exc is None:
+                    fut.set_result(outcome.result())
+                else:
+                    fut.set_exception(exc)
 
         with self._lock:
             if self.busy:
                 raise RuntimeError("another long task is still running")
             self._progress = progress
+            self._active = True
             self._thread = threading.Thread(target=run, name=f"cellteach-{task}", daemon=True)
             self._thread.start()
         return fut

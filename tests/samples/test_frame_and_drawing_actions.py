@@ -196,8 +196,8 @@ def test_bezier_chains_are_planned_as_splines_for_a_dialect_that_writes_them(ses
 
 
 def test_the_action_after_a_scripted_jog_is_never_refused_as_moving(tmp_path):
-    """The worker resolves a long action's future before it ends the moving mode; a script
-    must wait for that (here: jog, then teach from the robot pose, 30 times)."""
+    """A long action's future resolves only after the worker has ended the moving mode, so
+    the next action is accepted (here: jog, then teach from the robot pose, 30 times)."""
     s = Session.from_sample("thesis_rv2aj", None, with_objects=False, with_mission=False)
     s.next()
     s.add_primitive("box", (0.1, 0.1, 0.1), T_world_object=pose_from_mm_deg([0, 300, 50, 0,
