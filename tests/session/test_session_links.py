@@ -12,6 +12,7 @@ import pytest
 from assistant.links.emulators.melfa_emulator import MelfaEmulator
 from assistant.links.settings import LinkSettings
 from assistant.session import Session, SessionError
+from assistant.session.events import RobotMoved
 from assistant.session.report import all_obstacles, session_report
 from workflow.machine import Mode
 
@@ -29,9 +30,19 @@ def test_link_lost_mid_execution_then_reconnect_and_resume(tmp_path):
         s.plan()
         planned = s.trajectory
         assert planned is not None and s.world_ready
-        emu.faults.drop_mid_move(after_moving_s=0.5)
+        # Pull the cable once the robot is really moving under the execution.
+        armed = []
+
+        def on_event(ev):
+            if isinstance(ev, RobotMoved) and not armed:
+                armed.append(True)
+                emu.faults.drop_mid_move(after_moving_s=0.05)
+
+        unsubscribe = s.bus.subscribe(on_event)
         with pytest.raises(SessionError, match="Resume"):
             s.execute()
+        unsubscribe()
+        assert armed
         assert s.machine.mode == Mode.ERROR and "link lost" in s.machine.error_message
         assert s.world_ready  # the world model survived
         held = s.current_joints()

@@ -197,9 +197,12 @@ class EmulatedArm:
             hit: CollisionInfo | None = None
             dropped = False
             with self._cond:
+                before = self._moved_total
                 if self._queue:
                     hit = self._step(dt)
-                dropped = self._check_drop()
+                # A streamed target is often reached within one tick: the queue is empty at
+                # every check although the arm never stops, so "moving" is "moved this tick".
+                dropped = self._check_drop(bool(self._queue) or self._moved_total > before)
                 self._cond.notify_all()
             if hit is not None and self.on_collision is not None:
                 self.on_collision(hit)
@@ -235,13 +238,13 @@ class EmulatedArm:
                 break
         return None
 
-    def _check_drop(self) -> bool:
+    def _check_drop(self, moving: bool) -> bool:
         if not self.faults.drop_armed:
             self._drop_base = None
             return False
         if self._drop_base is None:
             self._drop_base = self._moved_total
-        if self._queue and self.faults.should_drop(self._moved_total - self._drop_base):
+        if moving and self.faults.should_drop(self._moved_total - self._drop_base):
             self._drop_base = None
             self._halt("dropped")
             return True
