@@ -258,6 +258,11 @@ class Robot(abc.ABC):
     def tcp_position(self, q: Array) -> Array:
         return self.fk(q)[:3, 3]
 
+    def fixed_frame(self, name: str) -> Array | None:
+        """Pose in the base frame of a named frame that does not move with the joints (e.g.
+        the frame a controller reports poses in); None when the model has no such frame."""
+        return None
+
     def arm_radii(self) -> Array:
         """Per joint, an upper bound (m) on the distance from its axis to any point beyond it.
 

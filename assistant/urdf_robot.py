@@ -744,6 +744,15 @@ class URDFRobot(Robot):
         T = data.oMi[self.dof].homogeneous @ self._T_last_tcp
         return T if self._base_is_root else self._T_base_root @ T
 
+    def fixed_frame(self, name: str) -> Array | None:
+        """A URDF link rigidly attached above the chain (fixed joints only), e.g. the UR
+        descriptions' ``base``, in the base frame; None for a missing or moving link."""
+        if name not in self._T_root_body or not self._model.existBodyName(name):
+            return None
+        if self._model.frames[self._model.getFrameId(name, pin.BODY)].parentJoint != 0:
+            return None
+        return self._T_base_root @ self._T_root_body[name]
+
     def link_poses(self, q: Array) -> Array:
         q = self._check_q(q)
         data = self._data()

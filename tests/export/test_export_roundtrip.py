@@ -209,6 +209,14 @@ def test_urscript_round_trip_on_a_ur5(ur5):
     assert not rep.instruction_differences
     text = rep.files[0].text
     assert "movec(V, C, v=0.05, mode=0)" in text and "set_tool_digital_out(0, True)" in text
+    # Poses are in the controller's base frame (the URDF's `base`, base_link turned 180 deg
+    # about z), as a UR teach pendant shows them: x and y of the model's pose negated.
+    m = re.search(r"^  B = p\[([^\]]*)\]", text, re.M)
+    assert m, text
+    x, y, z = (float(v) for v in m.group(1).split(",")[:3])
+    assert np.allclose([x, y, z], [-b.T_base_tool[0, 3], -b.T_base_tool[1, 3],
+                                   b.T_base_tool[2, 3]], atol=1e-6)
+    assert "# poses in the controller's base frame" in text
 
 
 def test_dialects_implement_the_protocol():

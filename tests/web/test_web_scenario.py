@@ -103,7 +103,7 @@ def test_thesis_scenario_in_the_browser_equals_the_script(cellteach_serve, open_
     for name, y in (("P1", -340), ("P10", 340)):
         ui.fill("Name", name)
         ui.fill_vec("Position (mm)", (80, y, 200))
-        ui.fill_vec("A, B, C (deg)", (180, 0, 180))
+        ui.fill_vec("A, B, C (deg)", (0, 0, 180))  # as the script: tool down
         ui.click("Teach this pose")
         ui.wait_cell(name)
     for name, y, seed in (("P7", -70, 7), ("P8", 70, 8)):
