@@ -110,3 +110,27 @@ def rotation_angle(R: Array) -> float:
 def wrap_angle(a: Array | float) -> Array | float:
     """Wrap to (-pi, pi]."""
     return (np.asarray(a) + np.pi) % (2.0 * np.pi) - np.pi
+
+
+#: Largest |R^T R - I| entry accepted as a rounded rotation (values typed in mm/deg and
+#: stored with a few decimals); anything further off is not a rotation.
+ROTATION_TOLERANCE = 1e-3
+
+
+def orthonormalized(T: Array, tol: float = ROTATION_TOLERANCE) -> Array:
+    """The transform with its rotation projected onto the nearest proper rotation (SVD).
+
+    A pose read back from a file or a rounded display is a rotation only to a few decimals;
+    iterative IK would chase the impossible remainder and refuse it. Raises ValueError when the
+    matrix is not a rounded rotation at all.
+    """
+    T = np.array(T, dtype=float)
+    R = T[:3, :3]
+    dev = float(np.max(np.abs(R.T @ R - np.eye(3))))
+    if dev <= 1e-12 and np.linalg.det(R) > 0:
+        return T
+    if dev > tol or np.linalg.det(R) <= 0:
+        raise ValueError(f"the pose's rotation is not a rotation matrix (off by {dev:.2g})")
+    U, _, Vt = np.linalg.svd(R)
+    T[:3, :3] = U @ Vt
+    return T

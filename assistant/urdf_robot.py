@@ -40,7 +40,7 @@ from assistant.robot_model import (
     ShapeKind,
     Tool,
 )
-from assistant.transforms import inv_T, rotation_angle
+from assistant.transforms import inv_T, orthonormalized, rotation_angle
 
 Array = np.ndarray
 
@@ -795,6 +795,11 @@ class URDFRobot(Robot):
         T = np.asarray(T_base_tool, dtype=float)
         if T.shape != (4, 4) or not np.all(np.isfinite(T)):
             raise ValueError(f"{self.name}: T_base_tool must be a finite 4x4 transform")
+        if not position_only:
+            try:
+                T = orthonormalized(T)
+            except ValueError as exc:
+                raise ValueError(f"{self.name}: {exc}") from None
         st = self.ik_settings
         want = max_solutions or st.max_solutions
         T_root_target = T if self._base_is_root else self.T_root_base @ T

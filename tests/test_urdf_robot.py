@@ -335,6 +335,21 @@ def test_ik_is_deterministic(ur5):
     assert all(np.array_equal(x, y) for x, y in zip(a.solutions, b.solutions, strict=True))
 
 
+def test_ik_accepts_a_rounded_rotation_and_refuses_a_non_rotation(ur5):
+    q = _random_q(ur5, 1, seed=12)[0]
+    T = ur5.fk(q)
+    rounded = T.copy()
+    rounded[:3, :3] = np.round(T[:3, :3], 3)  # as stored in a file with 3 decimals
+    assert np.max(np.abs(rounded[:3, :3].T @ rounded[:3, :3] - np.eye(3))) > 1e-6
+    res = ur5.ik(rounded, seed=q)
+    assert res.ok
+    assert np.allclose(ur5.fk(res.solutions[0])[:3, 3], T[:3, 3], atol=1e-4)
+    skewed = T.copy()
+    skewed[:3, :3] *= 1.2
+    with pytest.raises(ValueError, match="not a rotation"):
+        ur5.ik(skewed)
+
+
 def test_ik_reach_failure_offers_nearest_pose(ur5):
     T = make_T(p=[2.0, 0.5, 0.3])
     res = ur5.ik(T)
