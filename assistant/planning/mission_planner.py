@@ -304,12 +304,18 @@ class MissionPlanner:
         goal: SolvedLocation | None = None
         if mission.goal is not None:
             gseed = _end_q(apps[(len(mission.paths) - 1, False)]) if mission.paths else s.q
-            try:
-                goal = solve_location(self.robot, self.checker, mission.goal.name,
-                                      mission.goal.T_world_tool, T_wb, seed=gseed,
-                                      q_hint=branch_hint(mission.goal))
-            except LocationError as exc:
-                return failed(f"goal {exc.name}", "location", str(exc))
+            if mission.start is not None and mission.goal.name == mission.start.name and \
+                    np.allclose(mission.goal.T_world_tool, mission.start.T_world_tool):
+                # Back home: the same posture, not a second IK solution a hair apart (a
+                # program cannot give one position name two joint solutions).
+                goal = s
+            else:
+                try:
+                    goal = solve_location(self.robot, self.checker, mission.goal.name,
+                                          mission.goal.T_world_tool, T_wb, seed=gseed,
+                                          q_hint=branch_hint(mission.goal))
+                except LocationError as exc:
+                    return failed(f"goal {exc.name}", "location", str(exc))
             locations[goal.name] = goal.q
             reports.append(PieceReport(f"goal {goal.name}", "location", True))
         progress.update(0.15, "ordering")

@@ -189,3 +189,29 @@ def test_paths_are_ordered_by_measured_transfers(planner, robot):
     labels = list(dict.fromkeys(m.label for m in plan.trajectory.motions))
     assert labels == ["S -> near", "near", "near -> mid", "mid", "mid -> far", "far",
                       "far -> G"]
+
+
+def test_goal_equal_to_start_ends_in_the_start_posture_and_exports(planner, scenario, robot,
+                                                                   monkeypatch):
+    """A round trip back home: one location, one posture (the program names it once) - also
+    with a numeric IK, whose answer depends a hair on its seed (emulated here)."""
+    from assistant.export import get_dialect
+    from assistant.export.program import program_from_trajectory
+
+    exact_ik = type(robot).ik
+
+    def seed_dependent_ik(self, T, seed=None, **kw):
+        res = exact_ik(self, T, seed, **kw)
+        wobble = 0.0 if seed is None else 1e-7 * float(np.sum(seed))
+        return replace(res, solutions=[q + wobble for q in res.solutions])
+
+    monkeypatch.setattr(type(robot), "ik", seed_dependent_ik)
+    mission = replace(scenario.mission, goal=scenario.mission.start)
+    plan = planner.plan_mission(mission, scenario.cell.T_world_base, np.zeros(5))
+    assert plan.ok, plan.report.describe()
+    traj = plan.trajectory
+    assert traj.motions[-1].target.name == traj.start.name == "P1"
+    assert np.allclose(traj.motions[-1].target.q, traj.start.q, rtol=0, atol=1e-12)
+    prog = program_from_trajectory(traj, robot, name="HOME")
+    files = get_dialect("melfa").write(prog, robot)
+    assert sum(f.text.count("P1=(") for f in files) == 1
