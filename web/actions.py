@@ -27,10 +27,9 @@ NOT_AVAILABLE = "That action is not available now (the page may be out of date; 
 
 def hint_for(exc: BaseException) -> str:
     """What the operator can do about an exception the session did not explain itself."""
-    from assistant import session as _s
+    from assistant.session import hint_for as session_hint
 
-    fn = getattr(_s, "hint_for", None) or getattr(_s.session, "_hint_for", None)
-    return fn(exc) if fn is not None else ""
+    return session_hint(exc)
 
 
 class Actions:

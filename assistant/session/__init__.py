@@ -1,6 +1,6 @@
 """The session facade and its plumbing (events, worker, undo history, session files)."""
 
 from assistant.session.events import EventBus
-from assistant.session.session import HiddenObstacle, Session, SessionError
+from assistant.session.session import HiddenObstacle, Session, SessionError, hint_for
 
-__all__ = ["EventBus", "HiddenObstacle", "Session", "SessionError"]
+__all__ = ["EventBus", "HiddenObstacle", "Session", "SessionError", "hint_for"]

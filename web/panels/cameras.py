@@ -19,15 +19,6 @@ IMAGE_PERIOD_S = 0.25
 PREVIEW_WIDTH = 320
 
 
-def pointer_state(session: Any) -> Any:
-    """The last pointer state (public accessor if the session has one)."""
-    fn = getattr(session, "pointer_state", None)
-    if callable(fn):
-        return fn()
-    p = getattr(session, "_pointer", None)
-    return None if p is None else p.last_state
-
-
 def overlay(view: Any, ellipse: tuple[tuple[float, float], tuple[float, float], float] | None
             ) -> np.ndarray | None:
     """RGB preview of one camera with detections (green), the tracked blob (red), the
@@ -126,7 +117,7 @@ class CamerasPanel(Panel):
                 self.status.content = f"Pointer ({ev.mode}): {fmt_mm(ev.position)} mm " \
                                       f"+- {ev.std_m * 1000:.1f} mm"
             if self.visible and time.monotonic() - self._last_image >= IMAGE_PERIOD_S:
-                self.draw(pointer_state(self.session))
+                self.draw(self.session.pointer_state())
 
     def refresh(self) -> None:
         self.status.content = "Pointer: cameras not started"

@@ -107,7 +107,7 @@ class TeachPanel(Panel):
             self.pick.options = names
         empty = not s.locations
         self.set_start.disabled = self.set_goal.disabled = self.delete.disabled = empty
-        self.pending.disabled = getattr(s, "pending_point", None) is None
+        self.pending.disabled = s.pending_point is None
         if self.name.value in s.locations:
             self.name.value = next_free_name(set(s.locations))
 
@@ -116,4 +116,4 @@ class TeachPanel(Panel):
                 or isinstance(ev, StateChanged):
             self.refresh()
         elif isinstance(ev, Notice) and self.visible:
-            self.pending.disabled = getattr(self.session, "pending_point", None) is None
+            self.pending.disabled = self.session.pending_point is None
