@@ -35,6 +35,7 @@ from assistant.export.dialect import (
     cut_long_splines,
     flatten,
     lower_splines,
+    merge_smooth_splines,
     parse_step_comment,
     pose_in_base,
     pose_in_work,
@@ -119,10 +120,12 @@ class KrlDialect:
 
     # ====================================================================== writing
     def lower(self, program: NeutralProgram) -> NeutralProgram:
-        """Splines stay SPLINE blocks (exact stop at their end; cut into several when longer
-        than a file may be) unless `spline` is off."""
+        """Splines stay SPLINE blocks unless `spline` is off: segments that join tangentially
+        are one block (no stop between them), a block ends with an exact stop and is cut into
+        several when longer than a file may be."""
         if not self.spline:
             return lower_splines(program)
+        program = merge_smooth_splines(program)
         program = cut_long_splines(program, self.rules.max_positions_per_file)
         out = [replace(i, blend_radius=0.0) if isinstance(i, Move) and i.kind == MoveKind.SPLINE
                else i for i in program.instructions]
@@ -208,7 +211,7 @@ class KrlDialect:
                 lines.append(step_line("  ; ", step, self.rules.max_line))
             if isinstance(ins, Move):
                 lines += self._settings(ins, state)
-                if ins.kind == MoveKind.SPLINE:  # one block per spline move
+                if ins.kind == MoveKind.SPLINE:  # one block per (merged) spline move
                     lines.append("  SPLINE")
                     lines += [f"    SPL {names[p.name]}" for p in ins.positions()]
                     lines.append("  ENDSPLINE")

@@ -38,6 +38,13 @@ class BezierMode(str, Enum):
     SPLINE = "spline"  # one SPLINE move through the samples (KRL SPL, ...)
 
 
+#: Two Bezier segments whose tangents meet within this angle join without a corner ...
+SPLINE_CORNER_RAD = np.radians(1.0)
+#: ... and the first blends into the second by this much (m) instead of stopping: a KRL
+#: program writes them as one SPLINE block, other dialects blend their linear moves.
+SPLINE_JOIN_BLEND = 5e-4
+
+
 @dataclass(frozen=True)
 class ApplicationParams:
     #: Largest TCP distance between dense joint-path samples (m).
@@ -96,6 +103,9 @@ class _Piece:
     points: Array
     via_index: int | None = None
     through_indices: tuple[int, ...] = ()
+    #: Exact unit tangents at the start and end (Bezier pieces: from the control points).
+    tangent_in: Array | None = None
+    tangent_out: Array | None = None
 
 
 def application_motions(
@@ -158,6 +168,9 @@ def application_motions(
         motions.append(Motion(piece.kind, target, via=via, through=through, joint_path=Q,
                               label=path.name, speed=path.speed))
         q = Q[-1]
+    for i in range(len(pieces) - 1):
+        if _tangent_join(pieces[i], pieces[i + 1]):
+            motions[i] = replace(motions[i], blend_radius=SPLINE_JOIN_BLEND)
     motions[-1] = replace(motions[-1], actions_after=tuple(path.actions_after))
     out = ApplicationMotions(path.name, True, start, motions, tuple(path.actions_before), None,
                              correction, chord_err)
@@ -197,11 +210,32 @@ def _pieces(path: ApplicationPath, T_bw: Array, params: ApplicationParams,
             worst = max(worst, samp.max_deviation)
             if params.bezier_mode == BezierMode.SPLINE:
                 pts, idx = _spline_points(ctrl, samp.t, params.step)
-                pieces.append(_Piece(MotionKind.SPLINE, si, pts, through_indices=idx))
+                pieces.append(_Piece(MotionKind.SPLINE, si, pts, through_indices=idx,
+                                     tangent_in=_end_tangent(ctrl),
+                                     tangent_out=_end_tangent(ctrl[::-1], outgoing=True)))
             else:
                 for a, b in zip(samp.points[:-1], samp.points[1:], strict=True):
                     pieces.append(_Piece(MotionKind.LINEAR, si, _line_points(a, b, params.step)))
     return pieces, worst
+
+
+def _end_tangent(ctrl: Array, *, outgoing: bool = False) -> Array | None:
+    """Unit tangent of a Bezier at its first control point (reversed control points and
+    `outgoing`: at its end, in the direction of travel); None for a degenerate curve."""
+    for p in ctrl[1:]:
+        d = p - ctrl[0]
+        n = float(np.linalg.norm(d))
+        if n > 1e-12:
+            return -d / n if outgoing else d / n
+    return None
+
+
+def _tangent_join(a: _Piece, b: _Piece) -> bool:
+    """Two Bezier pieces that meet without a corner: the program should not stop there."""
+    if a.kind != MotionKind.SPLINE or b.kind != MotionKind.SPLINE or \
+            a.tangent_out is None or b.tangent_in is None:
+        return False
+    return float(a.tangent_out @ b.tangent_in) >= np.cos(SPLINE_CORNER_RAD)
 
 
 def _line_points(a: Array, b: Array, step: float) -> Array:

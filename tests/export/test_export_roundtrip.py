@@ -135,6 +135,36 @@ def test_krl_spline_block_and_linear_fallback(rv2aj, program):
     assert round_trip(program, KrlDialect(spline=False), rv2aj).max_tcp_deviation < 5e-6
 
 
+def test_krl_tangent_bezier_segments_share_one_spline_block_corners_stop(rv2aj):
+    """A Bezier chain arrives as one spline move per segment: where two join tangentially
+    they are one SPLINE block (no stop between them); at a corner the block ends."""
+    from assistant.export import KrlDialect
+
+    rng = np.random.default_rng(11)
+    seed = np.radians([0.0, 40.0, 80.0, 60.0, 0.0])
+    xs = np.linspace(0.26, 0.34, 9)
+    # S1..S8 on a straight-ish curve in x (segments 1 and 2 join tangentially), then a 90 deg
+    # corner into y for segment 3.
+    pts = [_pos(rv2aj, f"S{k}", (x, -0.05 + 0.001 * np.sin(8 * x), 0.15), seed, rng)
+           for k, x in enumerate(xs[1:], 1)]
+    corner = [_pos(rv2aj, f"T{k}", (xs[-1], -0.05 + 0.02 * k, 0.15), pts[-1].q, rng)
+              for k in range(1, 4)]
+    start = _pos(rv2aj, "P0", (xs[0], -0.05, 0.15), seed, rng)
+    prog = NeutralProgram("CHAIN", [
+        Move(MoveKind.LINEAR, start, speed=0.05, step="draw"),
+        Move(MoveKind.SPLINE, pts[3], through=tuple(pts[:3]), speed=0.05, step="draw"),
+        Move(MoveKind.SPLINE, pts[7], through=tuple(pts[4:7]), speed=0.05, step="draw"),
+        Move(MoveKind.SPLINE, corner[-1], through=tuple(corner[:-1]), speed=0.05,
+             step="draw"),
+    ], Frame("pen", make_T(p=[0, 0, 0.1])), q_start=start.q)
+    check_program(prog, rv2aj)
+    src = KrlDialect().write(prog, rv2aj)[0].text
+    blocks = [b.split("ENDSPLINE")[0] for b in src.split("  SPLINE")[1:]]
+    assert [b.count("SPL X") for b in blocks] == [8, 3]
+    rep = round_trip(prog, "krl", rv2aj)
+    assert rep.max_tcp_deviation <= TOLERANCE["krl"] and not rep.instruction_differences
+
+
 # ------------------------------------------------------------------ the proof can fail
 _TAMPER = {
     "melfa": (r"(PB=\(\+)(\d+\.\d+)", lambda v: f"{float(v) + 1.0:.2f}"),

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from traj_builders import TABLE, box
@@ -88,6 +90,29 @@ def test_spline_mode_keeps_one_move_through_the_samples(rv2aj):
     tcp = np.array([rv2aj.fk(q)[:3, 3] for q in spline.joint_path])
     d = np.min(np.linalg.norm(tcp[:, None] - curve[None], axis=2), axis=1)
     assert d.max() < 1e-4  # the dense path is the curve itself
+
+
+def test_bezier_segments_joined_without_a_corner_blend_and_export_as_one_krl_block(rv2aj):
+    from assistant.export import KrlDialect
+    from assistant.export.program import program_from_trajectory
+    from assistant.trajectory.application import SPLINE_JOIN_BLEND
+
+    p0, p1, p2, p3 = BEZ
+    smooth = (p3, p3 + (p3 - p2), A([0.36, 0.14, Z]), A([0.32, 0.16, Z]))  # G1 at p3
+    corner = (smooth[3], A([0.30, 0.10, Z]), A([0.27, 0.10, Z]), A([0.26, 0.06, Z]))
+    path = ApplicationPath("chain", [PathSegment(SegmentKind.BEZIER, BEZ),
+                                     PathSegment(SegmentKind.BEZIER, smooth),
+                                     PathSegment(SegmentKind.BEZIER, corner)],
+                           R_world_tool=DOWN, speed=0.04)
+    out = application_motions(rv2aj, path,
+                              params=ApplicationParams(bezier_mode=BezierMode.SPLINE))
+    assert out.ok
+    assert [m.blend_radius for m in out.motions] == [SPLINE_JOIN_BLEND, 0.0, 0.0]
+    traj = out.to_trajectory()
+    traj = replace(traj, start=replace(traj.start, name="START"))
+    prog = program_from_trajectory(traj, rv2aj, name="CHAIN")
+    src = KrlDialect().write(prog, rv2aj)[0].text
+    assert src.count("ENDSPLINE") == 2  # segments 1+2 together; the corner stops
 
 
 def test_tilted_orientation_is_projected_into_the_arm_plane_and_reported(rv2aj):
