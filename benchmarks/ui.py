@@ -4,7 +4,8 @@
 2. plan drawn: from the planner finishing (`PlanReady`, server clock) to the page showing the
    drawn path (the plan panel's "N motions drawn" line, written right after the path's scene
    nodes, plus two frames) - same machine, so the clocks agree;
-3. octree: 50 000 occupied cells as ONE batched mesh; frame times from requestAnimationFrame
+3. octree: 50 000 occupied cells as ONE scene node (square sprites above 5 000 cells); frame
+   times from requestAnimationFrame
    while the camera is orbited with the mouse, against the same page without the octree.
 
 Also saves the page on the sample cell (planned) as docs/screenshot.png for the README.

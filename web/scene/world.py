@@ -1,5 +1,6 @@
-"""The world model: octree occupancy as ONE batched box mesh coloured by probability
-(toggleable), the Voronoi roads as a point cloud, and the recorded collision postures."""
+"""The world model: octree occupancy as ONE scene node coloured by probability (translucent
+boxes for a few thousand cells, square sprites beyond; toggleable), the Voronoi roads as a
+point cloud, and the recorded collision postures."""
 
 from __future__ import annotations
 
@@ -12,6 +13,8 @@ from web.scene.base import Layer
 STOPS = np.array([[0.0, 250, 230, 120], [0.5, 245, 140, 30], [1.0, 200, 25, 25]])
 ROAD_COLOR = (40, 170, 90)
 COLLISION_COLOR = (230, 0, 0)
+#: Up to this many occupied cells are drawn as translucent boxes; more as square sprites.
+BOXES_UP_TO = 5000
 
 
 def probability_colors(p: np.ndarray) -> np.ndarray:
@@ -40,6 +43,8 @@ class WorldLayer(Layer):
         self.min_p = 0.05
         #: Occupied cells drawn last time (benchmarks, the explore panel's figures).
         self.cells_drawn = 0
+        #: How they were drawn: "boxes", "sprites" (beyond `BOXES_UP_TO`) or None.
+        self.occupancy_style: str | None = None
         self.roads_drawn = 0
 
     def refresh(self) -> None:
@@ -64,13 +69,23 @@ class WorldLayer(Layer):
                 point_shape="sparkle", precision="float32")
 
     def draw_occupancy(self, centres: np.ndarray, p: np.ndarray, leaf: float) -> None:
-        """One batched mesh for all cells (50 k cells stay one draw call). Toon shading: the
-        default PBR material costs several times more per pixel where there is no GPU."""
+        """One scene node for all cells (50 k cells stay one draw call). Boxes use toon
+        shading: the default PBR material costs several times more per pixel without a GPU."""
         old = self._nodes.pop("occupancy", None)
         if old is not None:
             old.remove()
         self.cells_drawn = len(centres)
+        self.occupancy_style = None
         if not len(centres):
+            return
+        if len(centres) > BOXES_UP_TO:
+            # Many cells: one square sprite per cell (1 vertex instead of 12 triangles of
+            # blended box faces) - what keeps software WebGL (no GPU) interactive.
+            self._nodes["occupancy"] = self.scene.add_point_cloud(
+                f"{self.root}/occupancy", np.asarray(centres, np.float32),
+                probability_colors(p), point_size=float(0.92 * leaf), point_shape="square",
+                precision="float32", visible=self.show_occupancy)
+            self.occupancy_style = "sprites"
             return
         v, f = unit_box()
         n = len(centres)
@@ -82,6 +97,7 @@ class WorldLayer(Layer):
             batched_colors=probability_colors(p), opacity=0.2, lod="off",
             cast_shadow=False, receive_shadow=False, material="toon3",
             visible=self.show_occupancy)
+        self.occupancy_style = "boxes"
 
     def set_visibility(self, *, occupancy: bool | None = None, roads: bool | None = None) -> None:
         if occupancy is not None:
