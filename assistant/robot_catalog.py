@@ -110,3 +110,28 @@ class RobotSpec:
             tool=ToolSpec.from_json(d["tool"]) if d.get("tool") else ToolSpec(),
             limits_deg=tuple((float(a), float(b)) for a, b in lim) if lim else None,
         )
+
+
+def robot_data_dirs() -> list[Path]:
+    """Installed robot description folders (example-robot-data's ``share``), found at run
+    time in the interpreter's site-packages (the `test` extra installs it)."""
+    import site
+    import sys
+
+    out: list[Path] = []
+    for sp in [*site.getsitepackages(), site.getusersitepackages(), *sys.path]:
+        share = Path(sp) / "cmeel.prefix" / "share"
+        if share.is_dir() and share not in out:
+            out.append(share)
+    return out
+
+
+def installed_robot_urdf(relative: str) -> tuple[Path, Path]:
+    """(URDF file, the ``share`` folder its package:// paths resolve in) of an installed
+    robot description, e.g. ``example-robot-data/robots/ur_description/urdf/ur5_robot.urdf``.
+    Raises FileNotFoundError saying how to install it."""
+    for share in robot_data_dirs():
+        if (share / relative).is_file():
+            return share / relative, share
+    raise FileNotFoundError(f"{relative} is not installed: pip install -e '.[test]' "
+                            "(example-robot-data)")

@@ -32,6 +32,7 @@ import pinocchio as pin  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from assistant.robot_catalog import installed_robot_urdf  # noqa: E402
 from assistant.robot_model import BatchPoses, Tool  # noqa: E402
 from assistant.rv2aj import RV2AJ  # noqa: E402
 from assistant.transforms import rotation_angle  # noqa: E402
@@ -177,13 +178,10 @@ def ik_section(n_targets: int) -> dict[str, float]:
 
 
 def ur5_urdf() -> tuple[Path, Path]:
-    for p in sys.path:
-        share = Path(p) / "cmeel.prefix" / "share"
-        urdf = share / "example-robot-data" / "robots" / "ur_description" / "urdf" / \
-            "ur5_robot.urdf"
-        if urdf.is_file():
-            return urdf, share
-    raise SystemExit("example-robot-data is not installed: pip install -e '.[test]'")
+    try:
+        return installed_robot_urdf("example-robot-data/robots/ur_description/urdf/ur5_robot.urdf")
+    except FileNotFoundError as exc:
+        raise SystemExit(str(exc)) from None
 
 
 def main() -> None:

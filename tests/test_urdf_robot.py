@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import functools
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -12,7 +11,7 @@ import pytest
 import trimesh
 
 from assistant.batch_chain import BatchChain, ChainJoint, JointKind, sincos
-from assistant.robot_catalog import RobotModelError, RobotSpec, ToolSpec
+from assistant.robot_catalog import RobotModelError, RobotSpec, ToolSpec, installed_robot_urdf
 from assistant.robot_model import IKFailure, ShapeKind, Tool
 from assistant.rv2aj import RV2AJ
 from assistant.transforms import make_T, rot_x, rot_y, rotation_angle
@@ -22,17 +21,9 @@ POS_TOL = 2e-6  # m: IK tolerance 1e-6 plus rounding
 ROT_TOL = 2e-5  # rad
 
 
-def _share_dir() -> Path:
-    for p in sys.path:
-        cand = Path(p) / "cmeel.prefix" / "share"
-        if (cand / "example-robot-data" / "robots").is_dir():
-            return cand
-    pytest.fail("example-robot-data is not installed: pip install -e '.[test]'")
-
-
-SHARE = _share_dir()
+UR5_URDF, SHARE = installed_robot_urdf(
+    "example-robot-data/robots/ur_description/urdf/ur5_robot.urdf")
 ROBOTS = SHARE / "example-robot-data" / "robots"
-UR5_URDF = ROBOTS / "ur_description" / "urdf" / "ur5_robot.urdf"
 PANDA_URDF = ROBOTS / "panda_description" / "urdf" / "panda.urdf"
 
 

@@ -37,7 +37,7 @@ from assistant.mission import (
 from assistant.motion import ToolAction, Trajectory, trajectory_from_json, trajectory_to_json
 from assistant.placement import PoseFit, fit_pose
 from assistant.progress import Cancelled, Progress
-from assistant.robot_catalog import RobotSpec, ToolSpec
+from assistant.robot_catalog import RobotSpec, ToolSpec, robot_data_dirs
 from assistant.robot_link import LinkEvent, LinkEventKind, RobotLink
 from assistant.robot_model import IKResult, Robot, UnreachableError
 from assistant.session.document import Document
@@ -1583,20 +1583,6 @@ def drawing_path(name: str, T_world_frame: Array, control: Array, *,
 
 
 # ---------------------------------------------------------------------- sample robots
-def robot_data_dirs() -> list[Path]:
-    """Installed robot description folders (example-robot-data's ``share``), found at run
-    time in the interpreter's site-packages (the `test` extra installs it)."""
-    import site
-    import sys
-
-    out: list[Path] = []
-    for sp in [*site.getsitepackages(), site.getusersitepackages(), *sys.path]:
-        share = Path(sp) / "cmeel.prefix" / "share"
-        if share.is_dir() and share not in out:
-            out.append(share)
-    return out
-
-
 def sample_robot_spec(spec: RobotSpec, folder: Path) -> RobotSpec:
     """A sample cell's URDF robot with its relative path resolved: first against the sample
     folder (a URDF shipped with the sample), then against the installed robot descriptions

@@ -2,14 +2,14 @@
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 from assistant.export import NeutralProgram, program_from_trajectory
 from assistant.export.bezier_drawings import drawing
 from assistant.export.samples import drawing_trajectory, thesis_trajectory
+
+UR5_URDF = "example-robot-data/robots/ur_description/urdf/ur5_robot.urdf"
 
 
 @pytest.fixture(scope="session")
@@ -33,22 +33,13 @@ def frame_program(rv2aj) -> NeutralProgram:
 
 @pytest.fixture(scope="session")
 def ur5():
-    """A UR5 from example-robot-data through URDFRobot, or skip (the test extra is missing)."""
-    try:
-        from assistant.urdf_robot import URDFRobot
-    except ImportError:  # pragma: no cover - another module not there yet
-        pytest.skip("assistant.urdf_robot is not available")
-    import site
+    """A UR5 from example-robot-data (the `test` extra) through URDFRobot; never skipped."""
+    from assistant.robot_catalog import installed_robot_urdf
+    from assistant.robot_model import Tool
+    from assistant.urdf_robot import URDFRobot
 
-    for sp in site.getsitepackages():
-        share = Path(sp) / "cmeel.prefix" / "share"
-        urdf = share / "example-robot-data" / "robots" / "ur_description" / "urdf" / \
-            "ur5_robot.urdf"
-        if urdf.exists():
-            from assistant.robot_model import Tool
-
-            T = np.eye(4)
-            T[2, 3] = 0.1
-            return URDFRobot.from_file(urdf, package_dirs=[share], load_visual=False,
-                                       tool=Tool("gripper", T))
-    pytest.skip("example-robot-data (UR5 URDF) is not installed")
+    urdf, share = installed_robot_urdf(UR5_URDF)
+    T = np.eye(4)
+    T[2, 3] = 0.1
+    return URDFRobot.from_file(urdf, package_dirs=[share], load_visual=False,
+                               tool=Tool("gripper", T))
