@@ -196,54 +196,24 @@ def _cut_long_splines(instructions: list[Instruction], limit: int) -> list[Instr
     return out
 
 
-#: Consecutive spline moves whose path turns less than this where they meet are one spline
-#: (a tangent-continuous Bezier chain); a sharper corner keeps its exact stop.
-SMOOTH_JOIN_RAD = np.radians(10.0)
-
-
-def merge_smooth_splines(program: NeutralProgram,
-                         max_turn: float = SMOOTH_JOIN_RAD) -> NeutralProgram:
-    """Runs of spline moves that join without a corner (same step, speed and acceleration,
-    nothing between them) as one spline move: a controller then keeps the speed through the
-    joins instead of stopping exactly at each segment's end. A join is smooth when the planner
-    said so (the first move blends into the next: it knew the curves' tangents) or when the
-    chords on both sides turn by less than `max_turn`."""
+def merge_smooth_splines(program: NeutralProgram) -> NeutralProgram:
+    """Runs of spline moves that blend into each other (the planner knew the curves' tangents
+    and saw no corner; same step, speed and acceleration, nothing between them) as one spline
+    move: a controller then keeps the speed through the joins instead of stopping exactly at
+    each segment's end."""
     out: list[Instruction] = []
-    start_of_last: Position | None = None  # where out[-1] starts (the move before's target)
-    end: Position | None = None  # where the last move ended
     for ins in program.instructions:
         prev = out[-1] if out else None
-        if isinstance(ins, Move) and isinstance(prev, Move) and \
-                _smooth_join(start_of_last, prev, ins, max_turn):
+        if isinstance(ins, Move) and isinstance(prev, Move) and _blends_into(prev, ins):
             out[-1] = replace(ins, through=prev.through + (prev.target,) + ins.through)
         else:
             out.append(ins)
-            if isinstance(ins, Move):
-                start_of_last = end
-        if isinstance(ins, Move):
-            end = ins.target
     return replace(program, instructions=out)
 
 
-def _smooth_join(start: Position | None, a: Move, b: Move, max_turn: float) -> bool:
-    if a.kind != MoveKind.SPLINE or b.kind != MoveKind.SPLINE or \
-            (a.step, a.speed, a.acceleration) != (b.step, b.speed, b.acceleration):
-        return False
-    if a.blend_radius > 0.0:
-        return True
-    pa = ([start] if start is not None else []) + a.positions()
-    pb = [a.target] + b.positions()
-    if len(pa) < 2:
-        return False
-    ends = [p.T_base_tool for p in (pa[-2], pa[-1], pb[1])]
-    if any(T is None for T in ends):
-        return False
-    p0, p1, p2 = (np.asarray(T, dtype=float)[:3, 3] for T in ends)
-    d_in, d_out = p1 - p0, p2 - p1
-    n_in, n_out = float(np.linalg.norm(d_in)), float(np.linalg.norm(d_out))
-    if n_in < 1e-9 or n_out < 1e-9:
-        return False
-    return float(np.dot(d_in, d_out)) / (n_in * n_out) >= np.cos(max_turn)
+def _blends_into(a: Move, b: Move) -> bool:
+    return a.kind == b.kind == MoveKind.SPLINE and a.blend_radius > 0.0 and \
+        (a.step, a.speed, a.acceleration) == (b.step, b.speed, b.acceleration)
 
 
 def lower_splines(program: NeutralProgram) -> NeutralProgram:

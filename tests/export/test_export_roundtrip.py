@@ -136,8 +136,8 @@ def test_krl_spline_block_and_linear_fallback(rv2aj, program):
 
 
 def test_krl_tangent_bezier_segments_share_one_spline_block_corners_stop(rv2aj):
-    """A Bezier chain arrives as one spline move per segment: where two join tangentially
-    they are one SPLINE block (no stop between them); at a corner the block ends."""
+    """A Bezier chain arrives as one spline move per segment: where the planner lets one
+    blend into the next (tangent join) they are one SPLINE block; at a corner the block ends."""
     from assistant.export import KrlDialect
 
     rng = np.random.default_rng(11)
@@ -152,7 +152,8 @@ def test_krl_tangent_bezier_segments_share_one_spline_block_corners_stop(rv2aj):
     start = _pos(rv2aj, "P0", (xs[0], -0.05, 0.15), seed, rng)
     prog = NeutralProgram("CHAIN", [
         Move(MoveKind.LINEAR, start, speed=0.05, step="draw"),
-        Move(MoveKind.SPLINE, pts[3], through=tuple(pts[:3]), speed=0.05, step="draw"),
+        Move(MoveKind.SPLINE, pts[3], through=tuple(pts[:3]), speed=0.05, blend_radius=5e-4,
+             step="draw"),
         Move(MoveKind.SPLINE, pts[7], through=tuple(pts[4:7]), speed=0.05, step="draw"),
         Move(MoveKind.SPLINE, corner[-1], through=tuple(corner[:-1]), speed=0.05,
              step="draw"),
