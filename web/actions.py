@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 
 import viser
 
+from assistant.session import hint_for
 from workflow.machine import TransitionRefused
 
 if TYPE_CHECKING:
@@ -23,13 +24,6 @@ log = logging.getLogger(__name__)
 
 NOT_AVAILABLE = "That action is not available now (the page may be out of date; it is now " \
     "refreshed)."
-
-
-def hint_for(exc: BaseException) -> str:
-    """What the operator can do about an exception the session did not explain itself."""
-    from assistant.session import hint_for as session_hint
-
-    return session_hint(exc)
 
 
 class Actions:
