@@ -306,18 +306,16 @@ class Session:
         return state
 
     def undo(self) -> str:
-        with self._lock:
-            self.machine.require((self.machine.main,), "undo")
-            label, doc = self.history.undo(self.document())
-            self._restore(doc)
-        self.bus.emit(SceneChanged("all"))
-        self._emit_state()
-        return label
+        return self._travel("undo", self.history.undo)
 
     def redo(self) -> str:
+        return self._travel("redo", self.history.redo)
+
+    def _travel(self, what: str, step: Callable[[Document], tuple[str, Document]]) -> str:
+        """Undo or redo: the document `step` returns replaces the current one."""
         with self._lock:
-            self.machine.require((self.machine.main,), "redo")
-            label, doc = self.history.redo(self.document())
+            self.machine.require((self.machine.main,), what)
+            label, doc = step(self.document())
             self._restore(doc)
         self.bus.emit(SceneChanged("all"))
         self._emit_state()
