@@ -12,6 +12,8 @@ CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--use-gl=swiftshader",
                  "--disable-component-update", "--disable-sync", "--no-first-run"]
 #: Generous bound for anything the page must show (a failure, not a timing assertion).
 WAIT_MS = 60_000
+#: Twice viser's client-side GUI message throttle (50 ms, see `UI._type`).
+VISER_THROTTLE_WAIT_MS = 120
 
 
 class UI:
@@ -37,6 +39,7 @@ class UI:
     # ------------------------------------------------------------------ acting
     def click(self, name: str) -> None:
         self.button(name).click()
+        self.page.wait_for_timeout(VISER_THROTTLE_WAIT_MS)  # see `_type`
 
     @staticmethod
     def _type(box: Any, text: str) -> None:
@@ -47,6 +50,11 @@ class UI:
         box.press("Control+a")
         box.press_sequentially(text)
         box.press("Enter")
+        # viser's client sends every GUI message through ONE 50 ms throttle that keeps only the
+        # latest message: a click (or another field) within 50 ms of the last keystroke
+        # replaces the field's final value, and the server sees a prefix ("P" for "P7, P8").
+        # A person never types that fast; wait out the window as they would.
+        box.page.wait_for_timeout(VISER_THROTTLE_WAIT_MS)
 
     def fill(self, label: str, value: Any) -> None:
         self._type(self.row(label).locator("input:not([type=hidden])").first, f"{value}")
@@ -59,6 +67,7 @@ class UI:
     def choose(self, label: str, option: str) -> None:
         self.row(label).locator("input").first.click()
         self.page.get_by_role("option", name=option, exact=True).click()
+        self.page.wait_for_timeout(VISER_THROTTLE_WAIT_MS)  # see `_type`
 
     def expand(self, folder: str, probe: Any) -> None:
         """Open a collapsed folder so that `probe` (a locator inside it) can be used."""
