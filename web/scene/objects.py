@@ -29,6 +29,10 @@ class ObjectsLayer(Layer):
         self.on_gizmo_release: Callable[[str, np.ndarray, Any], None] | None = None
 
     def refresh(self) -> None:
+        """Parts are drawn with toon shading: their role colour is what matters, and without a
+        GPU the default PBR material made the parts (a table fills much of the view) cost
+        half of every frame (sample cell, 1400x900, software WebGL: 0.66 -> 0.33 s per frame
+        before planning, 0.86 -> 0.63 s with the plan and the octree drawn)."""
         self.clear()
         for obj in self.session.scene_objects():
             wxyz, pos = wxyz_position(obj.T_world_object)
@@ -36,7 +40,7 @@ class ObjectsLayer(Layer):
             h = self.scene.add_mesh_simple(
                 f"{self.root}/{node_key(obj.name)}", np.asarray(mesh.vertices, np.float32),
                 np.asarray(mesh.faces, np.uint32), color=tuple(int(c) for c in obj.color),
-                wxyz=wxyz, position=pos, side="double", cast_shadow=False,
+                wxyz=wxyz, position=pos, side="double", material="toon3", cast_shadow=False,
                 receive_shadow=False)
             h.on_click(lambda ev, name=obj.name: self._clicked(name, ev))
             self._nodes[obj.name] = h
