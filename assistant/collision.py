@@ -278,17 +278,23 @@ class CollisionChecker:
         return np.einsum("nsij,sj->nsi", R, self._sph_local) + t
 
     # ------------------------------------------------------------------ checks
-    def _candidates(self, frames: Array) -> tuple[Array, Array]:
+    def _candidates(self, frames: Array, with_gap: bool = False,
+                    ) -> tuple[Array, Array, Array | None]:
         """Broad phase: for each config, which (robot shape, env shape) and self pairs may touch.
 
-        Returns two boolean arrays: (N, R, E) and (N, P).
+        Returns two boolean arrays, (N, R, E) and (N, P), and with `with_gap` a third, (N,):
+        how far every moving sphere stays outside every obstacle box, and half of how far
+        the sphere pairs of the self pairs stay apart (m; <= 0 when something is near). An
+        arm that moves no sphere by more than that cannot bring anything near (see
+        `is_valid_batch_margin`).
         """
         N = frames.shape[0]
         R, E, P = len(self._rshapes), len(self._env), len(self._self_pairs)
         env_c = np.zeros((N, R, E), dtype=bool)
         self_c = np.zeros((N, P), dtype=bool)
+        gap = np.full(N, np.inf) if with_gap else None
         if len(self._sph_r) == 0:
-            return env_c, self_c
+            return env_c, self_c, (np.full(N, -np.inf) if with_gap else None)
         C = self._sphere_centres(frames)
         if E:
             d = np.maximum(self._env_lo[None, None] - C[:, :, None], 0.0)
@@ -300,13 +306,19 @@ class CollisionChecker:
             # Reduce spheres to shapes: each shape's spheres are contiguous.
             env_c[:, self._shape_has_sph, :] = np.logical_or.reduceat(
                 near, self._sph_starts, axis=1)
+            if gap is not None:
+                moving = self._sph_link != 0
+                clear = np.sqrt(dist2[:, moving].min(axis=2)) - self._sph_r[moving][None]
+                gap = np.minimum(gap, clear.min(axis=1, initial=np.inf))
         if P:
             diff = C[:, self._sp_a] - C[:, self._sp_b]
-            near = np.einsum("npk,npk->np", diff, diff) <= (
-                (self._sph_r[self._sp_a] + self._sph_r[self._sp_b]) ** 2
-            )[None]
+            d2 = np.einsum("npk,npk->np", diff, diff)
+            rr = self._sph_r[self._sp_a] + self._sph_r[self._sp_b]
+            near = d2 <= (rr ** 2)[None]
             self_c[:, self._pair_has_sph] = np.logical_or.reduceat(near, self._sp_starts, axis=1)
-        return env_c, self_c
+            if gap is not None and len(rr):
+                gap = np.minimum(gap, 0.5 * (np.sqrt(d2) - rr[None]).min(axis=1))
+        return env_c, self_c, gap
 
     def _narrow(self, frames_n: Array, env_c: Array, self_c: Array, *, all_contacts: bool,
                 ) -> list[Contact]:
@@ -345,7 +357,7 @@ class CollisionChecker:
         """Full report for one configuration: every (link, obstacle) contact and limit issue."""
         q = np.asarray(q, dtype=float)
         frames = self.robot.link_poses(q)[None]
-        env_c, self_c = self._candidates(frames)
+        env_c, self_c, _ = self._candidates(frames)
         contacts = self._narrow(frames[0], env_c[0], self_c[0], all_contacts=True)
         viol = self.robot.limits.violations(q, self.robot.joint_names)
         return CollisionReport(not viol, tuple(contacts), tuple(viol))
@@ -365,17 +377,50 @@ class CollisionChecker:
 
     def in_collision_batch(self, Q: Array) -> Array:
         """Exact collision flag (ignoring joint limits) for each configuration."""
+        return self._collide_batch(Q, with_gap=False)[0]
+
+    def is_valid_batch_margin(self, Q: Array, certified: Array | None = None,
+                              ) -> tuple[Array, Array]:
+        """`is_valid_batch` and a certified free margin per row (m).
+
+        Any configuration q' with `travel(q, q') < margin` is collision-free as well (joint
+        limits aside): no sphere moves farther than the travel, so the broad phase cannot find
+        anything near q' and the exact answer is "free". Rows flagged `certified` (already
+        proven free that way by the caller) get only the joint-limit test; their margin is
+        NaN. The margin is <= 0 (no guarantee) where something is near, and NaN where the row
+        is invalid. This is what lets an iterative smoother skip the exact check of small
+        moves far from everything - the answers stay exactly those of `is_valid_batch`.
+        """
+        Q = np.atleast_2d(np.asarray(Q, dtype=float))
+        ok = self.robot.limits.contains_batch(Q)
+        margin = np.full(len(Q), np.nan)
+        todo = ok.copy() if certified is None else ok & ~np.asarray(certified, dtype=bool)
+        if todo.any():
+            hit, gap = self._collide_batch(Q[todo], with_gap=True)
+            ok[todo] = ~hit
+            margin[todo] = np.where(hit, np.nan, gap)
+        return ok, margin
+
+    def travel(self, Q0: Array, Q1: Array) -> Array:
+        """Upper bound (m) on how far any point of the arm moves between rows of Q0 and Q1
+        (straight joint motion): sum(arm radius x |joint change|)."""
+        return np.abs(np.asarray(Q1, dtype=float) - np.asarray(Q0, dtype=float)) @ self._radii
+
+    def _collide_batch(self, Q: Array, with_gap: bool) -> tuple[Array, Array | None]:
         Q = np.atleast_2d(np.asarray(Q, dtype=float))
         out = np.zeros(len(Q), dtype=bool)
+        gaps = np.empty(len(Q)) if with_gap else None
         for start in range(0, len(Q), self.chunk):
             block = Q[start : start + self.chunk]
             frames = self.robot.batch_link_poses(block)
-            env_c, self_c = self._candidates(frames)
+            env_c, self_c, gap = self._candidates(frames, with_gap)
+            if gaps is not None:
+                gaps[start : start + len(block)] = gap
             maybe = np.nonzero(env_c.any(axis=(1, 2)) | self_c.any(axis=1))[0]
             for k in maybe:
                 if self._narrow(frames[k], env_c[k], self_c[k], all_contacts=False):
                     out[start + k] = True
-        return out
+        return out, gaps
 
     def in_collision_naive(self, q: Array) -> bool:
         """Brute force: every robot shape against every obstacle and self pair through FCL.

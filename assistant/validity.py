@@ -23,3 +23,19 @@ class ValidityChecker(Protocol):
     def first_invalid_fraction(self, q0: Array, q1: Array) -> float | None:
         """Fraction in [0, 1] of the straight joint-space motion q0 -> q1 where it first
         becomes invalid, or None when the whole motion is valid."""
+
+
+class MarginValidity(ValidityChecker, Protocol):
+    """A checker that can also certify small moves without an exact check (optional).
+
+    `is_valid_batch_margin(Q, certified)` answers like `is_valid_batch` and gives each valid
+    row a margin: a move to q' with `travel(q, q') < margin` stays free of collision, so a
+    caller may pass such rows as `certified` next time and only the cheap tests run.
+    """
+
+    def is_valid_batch_margin(self, Q: Array, certified: Array | None = None,
+                              ) -> tuple[Array, Array]:
+        """(valid (N,) bool, margin (N,) metres; NaN for invalid or certified rows)."""
+
+    def travel(self, Q0: Array, Q1: Array) -> Array:
+        """Upper bound on how far any point of the arm moves between rows of Q0 and Q1."""

@@ -174,3 +174,37 @@ def test_path_check_finds_the_same_first_contact_as_segment_by_segment(checker, 
             assert hit[1].first_invalid_fraction == ref[1].first_invalid_fraction
             assert hit[1].samples == ref[1].samples
     assert outcomes == {True, False}
+
+
+def test_free_margin_is_a_sound_certificate(checker, rv2aj):
+    """Any move whose arm travel stays below a configuration's margin is free (brute-force
+    FCL agrees) - including moves to just below the margin towards the obstacles."""
+    rng = np.random.default_rng(11)
+    Q = rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper, size=(600, 5))
+    ok, margin = checker.is_valid_batch_margin(Q)
+    assert np.array_equal(ok, checker.is_valid_batch(Q))
+    assert np.isnan(margin[~ok]).all()
+    good = np.nonzero(ok & (margin > 0.002))[0]
+    assert len(good) > 100
+    for i in good:
+        d = rng.normal(size=5)
+        d *= 0.999 * margin[i] / float(checker.travel(np.zeros(5), d))
+        q2 = Q[i] + d
+        if rv2aj.limits.contains(q2):
+            assert not checker.in_collision_naive(q2)
+    # A lower bound on the true clearance (FCL distance), never above it.
+    for i in good[:60]:
+        assert margin[i] <= checker.clearance(Q[i], include_self=True).distance + 1e-9
+
+
+def test_certified_rows_skip_the_exact_check_but_not_the_limits(checker, rv2aj):
+    Q = np.random.default_rng(5).uniform(rv2aj.limits.lower, rv2aj.limits.upper, (200, 5))
+    q_hit = Q[checker.in_collision_batch(Q)][0]
+    out_of_limits = rv2aj.limits.upper + 0.1
+    ok, margin = checker.is_valid_batch_margin(np.array([q_hit, out_of_limits]),
+                                               certified=np.array([True, True]))
+    # Certified means "the caller proved it free": no FCL; the joint limits still count.
+    assert ok.tolist() == [True, False]
+    assert np.isnan(margin).all()
+    ok, margin = checker.is_valid_batch_margin(q_hit[None])
+    assert not ok[0] and np.isnan(margin[0])

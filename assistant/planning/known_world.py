@@ -66,6 +66,18 @@ class KnownValidity:
             ok[ok] &= ~self.world.near_recorded_collision(Q[ok], self.exempt)
         return ok
 
+    def is_valid_batch_margin(self, Q: Array, certified: Array | None = None,
+                              ) -> tuple[Array, Array]:
+        """`CollisionChecker.is_valid_batch_margin` for CAD; the recorded postures are
+        tested on every row (a margin certifies clearance from CAD only)."""
+        ok, margin = self.checker.is_valid_batch_margin(Q, certified)
+        if self.world.collisions and ok.any():
+            ok[ok] &= ~self.world.near_recorded_collision(np.atleast_2d(Q)[ok], self.exempt)
+        return ok, margin
+
+    def travel(self, Q0: Array, Q1: Array) -> Array:
+        return self.checker.travel(Q0, Q1)
+
     def first_invalid_fraction(self, q0: Array, q1: Array) -> float | None:
         mc = KnownVerifier(self.checker, self.world).check_motion(q0, q1, self.exempt)
         return mc.first_invalid_fraction

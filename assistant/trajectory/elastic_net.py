@@ -22,6 +22,9 @@ joints (null-space pull towards the neighbours' joints keeps the tool pitch smoo
 rejected - the particle stays - if the point or the midpoints of its two edges are not
 `allowed` (octree: occupied or unreachable cell), if IK fails or jumps, or if the arm would
 collide (`ValidityChecker.is_valid_batch`). A rejected move is retried once at half length.
+A checker that also gives free margins (`validity.MarginValidity`) lets a particle skip
+the exact check while its arm travel since its last exact check stays inside that margin:
+the same answers, about half the FCL work in the benchmark's cells.
 
 Constants (thesis Table 10: 0.8, 4.0, 0.1, 0.1, 200.0; the table's header was lost, so the
 mapping is ours). Particles are updated one colour class at a time (i mod 3: a particle never
@@ -229,6 +232,13 @@ class _Net:
         interior = np.arange(1, n - 1)
         self.colours = [interior[interior % 3 == c] for c in range(3)]
         self.colours = [c for c in self.colours if len(c)]
+        # Certified moves: per particle the joints of its last exact check and the free margin
+        # it gave; a move whose arm travel from there stays below the margin needs no exact
+        # check (identical answers, see `CollisionChecker.is_valid_batch_margin`).
+        self._certify = validity is not None and hasattr(validity, "is_valid_batch_margin")
+        self._ref_Q = self.Q.copy()
+        self._ref_margin = np.full(n, -np.inf)
+        self.certified_moves = 0
 
     # ---------------------------------------------------------------- stages
     def run_stage(self, stage: int, budget: int, progress: Progress | None, done: int,
@@ -374,14 +384,34 @@ class _Net:
         res = self.ik.solve(new_P[cand], self.Q[idx[cand]], ref)
         ok[cand] &= res.ok
         Qn = res.joints
+        margin = None
         if self.validity is not None:
             good = np.nonzero(res.ok)[0]
             if len(good):
-                valid = np.asarray(self.validity.is_valid_batch(Qn[good]), dtype=bool)
+                if self._certify:
+                    valid, margin = self._check_certified(idx[cand[good]], Qn[good])
+                    margin_of = np.full(len(cand), np.nan)
+                    margin_of[good] = margin
+                else:
+                    valid = np.asarray(self.validity.is_valid_batch(Qn[good]), dtype=bool)
                 ok[cand[good[~valid]]] = False
         acc = np.nonzero(ok)[0]
         pos = np.searchsorted(cand, acc)
+        if margin is not None:
+            checked = ~np.isnan(margin_of[pos])  # accepted after an exact check: new reference
+            moved = idx[acc[checked]]
+            self._ref_Q[moved] = Qn[pos[checked]]
+            self._ref_margin[moved] = margin_of[pos[checked]]
         self.Q[idx[acc]] = Qn[pos]
         self.P[idx[acc]] = (res.points[pos] if res.points is not None else
                             np.asarray(self.robot.batch_fk(Qn[pos]).positions, dtype=float))
         return ok
+
+    def _check_certified(self, particles: Array, Q: Array) -> tuple[Array, Array]:
+        """Validity of new joints Q for these particles, skipping the exact check where the
+        arm travel from the particle's last exact check stays inside its free margin."""
+        v = self.validity
+        sure = self._ref_margin[particles] > v.travel(self._ref_Q[particles], Q) + 1e-9
+        self.certified_moves += int(sure.sum())
+        valid, margin = v.is_valid_batch_margin(Q, sure)
+        return np.asarray(valid, dtype=bool), np.asarray(margin, dtype=float)
