@@ -283,9 +283,11 @@ class CollisionChecker:
         """Broad phase: for each config, which (robot shape, env shape) and self pairs may touch.
 
         Returns two boolean arrays, (N, R, E) and (N, P), and with `with_gap` a third, (N,):
-        how far every moving sphere stays outside every obstacle box, and half of how far
-        the sphere pairs of the self pairs stay apart (m; <= 0 when something is near). An
-        arm that moves no sphere by more than that cannot bring anything near (see
+        how far every moving sphere stays outside every obstacle box and the sphere pairs of
+        the self pairs stay apart (m; <= 0 when something is near). An arm whose travel
+        (`travel`) stays below that cannot bring anything near: it bounds each sphere's move
+        against the boxes, and in the frame of one link of a pair the other link's spheres
+        move by no more than the travel of the joints between them (see
         `is_valid_batch_margin`).
         """
         N = frames.shape[0]
@@ -317,7 +319,7 @@ class CollisionChecker:
             near = d2 <= (rr ** 2)[None]
             self_c[:, self._pair_has_sph] = np.logical_or.reduceat(near, self._sp_starts, axis=1)
             if gap is not None and len(rr):
-                gap = np.minimum(gap, 0.5 * (np.sqrt(d2) - rr[None]).min(axis=1))
+                gap = np.minimum(gap, (np.sqrt(d2) - rr[None]).min(axis=1))
         return env_c, self_c, gap
 
     def _narrow(self, frames_n: Array, env_c: Array, self_c: Array, *, all_contacts: bool,
