@@ -134,3 +134,15 @@ def orthonormalized(T: Array, tol: float = ROTATION_TOLERANCE) -> Array:
     U, _, Vt = np.linalg.svd(R)
     T[:3, :3] = U @ Vt
     return T
+
+
+def stored_pose(T: Array, decimals: int = 9) -> Array:
+    """A pose (e.g. from forward kinematics) as written to a file: rounded, so the file does
+    not depend on the last bits of the kinematics, then the rotation made orthonormal again
+    (a rounded rotation is off by ~1e-9, and numeric IK refuses such a target)."""
+    T = np.round(np.asarray(T, dtype=float), decimals)
+    x = T[:3, 0] / np.sqrt(T[:3, 0] @ T[:3, 0])
+    z = np.cross(x, T[:3, 1])
+    z = z / np.sqrt(z @ z)
+    T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
+    return T

@@ -45,7 +45,7 @@ from assistant.cell_io import save_cell  # noqa: E402
 from assistant.mission import Location, LocationSource, Mission  # noqa: E402
 from assistant.robot_catalog import RobotSpec, ToolSpec  # noqa: E402
 from assistant.session.session import _drawing_control, drawing_path  # noqa: E402
-from assistant.transforms import pose_from_mm_deg  # noqa: E402
+from assistant.transforms import make_T, pose_from_mm_deg, stored_pose  # noqa: E402
 
 URDF_NAME = "kr3r540.urdf"
 
@@ -218,19 +218,13 @@ def calibration_points_world() -> np.ndarray:
 
 
 # ------------------------------------------------------------------ cell and mission
-def translation(x: float, y: float, z: float) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, 3] = (x, y, z)
-    return T
-
-
 def make_cell(out: Path = HERE) -> Cell:
     (out / URDF_NAME).write_text(kr3_urdf(), encoding="utf-8")
     cad = out / "cad"
     cad.mkdir(parents=True, exist_ok=True)
     cell = Cell(robot_spec=robot_spec(), T_world_base=np.eye(4))
     for name, (c, s) in (("stand", STAND), ("conveyor", CONVEYOR)):
-        cell.add_object(CellObject.box(name, s, translation(*c), role=ObjectRole.FIXTURE))
+        cell.add_object(CellObject.box(name, s, make_T(p=c), role=ObjectRole.FIXTURE))
     for name, data, T, role in (
             ("pallet", pallet_stl(), T_world_pallet(), ObjectRole.FIXTURE),
             ("pen_holder", pen_holder_stl(), pose_from_mm_deg(np.array(PEN_HOLDER_MM_DEG)),
@@ -242,24 +236,12 @@ def make_cell(out: Path = HERE) -> Cell:
     return cell
 
 
-def tidy_pose(T: np.ndarray) -> np.ndarray:
-    """A pose from forward kinematics as stored in mission.json: rounded (the file must not
-    depend on the last bits of the kinematics), then the rotation made orthonormal again (a
-    rounded rotation is off by ~1e-9, and numeric IK refuses such a target)."""
-    T = np.round(np.asarray(T, dtype=float), 9)
-    x = T[:3, 0] / np.sqrt(T[:3, 0] @ T[:3, 0])
-    z = np.cross(x, T[:3, 1])
-    z = z / np.sqrt(z @ z)
-    T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
-    return T
-
-
 def make_mission() -> Mission:
     from assistant.session.session import sample_robot_spec
 
     q = np.radians(np.array(HOME_Q_DEG))
     robot = sample_robot_spec(robot_spec(), HERE).build()
-    home = Location("HOME", tidy_pose(robot.fk(q)), LocationSource.ROBOT_POSE, q)
+    home = Location("HOME", stored_pose(robot.fk(q)), LocationSource.ROBOT_POSE, q)
     paths = [drawing_path(name, T_world_paper(), _drawing_control(number),
                           at=(x / 1000, y / 1000), lift=PEN_LIFT, speed=DRAW_SPEED,
                           tool_angle=PEN_TURN)

@@ -39,6 +39,7 @@ from assistant.cell_io import save_cell  # noqa: E402
 from assistant.mission import ApplicationPath, Location, Mission, PathSegment, SegmentKind  # noqa: E402
 from assistant.motion import ToolAction, ToolActionKind  # noqa: E402
 from assistant.robot_catalog import RobotSpec, ToolSpec  # noqa: E402
+from assistant.transforms import make_T  # noqa: E402
 
 #: Tool pointing straight down.
 R_DOWN = np.diag([1.0, -1.0, -1.0])
@@ -64,18 +65,6 @@ CARRY_Z = 0.11
 START = (0.10, -0.32, 0.20)
 GOAL = (0.10, 0.32, 0.20)
 SPEED = 0.10
-
-
-def translation(x: float, y: float, z: float) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, 3] = (x, y, z)
-    return T
-
-
-def pose_down(p: tuple[float, float, float]) -> np.ndarray:
-    T = translation(*p)
-    T[:3, :3] = R_DOWN
-    return T
 
 
 def _box_mm(size: tuple, centre: tuple) -> trimesh.Trimesh:
@@ -131,25 +120,25 @@ def make_cell(out: Path = HERE) -> Cell:
     spec = RobotSpec(kind="rv2aj", tool=ToolSpec.straight(GRIPPER_LENGTH, GRIPPER_RADIUS))
     cell = Cell(robot_spec=spec, T_world_base=np.eye(4))
     (c, s) = TABLE
-    cell.add_object(CellObject.box("table", s, translation(*c), role=ObjectRole.FIXTURE))
+    cell.add_object(CellObject.box("table", s, make_T(p=c), role=ObjectRole.FIXTURE))
     cad = out / "cad"
     cad.mkdir(parents=True, exist_ok=True)
     for name, data, at in (("conveyor", conveyor_stl(), CONVEYOR_AT),
                            ("fixture", fixture_stl(), FIXTURE_AT)):
         (cad / f"{name}.stl").write_bytes(data)
         cell.add_object(CellObject.from_cad(name, load_cad(data, f"{name}.stl", units="mm"),
-                                            translation(*at), role=ObjectRole.FIXTURE))
+                                            make_T(p=at), role=ObjectRole.FIXTURE))
     (c, r, h) = POST
-    cell.add_object(CellObject.cylinder("post", r, h, translation(*c)))
+    cell.add_object(CellObject.cylinder("post", r, h, make_T(p=c)))
     for k, p in enumerate(pick_points()):
         cell.add_object(CellObject.box(f"block{k + 1}", (BLOCK,) * 3,
-                                       translation(p[0], p[1], p[2] - BLOCK / 2),
+                                       make_T(p=(p[0], p[1], p[2] - BLOCK / 2)),
                                        role=ObjectRole.WORKPIECE))
     return cell
 
 
 def make_mission() -> Mission:
-    return Mission(Location("START", pose_down(START)), Location("GOAL", pose_down(GOAL)),
+    return Mission(Location("START", make_T(R_DOWN, START)), Location("GOAL", make_T(R_DOWN, GOAL)),
                    [pair_path(k) for k in range(3)])
 
 

@@ -39,6 +39,7 @@ from assistant.cell_io import save_cell  # noqa: E402
 from assistant.mission import ApplicationPath, Location, Mission, PathSegment, SegmentKind  # noqa: E402
 from assistant.motion import ToolAction, ToolActionKind  # noqa: E402
 from assistant.robot_catalog import RobotSpec, ToolSpec  # noqa: E402
+from assistant.transforms import make_T  # noqa: E402
 
 #: Tool pointing straight down (approach = -z), the usual pose over a table.
 R_DOWN = np.diag([1.0, -1.0, -1.0])
@@ -92,30 +93,18 @@ def box_dxf(size_xyz: tuple[float, float, float]) -> bytes:
     return buf.getvalue().encode("utf-8")
 
 
-def translation(x: float, y: float, z: float) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, 3] = (x, y, z)
-    return T
-
-
-def pose_down(p: tuple[float, float, float]) -> np.ndarray:
-    T = translation(*p)
-    T[:3, :3] = R_DOWN
-    return T
-
-
 def make_cell(out: Path = HERE) -> Cell:
     spec = RobotSpec(kind="rv2aj", tool=ToolSpec.straight(0.1))
     cell = Cell(robot_spec=spec, T_world_base=np.eye(4))
     (c, s) = TABLE
-    cell.add_object(CellObject.box("table", s, translation(*c), role=ObjectRole.FIXTURE))
+    cell.add_object(CellObject.box("table", s, make_T(p=c), role=ObjectRole.FIXTURE))
     dxf_dir = out / "dxf"
     dxf_dir.mkdir(parents=True, exist_ok=True)
     for name, ((x, y), size) in KNOWN.items():
         data = box_dxf(size)
         (dxf_dir / f"{name}.dxf").write_bytes(data)
         cad = load_cad(data, f"{name}.dxf")
-        cell.add_object(CellObject.from_cad(name, cad, translation(x, y, 0.0),
+        cell.add_object(CellObject.from_cad(name, cad, make_T(p=(x, y, 0.0)),
                                             role=ObjectRole.OBSTACLE))
     return cell
 
@@ -127,7 +116,7 @@ def make_mission() -> Mission:
         actions_before=[ToolAction(ToolActionKind.GRIPPER_CLOSE, 1)],
         actions_after=[ToolAction(ToolActionKind.GRIPPER_OPEN, 1)],
         speed=0.05)
-    return Mission(Location("P1", pose_down(P1)), Location("P10", pose_down(P10)), [line])
+    return Mission(Location("P1", make_T(R_DOWN, P1)), Location("P10", make_T(R_DOWN, P10)), [line])
 
 
 def hidden_json() -> dict:
@@ -135,7 +124,7 @@ def hidden_json() -> dict:
     return {"schema_version": 1,
             "note": "obstacles only the simulated robot knows (metres, world frame)",
             "obstacles": [{"name": "O3", "kind": "box", "size": list(s),
-                           "T_world_object": translation(*c).tolist()}]}
+                           "T_world_object": make_T(p=c).tolist()}]}
 
 
 def main(out: Path = HERE) -> None:

@@ -50,6 +50,7 @@ from assistant.mission import (  # noqa: E402
 )
 from assistant.motion import ToolAction, ToolActionKind  # noqa: E402
 from assistant.robot_catalog import RobotSpec, ToolSpec  # noqa: E402
+from assistant.transforms import make_T, stored_pose  # noqa: E402
 
 URDF = "example-robot-data/robots/ur_description/urdf/ur5_robot.urdf"
 #: shoulder_pan, shoulder_lift, elbow, wrist_1, wrist_2, wrist_3 (deg).
@@ -74,12 +75,6 @@ SEAM_B = (0.50, 0.12, 0.045)
 SEAM_SPEED = 0.05
 
 
-def translation(x: float, y: float, z: float) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, 3] = (x, y, z)
-    return T
-
-
 def robot_spec() -> RobotSpec:
     return RobotSpec(kind="urdf", urdf_path=URDF, base_link="base_link", tool_link="tool0",
                      tool=ToolSpec.straight(NOZZLE_LENGTH, NOZZLE_RADIUS, name="nozzle",
@@ -97,30 +92,18 @@ def plate_stl() -> bytes:
 def make_cell(out: Path = HERE) -> Cell:
     cell = Cell(robot_spec=robot_spec(), T_world_base=np.eye(4))
     (c, s) = TABLE
-    cell.add_object(CellObject.box("table", s, translation(*c), role=ObjectRole.FIXTURE))
+    cell.add_object(CellObject.box("table", s, make_T(p=c), role=ObjectRole.FIXTURE))
     cad = out / "cad"
     cad.mkdir(parents=True, exist_ok=True)
     data = plate_stl()
     (cad / "plate.stl").write_bytes(data)
     cell.add_object(CellObject.from_cad("plate", load_cad(data, "plate.stl", units="mm"),
-                                        translation(*PLATE_AT), role=ObjectRole.WORKPIECE))
+                                        make_T(p=PLATE_AT), role=ObjectRole.WORKPIECE))
     (c, s) = CLAMP
-    cell.add_object(CellObject.box("clamp", s, translation(*c)))
+    cell.add_object(CellObject.box("clamp", s, make_T(p=c)))
     (c, r, h) = POST
-    cell.add_object(CellObject.cylinder("post", r, h, translation(*c)))
+    cell.add_object(CellObject.cylinder("post", r, h, make_T(p=c)))
     return cell
-
-
-def tidy_pose(T: np.ndarray) -> np.ndarray:
-    """A pose from forward kinematics as stored in mission.json: rounded (the file must not
-    depend on the last bits of the kinematics), then the rotation made orthonormal again (a
-    rounded rotation is off by ~1e-9, and numeric IK refuses such a target)."""
-    T = np.round(np.asarray(T, dtype=float), 9)
-    x = T[:3, 0] / np.sqrt(T[:3, 0] @ T[:3, 0])
-    z = np.cross(x, T[:3, 1])
-    z = z / np.sqrt(z @ z)
-    T[:3, :3] = np.column_stack([x, np.cross(z, x), z])
-    return T
 
 
 def _taught(name: str, q_deg: tuple[float, ...]) -> Location:
@@ -129,7 +112,7 @@ def _taught(name: str, q_deg: tuple[float, ...]) -> Location:
 
     robot = sample_robot_spec(robot_spec(), HERE).build()
     q = np.radians(np.array(q_deg))
-    return Location(name, tidy_pose(robot.fk(q)), LocationSource.ROBOT_POSE, q)
+    return Location(name, stored_pose(robot.fk(q)), LocationSource.ROBOT_POSE, q)
 
 
 def make_mission() -> Mission:
