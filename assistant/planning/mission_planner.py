@@ -36,7 +36,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from assistant.collision import CollisionChecker, ObstacleView
-from assistant.mission import Mission
+from assistant.mission import Location, Mission
 from assistant.motion import Motion, MotionKind, Trajectory, Waypoint
 from assistant.planning.config import MissionPlannerConfig
 from assistant.planning.known_world import KnownValidity, KnownVerifier, WorldAllowed
@@ -259,9 +259,7 @@ class MissionPlanner:
         locations: dict[str, Array] = {}
         if mission.start is not None:
             try:
-                s = solve_location(self.robot, self.checker, mission.start.name,
-                                   mission.start.T_world_tool, T_wb, seed=q_cur,
-                                   q_hint=branch_hint(mission.start))
+                s = self._solve(mission.start, T_wb, q_cur)
             except LocationError as exc:
                 return failed(f"start {exc.name}", "location", str(exc))
             start_label = mission.start.name
@@ -311,9 +309,7 @@ class MissionPlanner:
                 goal = s
             else:
                 try:
-                    goal = solve_location(self.robot, self.checker, mission.goal.name,
-                                          mission.goal.T_world_tool, T_wb, seed=gseed,
-                                          q_hint=branch_hint(mission.goal))
+                    goal = self._solve(mission.goal, T_wb, gseed)
                 except LocationError as exc:
                     return failed(f"goal {exc.name}", "location", str(exc))
             locations[goal.name] = goal.q
@@ -397,6 +393,11 @@ class MissionPlanner:
                                 ordering.method, exploring)
         progress.update(1.0, "mission planned", force=True)
         return MissionPlan(True, traj, pieces, rep, T_wb, locations, traj, ordering)
+
+    def _solve(self, loc: Location, T_wb: Array, seed: Array) -> SolvedLocation:
+        """Joints for a taught location near `seed` (raises `LocationError` with the reason)."""
+        return solve_location(self.robot, self.checker, loc.name, loc.T_world_tool, T_wb,
+                              seed=seed, q_hint=branch_hint(loc))
 
     def _order(self, mission: Mission, s: SolvedLocation, goal: SolvedLocation | None,
                apps: dict[tuple[int, bool], ApplicationMotions],
