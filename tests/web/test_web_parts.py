@@ -6,7 +6,6 @@ import threading
 from types import SimpleNamespace
 
 import numpy as np
-import pytest
 import trimesh
 
 from assistant.session import Session
@@ -14,7 +13,7 @@ from assistant.session.events import Notice, PointerUpdated, RobotMoved, StateCh
 from web.pump import EventPump, _coalesce
 from web.scene.base import node_key
 from web.scene.picking import pick
-from web.scene.world import probability_colors, unit_box
+from web.scene.world import probability_colors
 from web.units import pose_fields, pose_from_fields
 
 
@@ -74,13 +73,6 @@ def test_probability_colours_run_from_pale_to_red():
     assert c.dtype == np.uint8 and c.shape == (4, 3)
     assert tuple(c[0]) == (250, 230, 120) and tuple(c[2]) == (200, 25, 25)
     assert tuple(c[3]) == tuple(c[2])  # clipped
-
-
-def test_unit_box_is_a_closed_outward_cube():
-    v, f = unit_box()
-    mesh = trimesh.Trimesh(v, f, process=False)
-    assert mesh.is_watertight and mesh.is_winding_consistent
-    assert mesh.volume == pytest.approx(1.0)
 
 
 def test_pose_fields_round_trip_in_mm_and_degrees():

@@ -1,6 +1,6 @@
-"""The world model: octree occupancy as ONE scene node coloured by probability (translucent
-boxes for a few thousand cells, square sprites beyond; toggleable), the Voronoi roads as a
-point cloud, and the recorded collision postures."""
+"""The world model: octree occupancy as ONE scene node coloured by probability (the outside
+faces of the occupied cells as one unlit mesh, or square sprites when the cells are scattered;
+toggleable), the Voronoi roads as a point cloud, and the recorded collision postures."""
 
 from __future__ import annotations
 
@@ -8,13 +8,22 @@ import numpy as np
 
 from assistant.session.events import CollisionRecorded, Event, PlanReady, SceneChanged
 from web.scene.base import Layer
+from web.scene.voxel_surface import surface_glb, voxel_surface
 
 #: Probability colour stops: low (pale yellow) -> 0.5 (orange) -> certain (red).
 STOPS = np.array([[0.0, 250, 230, 120], [0.5, 245, 140, 30], [1.0, 200, 25, 25]])
 ROAD_COLOR = (40, 170, 90)
 COLLISION_COLOR = (230, 0, 0)
-#: Up to this many occupied cells are drawn as translucent boxes; more as square sprites.
-BOXES_UP_TO = 5000
+#: The surface mesh is drawn when it has at most this many triangles per occupied cell (or
+#: `SURFACE_TRIANGLES_ANYWAY` in all); scattered cells are sprites. Measured in software WebGL
+#: (benchmarks/ui.py): one sprite costs about as much as 8 surface triangles, and a compact
+#: block has far fewer than one triangle per cell while an isolated cell has 12.
+SURFACE_TRIANGLES_PER_CELL = 6
+SURFACE_TRIANGLES_ANYWAY = 60_000
+#: The surface is translucent: the CAD parts the cells come from stay visible inside it.
+SURFACE_OPACITY = 0.3
+#: Each face of the surface is shrunk to this in its plane: the gaps draw the cell grid.
+SURFACE_FACE_SCALE = 0.9
 
 
 def probability_colors(p: np.ndarray) -> np.ndarray:
@@ -22,15 +31,6 @@ def probability_colors(p: np.ndarray) -> np.ndarray:
     p = np.clip(np.asarray(p, float), 0.0, 1.0)
     out = np.stack([np.interp(p, STOPS[:, 0], STOPS[:, k]) for k in (1, 2, 3)], axis=1)
     return out.round().astype(np.uint8)
-
-
-def unit_box() -> tuple[np.ndarray, np.ndarray]:
-    """A cube of edge 1 centred on the origin: (8 vertices, 12 triangles, outward)."""
-    v = np.array([[x, y, z] for z in (-0.5, 0.5) for y in (-0.5, 0.5) for x in (-0.5, 0.5)],
-                 np.float32)
-    f = np.array([[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
-                  [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]], np.uint32)
-    return v, f
 
 
 class WorldLayer(Layer):
@@ -43,7 +43,7 @@ class WorldLayer(Layer):
         self.min_p = 0.05
         #: Occupied cells drawn last time (benchmarks, the explore panel's figures).
         self.cells_drawn = 0
-        #: How they were drawn: "boxes", "sprites" (beyond `BOXES_UP_TO`) or None.
+        #: How they were drawn: "surface", "sprites" (scattered cells) or None.
         self.occupancy_style: str | None = None
         self.roads_drawn = 0
 
@@ -52,7 +52,7 @@ class WorldLayer(Layer):
         s = self.session
         occ = s.occupancy_cells(self.min_p)
         if occ is not None:
-            self.draw_occupancy(*occ)
+            self.draw_occupancy(*occ, R_world_grid=s.T_world_base()[:3, :3])
         roads = s.road_cells()
         if roads is not None and len(roads[0]):
             centres, leaf = roads
@@ -68,9 +68,12 @@ class WorldLayer(Layer):
                 f"{self.root}/collisions", pts, COLLISION_COLOR, point_size=0.03,
                 point_shape="sparkle", precision="float32")
 
-    def draw_occupancy(self, centres: np.ndarray, p: np.ndarray, leaf: float) -> None:
-        """One scene node for all cells (50 k cells stay one draw call). Boxes use toon
-        shading: the default PBR material costs several times more per pixel without a GPU."""
+    def draw_occupancy(self, centres: np.ndarray, p: np.ndarray, leaf: float,
+                       R_world_grid: np.ndarray | None = None) -> None:
+        """One scene node for all cells (50 k cells stay one draw call): the outside faces of
+        the occupied cells as one mesh, or - when the cells are too scattered for that to pay
+        - one square sprite per cell that has a free neighbour (the others cannot be seen).
+        `R_world_grid`: the octree's axes in the world (the robot base may be turned)."""
         old = self._nodes.pop("occupancy", None)
         if old is not None:
             old.remove()
@@ -78,26 +81,21 @@ class WorldLayer(Layer):
         self.occupancy_style = None
         if not len(centres):
             return
-        if len(centres) > BOXES_UP_TO:
-            # Many cells: one square sprite per cell (1 vertex instead of 12 triangles of
-            # blended box faces) - what keeps software WebGL (no GPU) interactive.
-            self._nodes["occupancy"] = self.scene.add_point_cloud(
-                f"{self.root}/occupancy", np.asarray(centres, np.float32),
-                probability_colors(p), point_size=float(0.92 * leaf), point_shape="square",
-                precision="float32", visible=self.show_occupancy)
-            self.occupancy_style = "sprites"
+        colors = probability_colors(p)
+        surface = voxel_surface(centres, leaf, R_world_grid, SURFACE_FACE_SCALE)
+        if len(surface.faces) <= max(SURFACE_TRIANGLES_ANYWAY,
+                                     SURFACE_TRIANGLES_PER_CELL * len(centres)):
+            self._nodes["occupancy"] = self.scene.add_glb(
+                f"{self.root}/occupancy", surface_glb(surface, colors, SURFACE_OPACITY),
+                cast_shadow=False, receive_shadow=False, visible=self.show_occupancy)
+            self.occupancy_style = "surface"
             return
-        v, f = unit_box()
-        n = len(centres)
-        self._nodes["occupancy"] = self.scene.add_batched_meshes_simple(
-            f"{self.root}/occupancy", v, f,
-            batched_wxyzs=np.tile(np.array([1.0, 0, 0, 0], np.float32), (n, 1)),
-            batched_positions=np.asarray(centres, np.float32),
-            batched_scales=np.full(n, 0.92 * leaf, np.float32),
-            batched_colors=probability_colors(p), opacity=0.2, lod="off",
-            cast_shadow=False, receive_shadow=False, material="toon3",
+        seen = surface.surface_cells
+        self._nodes["occupancy"] = self.scene.add_point_cloud(
+            f"{self.root}/occupancy", np.asarray(centres, np.float32)[seen], colors[seen],
+            point_size=float(0.92 * leaf), point_shape="square", precision="float32",
             visible=self.show_occupancy)
-        self.occupancy_style = "boxes"
+        self.occupancy_style = "sprites"
 
     def set_visibility(self, *, occupancy: bool | None = None, roads: bool | None = None) -> None:
         if occupancy is not None:
