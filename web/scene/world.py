@@ -16,7 +16,7 @@ ROAD_COLOR = (40, 170, 90)
 COLLISION_COLOR = (230, 0, 0)
 #: The surface mesh is drawn when it has at most this many triangles per occupied cell (or
 #: `SURFACE_TRIANGLES_ANYWAY` in all); scattered cells are sprites. Measured in software WebGL
-#: (benchmarks/ui.py): one sprite costs about as much as 8 surface triangles, and a compact
+#: (benchmarks/ui.py): one sprite costs about as much as 5-9 surface triangles, a compact
 #: block has far fewer than one triangle per cell while an isolated cell has 12.
 SURFACE_TRIANGLES_PER_CELL = 6
 SURFACE_TRIANGLES_ANYWAY = 60_000
