@@ -190,6 +190,10 @@ class CollisionChecker:
         # Start offsets of each shape's / pair's contiguous run of spheres (for reduceat).
         self._shape_has_sph = np.isin(np.arange(len(self._rshapes)), self._sph_shape)
         self._sph_starts = np.searchsorted(self._sph_shape, np.nonzero(self._shape_has_sph)[0])
+        # Each robot shape's link and pose in it, for posing many shapes in one product.
+        self._shape_link = np.array([rs.link for rs in self._rshapes], dtype=np.int64)
+        self._shape_T = (np.stack([rs.shape.T_link_shape for rs in self._rshapes])
+                         if self._rshapes else np.zeros((0, 4, 4)))
         self._pair_has_sph = np.isin(np.arange(len(self._self_pairs)), self._sp_pair)
         self._sp_starts = np.searchsorted(self._sp_pair,
                                           np.nonzero(self._pair_has_sph)[0])
@@ -419,10 +423,51 @@ class CollisionChecker:
             if gaps is not None:
                 gaps[start : start + len(block)] = gap
             maybe = np.nonzero(env_c.any(axis=(1, 2)) | self_c.any(axis=1))[0]
-            for k in maybe:
-                if self._narrow(frames[k], env_c[k], self_c[k], all_contacts=False):
-                    out[start + k] = True
+            if len(maybe):
+                out[start + maybe] = self._first_contacts(frames[maybe], env_c[maybe],
+                                                          self_c[maybe])
         return out, gaps
+
+    def _first_contacts(self, frames: Array, env_c: Array, self_c: Array) -> Array:
+        """Exact flag per row for the broad phase's candidate pairs: the same FCL calls in the
+        same order as `_narrow(..., all_contacts=False)` - obstacle pairs, then self pairs,
+        stopping at the first contact - with the per-row numpy work done for all rows at
+        once and each shape posed only when a pair first needs it."""
+        n = len(frames)
+        hit = np.zeros(n, dtype=bool)
+        ek, es, ee = np.nonzero(env_c)  # ordered by row, then robot shape, then obstacle
+        pk, pp = np.nonzero(self_c)
+        e_at = np.searchsorted(ek, np.arange(n + 1)).tolist()
+        p_at = np.searchsorted(pk, np.arange(n + 1)).tolist()
+        es_l, ee_l, pp_l = es.tolist(), ee.tolist(), pp.tolist()
+        # Every robot shape's pose in every row: one batched product instead of one per call.
+        T = np.einsum("nrij,rjk->nrik", frames[:, self._shape_link], self._shape_T)
+        R = np.ascontiguousarray(T[..., :3, :3])
+        t = np.ascontiguousarray(T[..., :3, 3])
+        rsh, env, pairs, req = self._rshapes, self._env, self._self_pairs, self._req
+        collide, result, transform = fcl.collide, fcl.CollisionResult, fcl.Transform
+        for k in range(n):
+            posed: set[int] = set()
+
+            def obj(i: int, k: int = k, posed: set[int] = posed) -> fcl.CollisionObject:
+                o = rsh[i].obj
+                if i not in posed:
+                    posed.add(i)
+                    o.setTransform(transform(R[k, i], t[k, i]))
+                return o
+
+            for j in range(e_at[k], e_at[k + 1]):
+                if collide(obj(es_l[j]), env[ee_l[j]].obj, req, result()):
+                    hit[k] = True
+                    break
+            if hit[k]:
+                continue
+            for j in range(p_at[k], p_at[k + 1]):
+                a, b = pairs[pp_l[j]]
+                if collide(obj(a), obj(b), req, result()):
+                    hit[k] = True
+                    break
+        return hit
 
     def in_collision_naive(self, q: Array) -> bool:
         """Brute force: every robot shape against every obstacle and self pair through FCL.
