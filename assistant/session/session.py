@@ -17,7 +17,7 @@ from collections.abc import Callable, Iterator
 from concurrent.futures import Future
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -67,6 +67,17 @@ from assistant.transforms import inv_T
 from workflow.machine import Facts, Machine, Mode, TransitionRefused
 
 Array = np.ndarray
+
+
+class OccupiedCells(NamedTuple):
+    """Occupied octree leaves for display: the octree is a lattice along the robot base's
+    axes, so a turned base turns the lattice (`R_world_grid`: its axes in the world)."""
+
+    centres: Array  # (N, 3) world frame
+    p: Array  # (N,) occupancy probability
+    leaf: float  # edge of a leaf (m)
+    R_world_grid: Array  # (3, 3)
+
 
 #: Steps in which each kind of edit is allowed (main state ids).
 EDIT_CELL = ("cad", "place")
@@ -1152,8 +1163,8 @@ class Session:
             self.mission = replace(self.mission, order=list(ordering.order))
         return [self.mission.paths[i].name for i in ordering.order]
 
-    def occupancy_cells(self, min_p: float = 0.05) -> tuple[Array, Array, float] | None:
-        """Octree leaves with occupancy >= min_p: (centres in world, probabilities, leaf size)."""
+    def occupancy_cells(self, min_p: float = 0.05) -> OccupiedCells | None:
+        """Octree leaves with occupancy >= min_p, in the world frame."""
         b = self._world
         if b is None:
             return None
@@ -1162,8 +1173,8 @@ class Session:
         grid = b.world.grid
         centres = grid.centres_of_ijk(ijk)
         T = self.T_world_base()
-        return (centres @ T[:3, :3].T + T[:3, 3], occ[tuple(ijk.T)].astype(float),
-                float(grid.leaf))
+        return OccupiedCells(centres @ T[:3, :3].T + T[:3, 3], occ[tuple(ijk.T)].astype(float),
+                             float(grid.leaf), T[:3, :3].copy())
 
     def road_cells(self) -> tuple[Array, float] | None:
         """Centres (world frame) of the Voronoi road cells and the leaf size."""

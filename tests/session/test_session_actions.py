@@ -157,3 +157,22 @@ def test_a_session_file_that_is_not_json_fails_cleanly(tmp_path):
         Session.load(tmp_path)
     with pytest.raises(SessionFileError, match="no session.json"):
         Session.load(tmp_path / "missing")
+
+
+def test_occupied_cells_come_with_the_lattice_axes_of_the_octree(tmp_path):
+    """The page draws the cells' outside faces along the octree's axes: the session says
+    what they are (the robot base's), and every centre sits on that lattice."""
+    s = Session.from_sample("thesis_rv2aj", tmp_path / "s")
+    try:
+        assert s.occupancy_cells() is None  # no world model yet
+        s.goto("plan")
+        s.build_world()
+        cells = s.occupancy_cells(0.05)
+        assert cells is not None and len(cells.centres) == len(cells.p) > 0
+        T = s.T_world_base()
+        assert np.array_equal(cells.R_world_grid, T[:3, :3])
+        local = (cells.centres - T[:3, 3]) @ cells.R_world_grid / cells.leaf - 0.5
+        assert np.allclose(local, np.rint(local), atol=1e-6)
+        assert ((cells.p >= 0.05) & (cells.p <= 1.0)).all()
+    finally:
+        s.close()

@@ -52,7 +52,7 @@ class WorldLayer(Layer):
         s = self.session
         occ = s.occupancy_cells(self.min_p)
         if occ is not None:
-            self.draw_occupancy(*occ, R_world_grid=s.T_world_base()[:3, :3])
+            self.draw_occupancy(*occ)
         roads = s.road_cells()
         if roads is not None and len(roads[0]):
             centres, leaf = roads
@@ -73,7 +73,7 @@ class WorldLayer(Layer):
         """One scene node for all cells (50 k cells stay one draw call): the outside faces of
         the occupied cells as one mesh, or - when the cells are too scattered for that to pay
         - one square sprite per cell that has a free neighbour (the others cannot be seen).
-        `R_world_grid`: the octree's axes in the world (the robot base may be turned)."""
+        `R_world_grid`: the octree's axes in the world (see `Session.occupancy_cells`)."""
         old = self._nodes.pop("occupancy", None)
         if old is not None:
             old.remove()
