@@ -326,8 +326,9 @@ class CollisionChecker:
                 gap = np.minimum(gap, (np.sqrt(d2) - rr[None]).min(axis=1))
         return env_c, self_c, gap
 
-    def _narrow(self, frames_n: Array, env_c: Array, self_c: Array, *, all_contacts: bool,
-                ) -> list[Contact]:
+    def _contacts(self, frames_n: Array, env_c: Array, self_c: Array) -> list[Contact]:
+        """Every (link, obstacle) and self contact among one configuration's broad-phase
+        candidates (reports; the batches only need the first, see `_first_contacts`)."""
         shapes_needed = set(np.nonzero(env_c.any(axis=1))[0].tolist())
         for p in np.nonzero(self_c)[0]:
             shapes_needed.update(self._self_pairs[p])
@@ -339,24 +340,18 @@ class CollisionChecker:
         for s, e in zip(*np.nonzero(env_c), strict=True):
             rs, es = self._rshapes[s], self._env[e]
             key = (self._link_names[rs.link], es.owner)
-            if key in seen:
-                continue
-            if fcl.collide(rs.obj, es.obj, self._req, fcl.CollisionResult()):
+            if key not in seen and fcl.collide(rs.obj, es.obj, self._req,
+                                               fcl.CollisionResult()):
                 seen.add(key)
                 contacts.append(Contact(*key))
-                if not all_contacts:
-                    return contacts
         for p in np.nonzero(self_c)[0]:
             a, b = self._self_pairs[p]
             ra, rb = self._rshapes[a], self._rshapes[b]
             key = (self._link_names[ra.link], self._link_names[rb.link])
-            if key in seen:
-                continue
-            if fcl.collide(ra.obj, rb.obj, self._req, fcl.CollisionResult()):
+            if key not in seen and fcl.collide(ra.obj, rb.obj, self._req,
+                                               fcl.CollisionResult()):
                 seen.add(key)
                 contacts.append(Contact(*key, self_collision=True))
-                if not all_contacts:
-                    return contacts
         return contacts
 
     def check(self, q: Array) -> CollisionReport:
@@ -364,7 +359,7 @@ class CollisionChecker:
         q = np.asarray(q, dtype=float)
         frames = self.robot.link_poses(q)[None]
         env_c, self_c, _ = self._candidates(frames)
-        contacts = self._narrow(frames[0], env_c[0], self_c[0], all_contacts=True)
+        contacts = self._contacts(frames[0], env_c[0], self_c[0])
         viol = self.robot.limits.violations(q, self.robot.joint_names)
         return CollisionReport(not viol, tuple(contacts), tuple(viol))
 
@@ -429,44 +424,39 @@ class CollisionChecker:
         return out, gaps
 
     def _first_contacts(self, frames: Array, env_c: Array, self_c: Array) -> Array:
-        """Exact flag per row for the broad phase's candidate pairs: the same FCL calls in the
-        same order as `_narrow(..., all_contacts=False)` - obstacle pairs, then self pairs,
-        stopping at the first contact - with the per-row numpy work done for all rows at
-        once and each shape posed only when a pair first needs it."""
+        """Exact flag per row for the broad phase's candidate pairs: obstacle pairs, then
+        self pairs, stopping at the first contact. The bookkeeping is done for all rows at
+        once and a shape is posed only when a pair of its row first needs it."""
         n = len(frames)
         hit = np.zeros(n, dtype=bool)
         ek, es, ee = np.nonzero(env_c)  # ordered by row, then robot shape, then obstacle
         pk, pp = np.nonzero(self_c)
         e_at = np.searchsorted(ek, np.arange(n + 1)).tolist()
         p_at = np.searchsorted(pk, np.arange(n + 1)).tolist()
-        es_l, ee_l, pp_l = es.tolist(), ee.tolist(), pp.tolist()
+        es_l, ee_l = es.tolist(), ee.tolist()
+        pairs = [self._self_pairs[p] for p in pp.tolist()]
         # Every robot shape's pose in every row: one batched product instead of one per call.
         T = np.einsum("nrij,rjk->nrik", frames[:, self._shape_link], self._shape_T)
         R = np.ascontiguousarray(T[..., :3, :3])
         t = np.ascontiguousarray(T[..., :3, 3])
-        rsh, env, pairs, req = self._rshapes, self._env, self._self_pairs, self._req
-        collide, result, transform = fcl.collide, fcl.CollisionResult, fcl.Transform
+        objs = [rs.obj for rs in self._rshapes]
+        env = [es.obj for es in self._env]
+        posed_in = [-1] * len(objs)  # the row each shape is posed for now
+
+        def posed(i: int, k: int) -> fcl.CollisionObject:
+            if posed_in[i] != k:
+                posed_in[i] = k
+                objs[i].setTransform(fcl.Transform(R[k, i], t[k, i]))
+            return objs[i]
+
+        def collide(a: fcl.CollisionObject, b: fcl.CollisionObject) -> bool:
+            return bool(fcl.collide(a, b, self._req, fcl.CollisionResult()))
+
         for k in range(n):
-            posed: set[int] = set()
-
-            def obj(i: int, k: int = k, posed: set[int] = posed) -> fcl.CollisionObject:
-                o = rsh[i].obj
-                if i not in posed:
-                    posed.add(i)
-                    o.setTransform(transform(R[k, i], t[k, i]))
-                return o
-
-            for j in range(e_at[k], e_at[k + 1]):
-                if collide(obj(es_l[j]), env[ee_l[j]].obj, req, result()):
-                    hit[k] = True
-                    break
-            if hit[k]:
-                continue
-            for j in range(p_at[k], p_at[k + 1]):
-                a, b = pairs[pp_l[j]]
-                if collide(obj(a), obj(b), req, result()):
-                    hit[k] = True
-                    break
+            hit[k] = (any(collide(posed(es_l[j], k), env[ee_l[j]])
+                          for j in range(e_at[k], e_at[k + 1]))
+                      or any(collide(posed(pairs[j][0], k), posed(pairs[j][1], k))
+                             for j in range(p_at[k], p_at[k + 1])))
         return hit
 
     def in_collision_naive(self, q: Array) -> bool:
