@@ -64,12 +64,11 @@ def voxel_surface(centres: np.ndarray, leaf: float, R_world_grid: np.ndarray | N
                 continue
             c = local[exposed]
             corners = []
-            su, sw = (1, 1) if sign > 0 else (1, -1)  # flip one axis to face -e_axis
             for du, dw in ((-1, -1), (1, -1), (1, 1), (-1, 1)):
                 off = np.zeros(3)
                 off[axis] = sign * h
-                off[u] = du * su * h * face_scale
-                off[w] = dw * sw * h * face_scale
+                off[u] = du * h * face_scale
+                off[w] = dw * sign * h * face_scale  # mirrored on the - side: still outward
                 corners.append(c + off)
             quads.append(np.stack(corners, axis=1))
             cells.append(exposed)
