@@ -423,7 +423,14 @@ class _Fitter:
         if np.linalg.norm(normal) < 0.5:
             return None
         X = pts - centre
-        V = np.vstack([r0, X - np.outer(X @ normal, normal)])
+        h = X @ normal
+        W = X - h[:, None] * normal
+        # The arc is part of its circle, so a node farther than the tolerance from the
+        # circle rules the guess out before the angles are unwrapped (most guesses end here).
+        rho = np.sqrt(np.einsum("ij,ij->i", W, W))
+        if float((h * h + (rho - radius) ** 2).max()) > tol * tol:
+            return None
+        V = np.vstack([r0, W])
         # Unwrapped angle of each node about the normal: sum of the signed steps between
         # consecutive radius vectors (handles sweeps past pi and noise near the start).
         cr = _cross(V[:-1], V[1:]) @ normal
