@@ -15,7 +15,8 @@ only shrinks; otherwise (65) applies: ``F = C1 F_eq + (1 - lam) C2 F_rot + lam C
 net orders itself by shrinking while it still moves a lot and forms arcs once it is calm.
 Stage 1 (the strategy of the elastic-net paper): equidistance plus a strong shrink, no
 rotation, no threshold; stage 2: the full rule. A stage ends when E < epsilon (thesis 1e-10),
-when every proposed move was rejected, or at its iteration budget; the result says which.
+when every proposed move was rejected, or at its iteration budget; stage 1 also when the net
+stopped getting shorter (taut); the result says which.
 
 Every proposed move is mapped back to joints by local position IK seeded from the particle's
 joints (null-space pull towards the neighbours' joints keeps the tool pitch smooth) and is
@@ -96,6 +97,12 @@ class ElasticNetParams:
     #: without this a stage would always run to its cap; at 1 um the slowest shrink mode
     #: has at most ~0.1 mm left to go, far inside the primitive tolerance. 0 = off.
     settle: float = 1e-6
+    #: Stage 1 also ends once the net's TCP length shrank by less than `taut_length` (m)
+    #: over the last `taut_window` iterations: it is taut, and what still moves slides
+    #: along the path (equidistance), which stage 2 carries on with anyway. In the planning
+    #: benchmark's cells a third of the stage-1 iterations came after this point. 0 = off.
+    taut_length: float = 1e-5
+    taut_window: int = 10
     stage1_iterations: int = 300
     #: Stage 2 forms the arcs within a few dozen iterations; run much longer, its gentle
     #: line shrink keeps creeping and can split a line (cf. `planning.config`).
@@ -118,6 +125,7 @@ class ElasticNetParams:
 class StopReason(str, Enum):
     CONVERGED = "converged"  # mean movement below epsilon
     SETTLED = "settled"  # mean movement below `settle` (the IK's noise floor is near)
+    TAUT = "taut"  # stage 1: the TCP length stopped shrinking (`taut_length`)
     BLOCKED = "blocked"  # every proposed move was rejected
     ITERATION_CAP = "iteration_cap"
     NOTHING_TO_DO = "nothing_to_do"  # fewer than three particles
@@ -245,6 +253,8 @@ class _Net:
                   total: int) -> StageReport:
         if len(self.P) < 3:
             return StageReport(0, StopReason.NOTHING_TO_DO, 0.0)
+        taut = stage == 1 and self.p.taut_length > 0.0
+        lengths = [self.tcp_length()] if taut else []
         for it in range(1, budget + 1):
             if progress is not None:
                 progress.update((done + it) / total, f"elastic net stage {stage}, iteration {it}")
@@ -257,7 +267,16 @@ class _Net:
                 return StageReport(it, StopReason.CONVERGED, float(self.E))
             if self.E < self.p.settle:
                 return StageReport(it, StopReason.SETTLED, float(self.E))
+            if taut:
+                lengths.append(self.tcp_length())
+                w = self.p.taut_window
+                if len(lengths) > w and lengths[-1 - w] - lengths[-1] < self.p.taut_length:
+                    return StageReport(it, StopReason.TAUT, float(self.E))
         return StageReport(budget, StopReason.ITERATION_CAP, float(self.E))
+
+    def tcp_length(self) -> float:
+        d = np.diff(self.P, axis=0)
+        return float(np.sqrt(np.einsum("ij,ij->i", d, d)).sum())
 
     def iterate(self, stage: int, lam: float) -> tuple[float, int, int]:
         """One sweep: (E, accepted, proposed moves).
