@@ -30,6 +30,7 @@ fraction of the tolerance; the fit reports every required joint's tangency error
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import Enum
 
@@ -56,12 +57,12 @@ class LinePrimitive:
 
     @property
     def length(self) -> float:
-        return float(np.linalg.norm(self.end - self.start))
+        return _norm(self.end - self.start)
 
     @property
     def direction(self) -> Array:
         d = self.end - self.start
-        return d / max(float(np.linalg.norm(d)), 1e-15)
+        return d / max(_norm(d), 1e-15)
 
     @property
     def tangent_start(self) -> Array:
@@ -280,7 +281,7 @@ class _Fitter:
         """
         e = prim.last_node
         pts = self.nodes[prim.first_node + 1 : e + 1]
-        spacing = float(np.linalg.norm(self.nodes[min(e + 1, self.n - 1)] - self.nodes[e]))
+        spacing = _norm(self.nodes[min(e + 1, self.n - 1)] - self.nodes[e])
         best, best_reach = prim, reach
         step = spacing / 4.0
         if prim.kind == PrimitiveKind.ARC:  # the end tangent turns by step / radius
@@ -354,18 +355,24 @@ class _Fitter:
     def _arc(self, O: Array, t0: Array | None, pts: Array, s: int, e: int,
              first_feasible: bool = False) -> ArcPrimitive | None:
         X = pts - O
-        if len(X) < 2 or np.linalg.norm(X[-1]) < 1e-9:
+        if len(X) < 2 or _norm(X[-1]) < 1e-9:
             return None
-        cands = self._arc_candidates(O, t0, X)
-        if t0 is not None:  # free circles whose start tangent is within the slack
-            cands += self._arc_candidates(O, None, X)
+        # Tangent guesses, then free circles whose start tangent is within the slack.
+        kinds = (t0, None) if t0 is not None else (None,)
+        if first_feasible:  # any feasible guess will do: free ones only if no tangent one fits
+            batches = (self._arc_candidates(O, t, X) for t in kinds)
+        else:  # the closest of all guesses
+            batches = iter([[g for t in kinds for g in self._arc_candidates(O, t, X)]])
         best = None
-        for centre, normal in cands:
-            prim = self._arc_from(O, centre, normal, pts, s, e, tangent=t0)
-            if prim is not None and (best is None or prim[1] < best[1]):
-                best = prim
+        for cands in batches:
+            for centre, normal in self._on_circle(O, cands, pts):
+                prim = self._arc_from(O, centre, normal, pts, s, e, tangent=t0)
+                if prim is None:
+                    continue
                 if first_feasible:
-                    break
+                    return prim[0]
+                if best is None or prim[1] < best[1]:
+                    best = prim
         return None if best is None else best[0]
 
     def _arc_candidates(self, O: Array, t0: Array | None, X: Array) -> list[tuple[Array, Array]]:
@@ -374,7 +381,7 @@ class _Fitter:
         if t0 is None:
             _, _, Vt = np.linalg.svd(X, full_matrices=False)
             n = Vt[2] if Vt.shape[0] > 2 else _unit(_cross(X[0], X[-1]))
-            if np.linalg.norm(n) < 0.5:
+            if _norm(n) < 0.5:
                 return out
             e1 = _unit(X[-1] - (X[-1] @ n) * n)
             e2 = _cross(n, e1)
@@ -393,7 +400,7 @@ class _Fitter:
             # Plane through O containing t0: its normal is the least-variance direction of the
             # nodes' components across t0.
             _, _, Vt = np.linalg.svd(Y, full_matrices=False)
-            for m_coef in (Vt[0], _unit(Y[-1]) if np.linalg.norm(Y[-1]) > 1e-12 else None):
+            for m_coef in (Vt[0], _unit(Y[-1]) if _norm(Y[-1]) > 1e-12 else None):
                 if m_coef is None:
                     continue
                 m = m_coef[0] * b1 + m_coef[1] * b2  # in-plane normal to t0
@@ -411,26 +418,41 @@ class _Fitter:
                     out.append((O + m / k2, _unit(_cross(t0, m / k2))))
         return out
 
+    def _on_circle(self, O: Array, cands: list[tuple[Array, Array]], pts: Array,
+                   ) -> list[tuple[Array, Array]]:
+        """The guesses (centre, unit normal) whose circle through O passes within the
+        tolerance of every node, with a radius in [r_min, r_max], in their order.
+
+        The arc is part of its circle, so the rest need not be tried; all guesses are tested
+        in one batch (most end here). Normals come back perpendicular to the radius at O.
+        """
+        if not cands:
+            return []
+        p = self.p
+        C = np.array([c for c, _ in cands])
+        N = np.array([n for _, n in cands])
+        R0 = O - C
+        r2 = np.einsum("kj,kj->k", R0, R0)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            N = N - (np.einsum("kj,kj->k", N, R0) / r2)[:, None] * R0
+            N /= np.sqrt(np.einsum("kj,kj->k", N, N))[:, None]
+            X = pts[None] - C[:, None]
+            h = np.einsum("kmj,kj->km", X, N)
+            W = X - h[..., None] * N[:, None]
+            rho = np.sqrt(np.einsum("kmj,kmj->km", W, W))
+            dev2 = (h * h + (rho - np.sqrt(r2)[:, None]) ** 2).max(axis=1)
+            keep = ((r2 >= p.r_min ** 2) & (r2 <= p.r_max ** 2) & np.isfinite(C).all(axis=1)
+                    & (dev2 <= p.tolerance ** 2))
+        return [(C[k], N[k]) for k in np.nonzero(keep)[0]]
+
     def _arc_from(self, O: Array, centre: Array, normal: Array, pts: Array, s: int, e: int,
                   tangent: Array | None) -> tuple[ArcPrimitive, float] | None:
+        """The arc about `centre` (a guess passed by `_on_circle`) from O over the nodes."""
         p, tol = self.p, self.p.tolerance
         r0 = O - centre
-        radius = float(np.linalg.norm(r0))
-        if not (p.r_min <= radius <= p.r_max) or not np.all(np.isfinite(centre)):
-            return None
-        # Project the normal onto the plane's true normal (perpendicular to r0).
-        normal = _unit(normal - (normal @ r0) / radius ** 2 * r0)
-        if np.linalg.norm(normal) < 0.5:
-            return None
+        radius = _norm(r0)
         X = pts - centre
-        h = X @ normal
-        W = X - h[:, None] * normal
-        # The arc is part of its circle, so a node farther than the tolerance from the
-        # circle rules the guess out before the angles are unwrapped (most guesses end here).
-        rho = np.sqrt(np.einsum("ij,ij->i", W, W))
-        if float((h * h + (rho - radius) ** 2).max()) > tol * tol:
-            return None
-        V = np.vstack([r0, W])
+        V = np.vstack([r0, X - (X @ normal)[:, None] * normal])
         # Unwrapped angle of each node about the normal: sum of the signed steps between
         # consecutive radius vectors (handles sweeps past pi and noise near the start).
         cr = _cross(V[:-1], V[1:]) @ normal
@@ -474,7 +496,7 @@ def circle_through(a: Array, b: Array, c: Array) -> tuple[Array, float, Array]:
     if nn < 1e-18 * max(1e-30, float(ab @ ab) * float(ac @ ac)):
         raise ValueError("the three points are collinear")
     centre = a + (_cross(n, ab) * float(ac @ ac) + _cross(ac, n) * float(ab @ ab)) / (2 * nn)
-    return centre, float(np.linalg.norm(centre - a)), n / np.sqrt(nn)
+    return centre, _norm(centre - a), n / np.sqrt(nn)
 
 
 def _angles_about(r0: Array, V: Array, normal: Array) -> Array:
@@ -535,11 +557,16 @@ def _within_cone(d: Array, axis: Array, angle: float) -> Array:
 
 
 def _cross(a: Array, b: Array) -> Array:
-    """Cross product of 3-vectors (or rows), without np.cross's axis handling overhead."""
+    """Cross product of 3-vectors (or rows), without np.cross's axis handling overhead.
+
+    The fitter crosses single vectors tens of thousands of times per path: those go through
+    Python floats (the same IEEE products, a tenth of the cost of numpy scalars).
+    """
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
     if a.ndim == 1 and b.ndim == 1:
-        return np.array([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2],
-                         a[0] * b[1] - a[1] * b[0]])
+        a0, a1, a2 = a.tolist()
+        b0, b1, b2 = b.tolist()
+        return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
     return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
@@ -550,7 +577,13 @@ def _rotate_radius(r0: Array, normal: Array, angle: float) -> Array:
     return np.cos(angle) * r0 + np.sin(angle) * _cross(normal, r0)
 
 
+def _norm(v: Array) -> float:
+    """Length of one vector: what np.linalg.norm computes (sqrt of the dot product), without
+    its dispatch overhead."""
+    return math.sqrt(float(v @ v))
+
+
 def _unit(v: Array) -> Array:
     v = np.asarray(v, dtype=float)
-    n = float(np.linalg.norm(v))
+    n = _norm(v)
     return v / n if n > 1e-15 else v * 0.0
