@@ -71,4 +71,4 @@ def test_thesis_scenario_is_repaired_and_exported():
     close, line_p8, opened = body.index("HCLOSE 1"), body.index("MVS P8"), body.index("HOPEN 1")
     assert close < line_p8 < opened
     # the transfer ends on P7 with a line or an arc (the thesis' own program: MVR P5,P6,P7)
-    assert any(re.match(r"^(MVS|MVR .*,)P7$", line) for line in body[:close])
+    assert any(re.match(r"^(MVS |MVR .*,)P7$", line) for line in body[:close])
