@@ -29,6 +29,7 @@ from assistant.robot_model import (
     ShapeKind,
     Tool,
 )
+from assistant.rv2aj_pose_batch import PoseCandidates, pose_candidates
 from assistant.transforms import axis_angle, inv_T, rot_y, rot_z, rotation_angle
 from assistant.urdf_writer import urdf_from_chain
 
@@ -275,6 +276,12 @@ class RV2AJ(Robot):
                             f"({detail})")
         inside = _sort_by_seed(inside, seed)
         return IKResult(inside)
+
+    def ik_candidates_batch(self, T_base_tool: Array) -> PoseCandidates | None:
+        """Every IK branch of many poses at once (see `rv2aj_pose_batch`); None for a tool
+        whose TCP is off the flange axis."""
+        return pose_candidates(T_base_tool, self.T_flange_tool, self._T_tool_flange,
+                               self.limits, self.config.plane_tolerance, (L1, L2, L3, L6), _R0)
 
     def nearest_reachable_orientation(self, T_base_tool: Array) -> Array | None:
         """None if the 5-axis constraint holds; else the closest pose that satisfies it.

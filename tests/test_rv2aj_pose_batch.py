@@ -1,0 +1,91 @@
+"""The RV-2AJ's batched IK candidates stand in for `ik` pose by pose, and `follow_poses` gives
+the same joints and failures with them as with the scalar IK alone."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from assistant.robot_model import Tool
+from assistant.rv2aj import RV2AJ, RV2AJConfig
+from assistant.trajectory.cartesian_follow import follow_poses, poses_from, slerp_rotations
+from assistant.transforms import pose_from_xyz_rpy, rotation_angle
+
+
+def _poses(robot: RV2AJ, rng: np.random.Generator, n: int) -> np.ndarray:
+    """Reachable poses tilted off the arm plane, J6 around +-180 deg (two copies), and
+    poses out of reach."""
+    Q = rng.uniform(robot.limits.lower, robot.limits.upper, size=(n, 5))
+    Q[: n // 4, 4] = rng.choice([-1.0, 1.0], n // 4) * np.radians(rng.uniform(165, 195, n // 4))
+    T = np.array([robot.fk(q) for q in Q])
+    tilt = n // 2
+    for k in range(n // 4, tilt):  # a turn about a random axis: off the arm plane
+        turn = pose_from_xyz_rpy([0, 0, 0], rng.uniform(-0.4, 0.4, 3))[:3, :3]
+        T[k, :3, :3] = turn @ T[k, :3, :3]
+    T[tilt : tilt + n // 8, :3, 3] *= 3.0  # out of reach
+    return T
+
+
+def test_candidates_are_the_scalar_ik_solutions(rv2aj, rng):
+    T = _poses(rv2aj, rng, 400)
+    c = rv2aj.ik_candidates_batch(T)
+    assert c is not None and c.exact.all()
+    for i, Ti in enumerate(T):
+        res = rv2aj.ik(Ti)
+        if res.nearest_T_base_tool is not None:  # ORIENTATION: the batch projected it
+            assert c.projected[i]
+            want = res.nearest_T_base_tool
+            assert c.angle[i] == pytest.approx(
+                rotation_angle(want[:3, :3].T @ Ti[:3, :3]), abs=1e-9)
+            res = rv2aj.ik(want)
+        else:
+            assert not c.projected[i]
+        got = c.joints[i][c.valid[i]]
+        assert len(got) == len(res.solutions), i
+        for q in res.solutions:
+            assert np.abs(got - q).max(axis=1).min() < 1e-12
+    # The sample has every kind: projected, unreachable, and J6 with two copies.
+    assert c.projected.any() and (~c.valid.any(axis=1)).any()
+    assert (c.valid.sum(axis=1) > 2).any()
+
+
+def test_off_axis_tool_and_j1_axis_poses_are_left_to_the_scalar_ik():
+    skew = RV2AJ().with_tool(pose_from_xyz_rpy([0.01, 0.0, 0.1], [0.0, 0.0, 0.0]))
+    assert skew.ik_candidates_batch(np.eye(4)[None]) is None
+    robot = RV2AJ(RV2AJConfig(tool=Tool.straight(0.1)))
+    on_axis = robot.fk(np.zeros(5))  # straight up: the TCP is on the J1 axis
+    assert not robot.ik_candidates_batch(on_axis[None]).exact[0]
+
+
+class _ScalarOnly:
+    """The same robot without the batch: follow_poses takes the scalar IK for every pose."""
+
+    def __init__(self, robot):
+        self._robot = robot
+
+    def __getattr__(self, name):
+        if name == "ik_candidates_batch":
+            raise AttributeError(name)
+        return getattr(self._robot, name)
+
+
+@pytest.mark.parametrize("project", [True, False])
+def test_follow_poses_is_the_same_with_the_batch(rv2aj, rng, project):
+    scalar = _ScalarOnly(rv2aj)
+    fails = 0
+    for _ in range(60):
+        q0 = rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper)
+        T0, T1 = rv2aj.fk(q0), rv2aj.fk(rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper))
+        u = np.linspace(0.0, 1.0, 40)
+        pts = T0[:3, 3] + u[:, None] * (T1[:3, 3] - T0[:3, 3])
+        poses = poses_from(pts, slerp_rotations(T0[:3, :3], T1[:3, :3], u))
+        a = follow_poses(rv2aj, poses, q0, max_joint_step=0.1, project_orientation=project)
+        b = follow_poses(scalar, poses, q0, max_joint_step=0.1, project_orientation=project)
+        assert (a.ok, a.fail_index, a.message) == (b.ok, b.fail_index, b.message)
+        assert a.joints.shape == b.joints.shape
+        assert np.abs(a.joints - b.joints).max(initial=0.0) < 1e-12
+        assert a.max_orientation_correction == pytest.approx(b.max_orientation_correction,
+                                                             abs=1e-9)
+        fails += not a.ok
+    # Both outcomes were compared (unprojected, the turned orientations fail at once).
+    assert 0 < fails < 60 if project else fails == 60
