@@ -236,6 +236,7 @@ class _Fitter:
         self.nodes = nodes
         self.p = params
         self.n = len(nodes)
+        self._reach: dict[tuple, int | None] = {}
 
     # ------------------------------------------------------------ choice with look-ahead
     def choose(self, s: int, O: Array, t_in: Array | None, prev: PrimitiveKind | None,
@@ -248,6 +249,10 @@ class _Fitter:
                 continue
             lo = max(s + _min_nodes(kind), e_max - self.p.lookahead)
             for e in range(e_max, lo - 1, -1):
+                # The best score an end node e could get; later (smaller) e get no more.
+                if best_score is not None and best_score >= (
+                        *self._reach_bound(e), e, kind == PrimitiveKind.LINE):
+                    break
                 prim = self.fit(kind, O, t0, s, e)
                 if prim is None:
                     continue
@@ -257,6 +262,10 @@ class _Fitter:
         if best is None or best.last_node == self.n - 1:
             return best
         return self.refine_end(best, best_score[:2])
+
+    def _reach_bound(self, e: int) -> tuple[int, bool]:
+        """The most `next_reach` can say for a primitive ending at node e."""
+        return (self.n, True) if e == self.n - 1 else (self.n - 1, True)
 
     def next_reach(self, prim: Primitive) -> tuple[int, bool]:
         """How far the best following primitive gets (n if `prim` ends the path), and
@@ -288,6 +297,8 @@ class _Fitter:
             step = min(step, prim.radius * self.p.tangent_slack)
         k_max = min(12, max(1, int(np.ceil(spacing / max(step, 1e-9)))))
         for k in sorted(range(-k_max, k_max + 1), key=abs)[1:]:
+            if best_reach >= self._reach_bound(e):  # no shift can do better
+                break
             cand = _shift_end(prim, k * step)
             if cand is None or cand.distance(pts).max() > self.p.tolerance:
                 continue
@@ -297,7 +308,17 @@ class _Fitter:
         return best
 
     def reach(self, kind: PrimitiveKind, O: Array, t0: Array | None, s: int) -> int | None:
-        """Largest end node e for which a primitive from O covers nodes s+1..e (galloping)."""
+        """Largest end node e for which a primitive from O covers nodes s+1..e (galloping).
+
+        Remembered per arguments: the look-ahead of the chosen primitive asks exactly what
+        the next `choose` asks first.
+        """
+        key = (kind, s, O.tobytes(), None if t0 is None else t0.tobytes())
+        if key not in self._reach:
+            self._reach[key] = self._gallop(kind, O, t0, s)
+        return self._reach[key]
+
+    def _gallop(self, kind: PrimitiveKind, O: Array, t0: Array | None, s: int) -> int | None:
         first = s + _min_nodes(kind)
         if first > self.n - 1 or self.fit(kind, O, t0, s, first, True) is None:
             return None
