@@ -87,7 +87,11 @@ class ElasticNetParams:
     r_max: float = 0.4
     #: Bends tighter than r_min are shrunk instead of rotated (the paper's t_a,max); 0 = off.
     r_min: float = 0.0
-    #: Target particle spacing when resampling the searched path (m).
+    #: Target particle spacing when resampling the searched path (m). The shrink is a
+    #: diffusion whose slowest mode needs ~N^2 sweeps on N particles, and a sweep costs about
+    #: the same for any N (an IK and a collision batch), so the spacing sets the net's time;
+    #: it must stay fine enough for the bends the fit should see: a circle of radius r
+    #: drawn by particles this far apart is off by spacing^2 / (8 r) (cf. `planning.config`).
     spacing: float = 0.02
     #: Largest move of one particle in one iteration (m): keeps IK local and moves checkable.
     max_move: float = 0.005
