@@ -26,6 +26,9 @@ collide (`ValidityChecker.is_valid_batch`). A rejected move is retried once at h
 A checker that also gives free margins (`validity.MarginValidity`) lets a particle skip
 the exact check while its arm travel since its last exact check stays inside that margin:
 the same answers, about two thirds of the exact checks saved in the benchmark's cells.
+The same margins let the net keep a distance (`min_gap`): a move that brings the arm's
+covering spheres nearer than that to an obstacle (or the arm to itself) is refused, unless the
+particle already was nearer (the roadmap path may pass closer; it is never pushed out).
 
 Constants (thesis Table 10: 0.8, 4.0, 0.1, 0.1, 200.0; the table's header was lost, so the
 mapping is ours). Particles are updated one colour class at a time (i mod 3: a particle never
@@ -113,6 +116,10 @@ class ElasticNetParams:
     #: Stage 2 forms the arcs within a few dozen iterations; run much longer, its gentle
     #: line shrink keeps creeping and can split a line (cf. `planning.config`).
     stage2_iterations: int = 60
+    #: Keep the arm this far (m) from obstacles and itself, by the broad phase's sphere gap
+    #: (a lower bound of the true clearance): a move that ends nearer is refused unless the
+    #: particle was nearer still. Needs a checker with free margins; 0 = off.
+    min_gap: float = 0.0
     #: Also require the midpoints of a moved particle's two edges to be allowed.
     check_edge_midpoints: bool = True
     ik: PositionIKParams = field(default_factory=PositionIKParams)
@@ -253,6 +260,12 @@ class _Net:
         self._ref_Q = self.Q.copy()
         self._ref_margin = np.full(n, -np.inf)
         self.certified_moves = 0
+        # Per particle a lower bound of its sphere gap (min_gap); unknown (-inf) at first.
+        self._gap = np.full(n, -np.inf)
+        if self._certify and params.min_gap > 0.0:
+            valid, margin = validity.is_valid_batch_margin(self.Q)
+            self._ref_margin = np.where(np.asarray(valid, bool), margin, -np.inf)
+            self._gap = self._ref_margin.copy()
 
     # ---------------------------------------------------------------- stages
     def run_stage(self, stage: int, budget: int, progress: Progress | None, done: int,
@@ -414,9 +427,11 @@ class _Net:
             good = np.nonzero(res.ok)[0]
             if len(good):
                 if self._certify:
-                    valid, margin = self._check_certified(idx[cand[good]], Qn[good])
+                    valid, margin, gap = self._check_certified(idx[cand[good]], Qn[good])
                     margin_of = np.full(len(cand), np.nan)
                     margin_of[good] = margin
+                    gap_of = np.full(len(cand), -np.inf)
+                    gap_of[good] = gap
                 else:
                     valid = np.asarray(self.validity.is_valid_batch(Qn[good]), dtype=bool)
                 ok[cand[good[~valid]]] = False
@@ -427,16 +442,25 @@ class _Net:
             moved = idx[acc[checked]]
             self._ref_Q[moved] = Qn[pos[checked]]
             self._ref_margin[moved] = margin_of[pos[checked]]
+            self._gap[idx[acc]] = gap_of[pos]
         self.Q[idx[acc]] = Qn[pos]
         self.P[idx[acc]] = (res.points[pos] if res.points is not None else
                             np.asarray(self.robot.batch_fk(Qn[pos]).positions, dtype=float))
         return ok
 
-    def _check_certified(self, particles: Array, Q: Array) -> tuple[Array, Array]:
+    def _check_certified(self, particles: Array, Q: Array) -> tuple[Array, Array, Array]:
         """Validity of new joints Q for these particles, skipping the exact check where the
-        arm travel from the particle's last exact check stays inside its free margin."""
+        arm travel from the particle's last exact check stays inside its free margin (less
+        `min_gap`); with the margin of each exact check and a lower bound of each gap."""
         v = self.validity
-        sure = self._ref_margin[particles] > v.travel(self._ref_Q[particles], Q) + 1e-9
+        need = self.p.min_gap
+        travel = v.travel(self._ref_Q[particles], Q)
+        sure = self._ref_margin[particles] > travel + need + 1e-9
         self.certified_moves += int(sure.sum())
         valid, margin = v.is_valid_batch_margin(Q, sure)
-        return np.asarray(valid, dtype=bool), np.asarray(margin, dtype=float)
+        valid = np.asarray(valid, dtype=bool)
+        margin = np.asarray(margin, dtype=float)
+        gap = np.where(sure, self._ref_margin[particles] - travel, margin)
+        if need > 0.0:  # nearer than min_gap, and nearer than the particle was: refused
+            valid &= ~(~sure & (margin < need) & (margin < self._gap[particles]))
+        return valid, margin, gap

@@ -244,3 +244,26 @@ def test_certified_moves_give_exactly_the_exactly_checked_net(rv2aj, monkeypatch
                                                           exact.accepted_moves)
     assert exact.rejected_moves > 0  # the block was in the way: exact checks mattered too
     assert certified and certified[-1] > 0.2 * (fast.accepted_moves + fast.rejected_moves)
+
+
+def test_min_gap_keeps_the_arm_off_the_obstacles(rv2aj):
+    """Pulled taut around a block, the net touches it; with `min_gap` every particle keeps at
+    least that exact clearance (the sphere gap it enforces is a lower bound of it)."""
+    obstacle = box("block", [0.27, 0.0, Z], [0.06, 0.06, 0.06])
+    checker = CollisionChecker(rv2aj, [TABLE, obstacle])
+    s = np.linspace(0.0, 1.0, 14)
+    pts = np.stack([0.27 + 0.15 * np.sin(np.pi * s), -0.15 + 0.30 * s, np.full_like(s, Z)], 1)
+    Q = ik_path(rv2aj, pts)
+
+    def clearance(res):
+        return min(checker.clearance(q).distance for q in res.particles.joints[1:-1])
+
+    taut = run_elastic_net(rv2aj, Q, validity=checker,
+                           params=ElasticNetParams.final(stage1_iterations=200))
+    kept = run_elastic_net(rv2aj, Q, validity=checker,
+                           params=ElasticNetParams.final(stage1_iterations=200, min_gap=0.02))
+    assert clearance(taut) < 0.01
+    assert clearance(kept) >= 0.02
+    assert checker.is_valid_batch(kept.particles.joints).all()
+    # Still pulled in: shorter than the bow it started from, a little longer than touching.
+    assert taut.particles.tcp_length() < kept.particles.tcp_length() < kept.initial.tcp_length()
