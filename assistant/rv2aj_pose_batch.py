@@ -35,6 +35,17 @@ class PoseCandidates:
     #: False where the batch cannot stand in for `ik` (use the scalar IK for that pose).
     exact: Array  # (M,)
 
+    def answers(self, i: int, project_orientation: bool = True) -> bool:
+        """Whether pose i has a solution here that `ik` would give (turned into the arm
+        plane first only if allowed); otherwise ask `ik`, also for its reason."""
+        return bool(self.exact[i] and self.valid[i].any()
+                    and (project_orientation or not self.projected[i]))
+
+    def nearest(self, i: int, q: Array) -> Array:
+        """The solution of pose i nearest q (as `IKResult.best`)."""
+        C = self.joints[i][self.valid[i]]
+        return C[int(np.argmin(np.linalg.norm(C - q, axis=1)))]
+
 
 def pose_candidates(T_base_tool: Array, T_flange_tool: Array, T_tool_flange: Array,
                     limits: JointLimits, plane_tolerance: float,

@@ -53,45 +53,30 @@ def follow_poses(robot: Robot, poses: Array, q_start: Array, *, max_joint_step: 
     batch = getattr(robot, "ik_candidates_batch", None)
     cands = batch(poses) if batch is not None and len(poses) else None
     for i, T in enumerate(poses):
-        if (cands is not None and cands.exact[i] and cands.valid[i].any()
-                and (project_orientation or not cands.projected[i])):
-            if cands.projected[i]:
-                worst = max(worst, float(cands.angle[i]))
-            C = cands.joints[i][cands.valid[i]]
-            q = C[int(np.argmin(np.linalg.norm(C - q_prev, axis=1)))]
-            if not _jump_ok(q, q_prev, max_joint_step):
-                return _jumped(robot, out, q, q_prev, i, worst)
-            out.append(q)
-            q_prev = q
-            continue
-        res = robot.ik(T, q_prev)
-        if (not res.ok and project_orientation and res.failure == IKFailure.ORIENTATION
-                and res.nearest_T_base_tool is not None):
-            worst = max(worst, rotation_angle(res.nearest_T_base_tool[:3, :3].T @ T[:3, :3]))
-            res = robot.ik(res.nearest_T_base_tool, q_prev)
-        if not res.ok:
-            return FollowResult(_stack(out, q_prev), False, i, res.message or "no IK solution",
-                                worst)
-        q = np.asarray(res.best(q_prev), dtype=float)
-        if not _jump_ok(q, q_prev, max_joint_step):
-            return _jumped(robot, out, q, q_prev, i, worst)
+        if cands is not None and cands.answers(i, project_orientation):
+            q = cands.nearest(i, q_prev)
+            worst = max(worst, float(cands.angle[i]))
+        else:
+            res = robot.ik(T, q_prev)
+            if (not res.ok and project_orientation and res.failure == IKFailure.ORIENTATION
+                    and res.nearest_T_base_tool is not None):
+                worst = max(worst, rotation_angle(res.nearest_T_base_tool[:3, :3].T @ T[:3, :3]))
+                res = robot.ik(res.nearest_T_base_tool, q_prev)
+            if not res.ok:
+                return FollowResult(_stack(out, q_prev), False, i,
+                                    res.message or "no IK solution", worst)
+            q = np.asarray(res.best(q_prev), dtype=float)
+        jump = np.abs(q - q_prev)
+        if jump.max() > max_joint_step:
+            j = int(np.argmax(jump))
+            name = robot.joint_names[j]
+            return FollowResult(
+                _stack(out, q_prev), False, i,
+                f"{name} would jump {np.degrees(jump[j]):.1f} deg between two samples "
+                "(arm branch change or singularity)", worst)
         out.append(q)
         q_prev = q
     return FollowResult(_stack(out, q_prev), True, None, "", worst)
-
-
-def _jump_ok(q: Array, q_prev: Array, max_joint_step: float) -> bool:
-    return float(np.abs(q - q_prev).max()) <= max_joint_step
-
-
-def _jumped(robot: Robot, out: list[Array], q: Array, q_prev: Array, i: int,
-            worst: float) -> FollowResult:
-    jump = np.abs(q - q_prev)
-    j = int(np.argmax(jump))
-    return FollowResult(
-        _stack(out, q_prev), False, i,
-        f"{robot.joint_names[j]} would jump {np.degrees(jump[j]):.1f} deg between two samples "
-        "(arm branch change or singularity)", worst)
 
 
 def slerp_rotations(R0: Array, R1: Array, u: Array) -> Array:
