@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from assistant.robot_model import JointLimits
+from assistant.transforms import axis_angle_batch, rot_y_batch, rot_z_batch
 
 Array = np.ndarray
 
@@ -92,7 +93,7 @@ def pose_candidates(T_base_tool: Array, T_flange_tool: Array, T_tool_flange: Arr
         axis = np.cross(a_i, a_proj)
         s = np.linalg.norm(axis, axis=1)
         ang = np.arcsin(np.clip(s, -1.0, 1.0))
-        R_fix = _rodrigues(axis, s, ang)
+        R_fix = axis_angle_batch(axis, ang)
         R_tool[i] = (R_fix @ Rf[i]) @ R_ft[None]
         # The scalar version checks the plane again and would turn once more if needed.
         a_new = (R_tool[i] @ T_tool_flange[:3, :3])[:, :, 2]
@@ -118,7 +119,7 @@ def pose_candidates(T_base_tool: Array, T_flange_tool: Array, T_tool_flange: Arr
         ok = (D <= 1.0 + 1e-12) & (D >= -1.0 - 1e-12)
         D = np.clip(D, -1.0, 1.0)
         # q6 from A = Rz(q1) Ry(s) R0 and A^T R (columns 0 and 1 of A against R's column 0).
-        A = _rz(q1) @ _ry(s_pitch) @ R0[None]
+        A = rot_z_batch(q1) @ rot_y_batch(s_pitch) @ R0[None]
         q6 = np.arctan2(np.einsum("ij,ij->i", A[:, :, 1], R[:, :, 0]),
                         np.einsum("ij,ij->i", A[:, :, 0], R[:, :, 0]))
         for q3 in (np.arccos(D), -np.arccos(D)):
@@ -139,29 +140,3 @@ def pose_candidates(T_base_tool: Array, T_flange_tool: Array, T_tool_flange: Arr
              & limits.contains_batch(joints))
     return PoseCandidates(joints, valid, projected, angle, exact)
 
-
-def _rodrigues(axis: Array, norm: Array, angle: Array) -> Array:
-    """Rotations (N, 3, 3) by `angle` about `axis` (N, 3) of length `norm` (as axis_angle)."""
-    k = axis / np.where(norm < 1e-15, 1.0, norm)[:, None]
-    K = np.zeros((len(k), 3, 3))
-    K[:, 0, 1], K[:, 0, 2] = -k[:, 2], k[:, 1]
-    K[:, 1, 0], K[:, 1, 2] = k[:, 2], -k[:, 0]
-    K[:, 2, 0], K[:, 2, 1] = -k[:, 1], k[:, 0]
-    R = (np.eye(3)[None] + np.sin(angle)[:, None, None] * K
-         + (1.0 - np.cos(angle))[:, None, None] * (K @ K))
-    R[norm < 1e-15] = np.eye(3)
-    return R
-
-
-def _rz(q: Array) -> Array:
-    c, s = np.cos(q), np.sin(q)
-    R = np.zeros((len(q), 3, 3))
-    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = c, -s, s, c, 1.0
-    return R
-
-
-def _ry(q: Array) -> Array:
-    c, s = np.cos(q), np.sin(q)
-    R = np.zeros((len(q), 3, 3))
-    R[:, 0, 0], R[:, 0, 2], R[:, 2, 0], R[:, 2, 2], R[:, 1, 1] = c, s, -s, c, 1.0
-    return R

@@ -29,6 +29,22 @@ def rot_z(angle: float) -> Array:
     return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
 
 
+def rot_y_batch(angles: Array) -> Array:
+    """`rot_y` for each angle: (N, 3, 3)."""
+    c, s = np.cos(angles), np.sin(angles)
+    R = np.zeros((len(c), 3, 3))
+    R[:, 0, 0], R[:, 0, 2], R[:, 1, 1], R[:, 2, 0], R[:, 2, 2] = c, s, 1.0, -s, c
+    return R
+
+
+def rot_z_batch(angles: Array) -> Array:
+    """`rot_z` for each angle: (N, 3, 3)."""
+    c, s = np.cos(angles), np.sin(angles)
+    R = np.zeros((len(c), 3, 3))
+    R[:, 0, 0], R[:, 0, 1], R[:, 1, 0], R[:, 1, 1], R[:, 2, 2] = c, -s, s, c, 1.0
+    return R
+
+
 def make_T(R: Array | None = None, p: Array | None = None) -> Array:
     """Homogeneous transform from a rotation matrix and a translation."""
     T = np.eye(4)
@@ -93,6 +109,22 @@ def axis_angle(axis: Array, angle: float) -> Array:
     k = k / n
     K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
     return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)
+
+
+def axis_angle_batch(axes: Array, angles: Array) -> Array:
+    """`axis_angle` for each row of axes (N, 3) (not necessarily unit) and angle: (N, 3, 3)."""
+    axes = np.asarray(axes, dtype=float)
+    n = np.linalg.norm(axes, axis=1)
+    k = axes / np.where(n < 1e-15, 1.0, n)[:, None]
+    K = np.zeros((len(k), 3, 3))
+    K[:, 0, 1], K[:, 0, 2] = -k[:, 2], k[:, 1]
+    K[:, 1, 0], K[:, 1, 2] = k[:, 2], -k[:, 0]
+    K[:, 2, 0], K[:, 2, 1] = -k[:, 1], k[:, 0]
+    angles = np.asarray(angles, dtype=float)
+    R = (np.eye(3)[None] + np.sin(angles)[:, None, None] * K
+         + (1.0 - np.cos(angles))[:, None, None] * (K @ K))
+    R[n < 1e-15] = np.eye(3)
+    return R
 
 
 def rotation_vector(R: Array) -> Array:

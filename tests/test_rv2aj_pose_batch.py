@@ -9,7 +9,16 @@ import pytest
 from assistant.robot_model import Tool
 from assistant.rv2aj import RV2AJ, RV2AJConfig
 from assistant.trajectory.cartesian_follow import follow_poses, poses_from, slerp_rotations
-from assistant.transforms import pose_from_xyz_rpy, rotation_angle
+from assistant.transforms import (
+    axis_angle,
+    axis_angle_batch,
+    pose_from_xyz_rpy,
+    rot_y,
+    rot_y_batch,
+    rot_z,
+    rot_z_batch,
+    rotation_angle,
+)
 
 
 def _poses(robot: RV2AJ, rng: np.random.Generator, n: int) -> np.ndarray:
@@ -89,3 +98,14 @@ def test_follow_poses_is_the_same_with_the_batch(rv2aj, rng, project):
         fails += not a.ok
     # Both outcomes were compared (unprojected, the turned orientations fail at once).
     assert 0 < fails < 60 if project else fails == 60
+
+
+def test_batched_rotations_equal_the_single_ones(rng):
+    angles = rng.uniform(-4.0, 4.0, 50)
+    axes = rng.normal(size=(50, 3)) * rng.uniform(0.1, 3.0, (50, 1))
+    axes[0] = 0.0  # no axis: identity, as axis_angle
+    assert np.allclose(rot_y_batch(angles), [rot_y(a) for a in angles], atol=1e-15)
+    assert np.allclose(rot_z_batch(angles), [rot_z(a) for a in angles], atol=1e-15)
+    assert np.allclose(axis_angle_batch(axes, angles),
+                       [axis_angle(k, a) for k, a in zip(axes, angles, strict=True)],
+                       atol=1e-14)

@@ -65,7 +65,7 @@ import numpy as np
 
 from assistant.progress import Progress
 from assistant.robot_model import Robot
-from assistant.trajectory.particles import Particles, resample_joint_path
+from assistant.trajectory.particles import Particles, polyline_length, resample_joint_path
 from assistant.trajectory.position_ik import BatchPositionIK, PositionIKParams
 from assistant.validity import ValidityChecker
 
@@ -273,7 +273,7 @@ class _Net:
         if len(self.P) < 3:
             return StageReport(0, StopReason.NOTHING_TO_DO, 0.0)
         taut = stage == 1 and self.p.taut_length > 0.0
-        lengths = [self.tcp_length()] if taut else []
+        lengths = [polyline_length(self.P)] if taut else []
         for it in range(1, budget + 1):
             if progress is not None:
                 progress.update((done + it) / total, f"elastic net stage {stage}, iteration {it}")
@@ -287,15 +287,11 @@ class _Net:
             if self.E < self.p.settle:
                 return StageReport(it, StopReason.SETTLED, float(self.E))
             if taut:
-                lengths.append(self.tcp_length())
+                lengths.append(polyline_length(self.P))
                 w = self.p.taut_window
                 if len(lengths) > w and lengths[-1 - w] - lengths[-1] < self.p.taut_length:
                     return StageReport(it, StopReason.TAUT, float(self.E))
         return StageReport(budget, StopReason.ITERATION_CAP, float(self.E))
-
-    def tcp_length(self) -> float:
-        d = np.diff(self.P, axis=0)
-        return float(np.sqrt(np.einsum("ij,ij->i", d, d)).sum())
 
     def iterate(self, stage: int, lam: float) -> tuple[float, int, int]:
         """One sweep: (E, accepted, proposed moves).

@@ -36,10 +36,15 @@ class Particles:
 
     def tcp_length(self) -> float:
         """Length of the TCP polyline through the particles (m)."""
-        return float(np.linalg.norm(np.diff(self.points, axis=0), axis=1).sum())
+        return polyline_length(self.points)
 
     def spacing(self) -> Array:
         return np.linalg.norm(np.diff(self.points, axis=0), axis=1)
+
+
+def polyline_length(points: Array) -> float:
+    """Length of the polyline through points (N, 3)."""
+    return float(np.linalg.norm(np.diff(points, axis=0), axis=1).sum())
 
 
 def densify_joint_path(robot: Robot, joint_path: Sequence[Array] | Array, max_tcp_step: float,

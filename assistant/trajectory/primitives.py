@@ -383,7 +383,7 @@ class _Fitter:
         if first_feasible:  # any feasible guess will do: free ones only if no tangent one fits
             batches = (self._arc_candidates(O, t, X) for t in kinds)
         else:  # the closest of all guesses
-            batches = iter([[g for t in kinds for g in self._arc_candidates(O, t, X)]])
+            batches = [[g for t in kinds for g in self._arc_candidates(O, t, X)]]
         best = None
         for cands in batches:
             for centre, normal in self._on_circle(O, cands, pts):
