@@ -203,10 +203,15 @@ class LinearOctree:
     grid: OctreeGrid
     _levels: list[dict[int, float]] = field(init=False, repr=False)
     _n_children: list[dict[int, int]] = field(init=False, repr=False)
+    #: Dense views per level, kept until the next change: a planning query reads the grid
+    #: half a dozen times (terminals, search costs, squeeze rule, the net's free cells), and
+    #: building it walks every stored node (~1.4 ms at 62.5 mm leaves).
+    _dense: dict[int, Array] = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
         self._levels = [{} for _ in range(self.grid.depth + 1)]
         self._n_children = [{} for _ in range(self.grid.depth + 1)]
+        self._dense = {}
 
     # ---------------------------------------------------------------- inspection
     @property
@@ -233,6 +238,7 @@ class LinearOctree:
         level replaces any finer cells under it (it becomes terminal).
         """
         level = self.depth if level is None else level
+        self._dense.clear()
         codes = np.asarray(codes, dtype=np.uint64).reshape(-1)
         values = np.broadcast_to(np.asarray(values, dtype=float), codes.shape)
         touched: set[int] = set()
@@ -250,6 +256,7 @@ class LinearOctree:
         """Merge every node whose 8 children are terminal with one equal value (Gargantini's
         "fully occupied parent"); returns how many nodes were merged away."""
         merged = 0
+        self._dense.clear()
         for level in range(self.depth, 0, -1):
             parents: dict[int, list[int]] = {}
             for c in self._levels[level]:
@@ -373,8 +380,17 @@ class LinearOctree:
         return out
 
     def to_dense(self, level: int | None = None) -> Array:
-        """A dense (m, m, m) float32 array of the values at `level` (m = 2**level)."""
+        """A dense (m, m, m) float32 array of the values at `level` (m = 2**level).
+
+        Read-only: the same array is returned until the octree changes."""
         level = self.depth if level is None else level
+        cached = self._dense.get(level)
+        if cached is None:
+            cached = self._dense[level] = self._build_dense(level)
+            cached.setflags(write=False)
+        return cached
+
+    def _build_dense(self, level: int) -> Array:
         m = 1 << level
         out = np.zeros((m, m, m), dtype=np.float32)
         # Coarser terminal nodes fill their blocks; then finer levels (max-reduced) overwrite.

@@ -114,3 +114,19 @@ def test_compaction_merges_full_parents_without_changing_queries():
     assert tree.n_stored() == n_before - 8
     assert np.array_equal(tree.to_dense(), before)
     assert tree.value(g.codes_of_ijk(block[:1]))[0] == 1.0
+
+
+def test_dense_view_is_shared_until_the_tree_changes():
+    g = OctreeGrid(2.0, 3)
+    tree = LinearOctree(g)
+    tree.set_leaves(g.codes_of_ijk(np.array([[1, 2, 3]])), 0.5)
+    a = tree.to_dense()
+    assert tree.to_dense() is a  # cached: planners read it several times per query
+    with pytest.raises(ValueError):
+        a[0, 0, 0] = 1.0  # read-only, so nobody can spoil the shared copy
+    tree.set_leaves(g.codes_of_ijk(np.array([[0, 0, 0]])), 0.9)
+    b = tree.to_dense()
+    assert b is not a and b[0, 0, 0] == pytest.approx(0.9) and a[0, 0, 0] == 0.0
+    assert tree.to_dense(1) is tree.to_dense(1)
+    tree.compact()
+    assert tree.to_dense() is not b and np.array_equal(tree.to_dense(), b)
