@@ -496,6 +496,21 @@ class CollisionChecker:
         travel = float(np.sum(self._radii * np.abs(np.asarray(q1) - np.asarray(q0))))
         return max(1, int(np.ceil(travel / step)))
 
+    def motion_samples_along(self, path: Array, max_step: float | None = None) -> Array:
+        """`motion_samples` of each segment of a joint path (M, dof), in one pass."""
+        step = self.max_step if max_step is None else max_step
+        travel = (self._radii * np.abs(np.diff(np.asarray(path, dtype=float), axis=0))).sum(1)
+        return np.maximum(1, np.ceil(travel / step).astype(np.int64))
+
+    def _path_samples(self, P: Array, max_step: float | None) -> tuple[Array, Array, Array]:
+        """Segment index, fraction and step count of every sample `check_motion` takes on
+        each segment of the path P (M, dof), concatenated."""
+        counts = self.motion_samples_along(P, max_step)
+        seg = np.repeat(np.arange(len(counts)), counts + 1)
+        first = np.cumsum(counts + 1) - (counts + 1)
+        k = np.arange(len(seg)) - first[seg]
+        return seg, k / counts[seg], counts
+
     def check_motion(self, q0: Array, q1: Array, max_step: float | None = None) -> MotionCheck:
         """Continuous check of q0 -> q1, in order, returning the first invalid fraction."""
         q0, q1 = np.asarray(q0, dtype=float), np.asarray(q1, dtype=float)
@@ -521,17 +536,11 @@ class CollisionChecker:
         across segments: a dense path of short segments would otherwise pay the per-call
         cost once per segment.
         """
-        P = [np.asarray(q, dtype=float) for q in path]
-        if len(P) < 2:
+        if len(path) < 2:
             return None
-        seg, frac, counts = [], [], []
-        for i in range(len(P) - 1):
-            n = self.motion_samples(P[i], P[i + 1], max_step)
-            seg.append(np.full(n + 1, i))
-            frac.append(np.arange(0, n + 1) / n)
-            counts.append(n)
-        S, F = np.concatenate(seg), np.concatenate(frac)
-        A = np.stack(P)
+        A = np.stack([np.asarray(q, dtype=float) for q in path])
+        S, F, counts = self._path_samples(A, max_step)
+        counts = counts.tolist()
         for start in range(0, len(S), self.chunk):
             s, f = S[start : start + self.chunk], F[start : start + self.chunk]
             Q = A[s] + f[:, None] * (A[s + 1] - A[s])
@@ -574,16 +583,12 @@ class CollisionChecker:
         best = np.inf
         if not self._env:
             return float(best)
-        P = [np.asarray(q, dtype=float) for q in path]
+        P = np.stack([np.asarray(q, dtype=float) for q in path])
         if len(P) == 1:
-            Q = P[0][None]
+            Q = P
         else:
-            parts = []
-            for i in range(len(P) - 1):
-                n = self.motion_samples(P[i], P[i + 1], max_step)
-                f = np.arange(0, n + 1) / n
-                parts.append(P[i][None] + f[:, None] * (P[i + 1] - P[i])[None])
-            Q = np.concatenate(parts)
+            S, F, _ = self._path_samples(P, max_step)
+            Q = P[S] + F[:, None] * (P[S + 1] - P[S])
         movable = [i for i, rs in enumerate(self._rshapes) if rs.link > 0]
         lb_rows, lb_vals = [], []
         frames_all = []
@@ -598,10 +603,10 @@ class CollisionChecker:
         rows = np.concatenate(lb_rows)
         vals = np.concatenate(lb_vals)
         order = np.lexsort((np.arange(len(vals)), vals))  # by bound, ties in sample order
-        for j in order:
-            if vals[j] >= best:
+        for j, bound in zip(order.tolist(), vals[order].tolist(), strict=True):
+            if bound >= best:
                 break
-            k, si, ei = rows[j]
+            k, si, ei = rows[j].tolist()
             rs, es = self._rshapes[si], self._env[ei]
             rs.obj.setTransform(fcl_transform(frames_all[k][rs.link] @ rs.shape.T_link_shape))
             best = min(best, self._pair_distance(rs.obj, es.obj)[0])

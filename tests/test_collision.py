@@ -118,6 +118,20 @@ def test_motion_sampling_respects_the_step_bound(checker, rv2aj):
         assert np.max(np.linalg.norm(np.diff(pts, axis=0), axis=1)) <= 0.005 + 1e-12
 
 
+def test_segment_sample_counts_of_a_path_match_one_by_one(checker, rv2aj):
+    """Path checks count every segment's samples in one pass; the counts (and so the samples)
+    must be exactly those of `motion_samples`, also for tiny and zero-length segments."""
+    rng = np.random.default_rng(13)
+    path = rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper, (30, 5))
+    path[5] = path[4]  # no motion: still one step
+    path[9] = path[8] + 1e-9
+    for step in (None, 0.01, 0.003):
+        one_by_one = [checker.motion_samples(a, b, step)
+                      for a, b in zip(path[:-1], path[1:], strict=True)]
+        assert checker.motion_samples_along(path, step).tolist() == one_by_one
+    assert one_by_one[4] == 1 and max(one_by_one) > 50
+
+
 def test_clear_motion_is_valid(checker):
     q0 = np.radians([0.0, 0.0, 30.0, 0.0, 0.0])
     q1 = np.radians([0.0, 0.0, 60.0, 20.0, 0.0])
