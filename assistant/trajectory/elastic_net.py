@@ -69,7 +69,12 @@ import numpy as np
 
 from assistant.progress import Progress
 from assistant.robot_model import Robot
-from assistant.trajectory.particles import Particles, polyline_length, resample_joint_path
+from assistant.trajectory.particles import (
+    Particles,
+    polyline_length,
+    resample_joint_path,
+    row_norms,
+)
 from assistant.trajectory.position_ik import BatchPositionIK, PositionIKParams
 from assistant.validity import ValidityChecker
 
@@ -225,7 +230,7 @@ def relax(
 def turn_angles(P: Array) -> Array:
     """Turn angle at each interior point of a polyline (N - 2,), radians in [0, pi]."""
     a = np.diff(P, axis=0)
-    n = np.linalg.norm(a, axis=1)
+    n = row_norms(a)
     u = a / np.maximum(n, 1e-15)[:, None]
     c = np.einsum("ij,ij->i", u[:-1], u[1:])
     return np.arccos(np.clip(c, -1.0, 1.0))
@@ -312,7 +317,7 @@ class _Net:
         for idx in self.colours:
             self.P = trial
             D = self.displacements(idx, stage, lam)
-            scale = np.maximum(1.0, np.linalg.norm(D, axis=1) / self.p.max_move)
+            scale = np.maximum(1.0, row_norms(D) / self.p.max_move)
             D /= scale[:, None]
             trial[idx] += D
             all_idx.append(idx)
@@ -320,7 +325,7 @@ class _Net:
         self.P = P0
         idx = np.concatenate(all_idx)
         D = np.concatenate(all_D)
-        live = np.linalg.norm(D, axis=1) > 0.0
+        live = row_norms(D) > 0.0
         idx, D = idx[live], D[live]
         if not len(idx):
             return 0.0, 0, 0
@@ -344,7 +349,7 @@ class _Net:
         self.rejected += int(refused.sum())
         accepted = int(ok.sum())
         self.accepted += accepted
-        E = float(np.linalg.norm(D[ok], axis=1).sum()) / max(1, len(P0) - 2)
+        E = float(row_norms(D[ok]).sum()) / max(1, len(P0) - 2)
         return E, accepted, len(idx)
 
     # ---------------------------------------------------------------- forces
@@ -352,17 +357,17 @@ class _Net:
         P, p = self.P, self.p
         A, B, C = P[idx - 1], P[idx], P[idx + 1]
         AB, BC = B - A, C - B
-        lab = np.linalg.norm(AB, axis=1)
-        lbc = np.linalg.norm(BC, axis=1)
+        lab = row_norms(AB)
+        lbc = row_norms(BC)
         AC = C - A
-        t = AC / np.maximum(np.linalg.norm(AC, axis=1), 1e-15)[:, None]
+        t = AC / np.maximum(row_norms(AC), 1e-15)[:, None]
         F_eq = (lbc - lab)[:, None] * t
         S = (A - B) + (C - B)
         F_sh = S - np.einsum("ij,ij->i", S, t)[:, None] * t
         if stage == 1:
             return p.c_equidistance * F_eq + p.stage1_shrink * F_sh
-        F_rot, g3 = self.rotation(idx, t)
         side = 0.5 * (lab + lbc)
+        F_rot, g3 = self.rotation(idx, t, side)
         g_min = polygon_turn_angle(side, p.r_max)
         g_max = polygon_turn_angle(side, p.r_min) if p.r_min > 0.0 else np.full(len(idx), np.inf)
         line = np.all(g3 < g_min[:, None], axis=1) | (g3[:, 1] > g_max)
@@ -371,8 +376,9 @@ class _Net:
         straight = p.c_equidistance * F_eq + p.c_line_shrink * F_sh
         return np.where(line[:, None], straight, curve)
 
-    def rotation(self, idx: Array, t: Array) -> tuple[Array, Array]:
-        """F_rot for particles idx and their three neighbouring turn angles (n, 3).
+    def rotation(self, idx: Array, t: Array, side: Array) -> tuple[Array, Array]:
+        """F_rot for particles idx (mean length `side` of their two edges) and their three
+        neighbouring turn angles (n, 3).
 
         The curvature vector k_j = gamma_j * (inward unit normal) of each interior particle is
         compared with the mean of its neighbours' (projected into B's normal plane and
@@ -385,30 +391,26 @@ class _Net:
         gam = turn_angles(P)  # interior j = 1..n-2 at gam[j-1]
         S_all = P[:-2] + P[2:] - 2.0 * P[1:-1]
         a_all = P[2:] - P[:-2]
-        a_all /= np.maximum(np.linalg.norm(a_all, axis=1), 1e-15)[:, None]
+        a_all /= np.maximum(row_norms(a_all), 1e-15)[:, None]
         S_all -= np.einsum("ij,ij->i", S_all, a_all)[:, None] * a_all
-        sn = np.linalg.norm(S_all, axis=1)
+        sn = row_norms(S_all)
         normal = np.where(sn[:, None] > 1e-12, S_all / np.maximum(sn, 1e-300)[:, None], 0.0)
+        # The end particles have no turn: zero curvature and angle (their neighbours' sums
+        # and angle triples then need no special case).
         K = np.zeros((n, 3))
-        G = np.full(n, np.nan)
+        G = np.zeros(n)
         K[1:-1] = gam[:, None] * normal
         G[1:-1] = gam
         kb = K[idx]
-        has_l = (idx - 1) >= 1
-        has_r = (idx + 1) <= n - 2
-        cnt = has_l.astype(float) + has_r.astype(float)
-        ksum = np.where(has_l[:, None], K[idx - 1], 0.0) + np.where(has_r[:, None], K[idx + 1], 0.0)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            kmean = np.where(cnt[:, None] > 0, ksum / cnt[:, None], kb)
+        cnt = ((idx - 1) >= 1).astype(float) + ((idx + 1) <= n - 2)
+        kmean = (K[idx - 1] + K[idx + 1]) / np.maximum(cnt, 1.0)[:, None]
+        alone = cnt == 0.0  # three particles: no interior neighbour to compare with
+        kmean[alone] = kb[alone]
         kmean -= np.einsum("ij,ij->i", kmean, t)[:, None] * t
         cosb = np.maximum(np.cos(G[idx]), 0.5)
         target = kmean / cosb[:, None]
-        lab = np.linalg.norm(P[idx] - P[idx - 1], axis=1)
-        lbc = np.linalg.norm(P[idx + 1] - P[idx], axis=1)
-        side = 0.5 * (lab + lbc)
         F_rot = 0.25 * side[:, None] * (kb - target) / 3.0
-        g3 = np.stack([np.where(has_l, G[np.maximum(idx - 1, 0)], 0.0), G[idx],
-                       np.where(has_r, G[np.minimum(idx + 1, n - 1)], 0.0)], axis=1)
+        g3 = np.stack([G[idx - 1], G[idx], G[idx + 1]], axis=1)
         return F_rot, g3
 
     # ---------------------------------------------------------------- moves
