@@ -5,7 +5,11 @@ postures); the A* never searches cell centres (thesis §8.5.6: joint positions g
 distances, decoupled from the cell size). Every node of a cell connects to every node of the
 cell itself and of its 26 neighbours, except across a *corner squeeze*: a diagonal step whose
 face neighbours along two (or three) of its axes include at least two blocked cells passes
-between them, which the arm's volume forbids (thesis Fig. 23).
+between them, which the arm's volume forbids (thesis Fig. 23). Steps out of or into the cell
+of an `extra` node (the start and goal postures) are exempt: those are exact postures, and a
+taught point next to a table or a part sits in a cell whose face neighbours are the part -
+the rule would cut it off although a plain move up and away is free (every edge is still
+checked exactly by the lazy search).
 
 Cost of an edge u -> v: the arm-radius-weighted Euclidean joint distance ||W (q_v - q_u)||
 (W = arm radii, so it approximates how far the arm travels, metres) plus the occupancy penalty
@@ -16,7 +20,7 @@ q_goal)|| is consistent because the penalty is >= 0.
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -55,6 +59,8 @@ class JointGraph:
     penalty: Array  # (n_cells,) float: cost added when entering the cell
     weights: Array  # (dof,)
     max_edge: float = np.inf
+    #: Cells the squeeze rule does not apply to (those of the extra nodes), sorted.
+    squeeze_exempt: Array = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     @staticmethod
     def build(shape: tuple[int, int, int], cells: Array, offsets: Array, Q: Array,
@@ -85,7 +91,7 @@ class JointGraph:
         g = JointGraph(tuple(shape), node_q, node_cell, cell_start, searchable,
                        np.asarray(squeeze_blocked, bool).reshape(-1),
                        np.asarray(penalty, float).reshape(-1), np.asarray(weights, float),
-                       float(max_edge))
+                       float(max_edge), np.unique(extra_cells))
         return g, extra_ids
 
     @property
@@ -104,8 +110,11 @@ class JointGraph:
         f_blocked = np.zeros(6, dtype=np.int64)
         f_blocked[f_in] = self.squeeze_blocked[f_flat[f_in]]
         squeezed = (_FACE_OF_MOVE @ f_blocked) >= 2
-        ok = inside & ~squeezed
-        flat = (ijk[ok, 0] * ny + ijk[ok, 1]) * nz + ijk[ok, 2]
+        flat = (ijk[inside, 0] * ny + ijk[inside, 1]) * nz + ijk[inside, 2]
+        keep = ~squeezed[inside]
+        if len(self.squeeze_exempt):  # into or out of an exact posture's cell: any step
+            keep |= np.isin(cell, self.squeeze_exempt) | np.isin(flat, self.squeeze_exempt)
+        flat = flat[keep]
         return flat[self.searchable[flat]]
 
     def nodes_of(self, cells: Array) -> Array:
