@@ -444,6 +444,9 @@ class MissionExecutor:
                 rep.log.append(f"{item.piece.label}: switched to the re-planned path (TCP "
                                f"{old_len * 1000:.0f} -> {new_len * 1000:.0f} mm)")
                 item.piece = tr.piece
+                return
+        rep.log.append(f"{item.piece.label}: re-checked against new evidence, still valid: "
+                       "kept")
 
     def _resume_piece(self) -> None:
         """Re-plan the interrupted piece from where the arm is now."""
