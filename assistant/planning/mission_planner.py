@@ -19,7 +19,8 @@ Steps, each ending with a reason that names the failing piece:
 4. Transfers: roadmap query, then the elastic net with the world's free cells as `allowed`
    and FCL + recorded collision postures as the particles' validity; low shrink while
    exploring, high for the final plan. A smoothed transfer that fails verification falls
-   back to the exploring net, then to joint moves along the roadmap path (verified too).
+   back to the exploring net, then to joint moves along the roadmap path, shortcut where
+   a straight joint move is valid (verified too).
 5. All pieces joined into one trajectory (labels = mission steps, gripper actions where the
    paths want them) and verified once more as a whole: the exact continuous FCL check against
    every known obstacle, the recorded collision postures and the joint limits. Nothing
@@ -49,6 +50,7 @@ from assistant.planning.locations import (
 )
 from assistant.planning.pieces import PieceKind, PlanPiece, join_pieces
 from assistant.planning.report import MissionPlanReport, PieceReport
+from assistant.planning.shortcut import shortcut_joint_path
 from assistant.progress import Progress
 from assistant.roadmap.planner import PlanFailure, RoadmapPlan, RoadmapPlanner
 from assistant.robot_model import Robot
@@ -174,7 +176,7 @@ class MissionPlanner:
         The fitted primitives may stray from the (valid) net by up to the fit tolerance; if
         that touches something, the same net is refitted tighter before anything else. The
         final plan may fall back to the exploring net (it stays nearer the roads), and last,
-        to joint moves along the roadmap path.
+        to joint moves along the roadmap path (shortcut: `shortcut_joint_path`).
         """
         cfg = self.config
         nets: list[ElasticNetParams] = [cfg.net_exploring if exploring else cfg.net_final]
@@ -222,11 +224,20 @@ class MissionPlanner:
                     notes.append("smoothed with the exploring net")
                 return replace(asm, trajectory=snapped), notes
         if cfg.fallback_to_joint_moves:
-            traj = _joint_moves(self.robot, joint_path, label, cfg.assembly)
-            checked = verify(self.robot, traj, self.verifier,
-                             clearance_step=cfg.assembly.clearance_step)
-            if checked.ok:
-                notes.append("joint moves along the roadmap path (smoothing failed)")
+            exempt = self.world.recorded_collisions_at(q0)
+            short = shortcut_joint_path(
+                joint_path, lambda a, b: self.verifier.check_motion(a, b, exempt).valid)
+            tries = [(short, "the shortened roadmap path")]
+            if len(short) < len(joint_path):  # verify samples differently: then the searched path
+                tries.append((joint_path, "the roadmap path"))
+            for path, what in tries:
+                traj = _joint_moves(self.robot, path, label, cfg.assembly)
+                checked = verify(self.robot, traj, self.verifier,
+                                 clearance_step=cfg.assembly.clearance_step)
+                if checked.ok:
+                    notes.append(f"{len(traj.motions)} joint moves along {what} "
+                                 "(smoothing failed)")
+                    break
             return checked, notes
         assert asm is not None  # every net was fitted and assembled at least once
         return asm, notes

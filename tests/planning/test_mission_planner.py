@@ -215,3 +215,31 @@ def test_goal_equal_to_start_ends_in_the_start_posture_and_exports(planner, scen
     prog = program_from_trajectory(traj, robot, name="HOME")
     files = get_dialect("melfa").write(prog, robot)
     assert sum(f.text.count("P1=(") for f in files) == 1
+
+
+def test_when_no_smoothed_transfer_verifies_few_joint_moves_do(planner, plan, scenario, robot,
+                                                               monkeypatch):
+    """Every fitted trajectory refused (as when lines and arcs graze a part taught right next
+    to the path): the transfer falls back to straight joint moves along the roadmap path,
+    shortcut wherever one move is valid - verified like everything else."""
+    import assistant.planning.mission_planner as mp_mod
+    from assistant.trajectory.assemble import AssemblyResult
+
+    def refuse(robot_, fit, particles, verifier, params):
+        return AssemblyResult(None, replace(mp_mod.verify(robot_, mp_mod._joint_moves(
+            robot_, particles.joints[:2], "x", params), None).report, ok=False,
+            reason="refused by the test"), None)
+
+    monkeypatch.setattr(mp_mod, "assemble_trajectory", refuse)
+    locs = plan.locations  # solved before the patch
+    road = planner.roadmap.plan(locs["P1"], locs["P10"])
+    assert road.ok and len(road.joint_path) > 4
+    tr = planner.plan_transfer(locs["P1"], locs["P10"], label="fallback", roadmap_plan=road)
+    assert tr.ok, tr.report.reason
+    assert any("joint moves along the shortened roadmap path" in n for n in tr.report.notes)
+    motions = tr.piece.trajectory.motions
+    assert all(m.kind == MotionKind.JOINT for m in motions)
+    assert len(motions) < len(road.joint_path) - 1  # fewer than the searched path's edges
+    known = CollisionChecker(robot, scenario.known_obstacles())
+    assert known.check_path(list(tr.piece.trajectory.dense_joint_path())) is None
+    assert np.allclose(motions[-1].target.q, locs["P10"])
