@@ -293,22 +293,28 @@ class RoadmapPlanner:
                                PlanFailure.NO_PATH_REGIONS, timings=timings)
         lab = vmap.label.reshape(-1)
         on_roads = (lab == ROAD) | (lab == s_lab) | (lab == g_lab)
-        res, graph = self._search(q_s, q_g, sc, gc, (on_roads & free) | escape, progress,
-                                  timings)
-        searched = "roads"
-        if (not res.found and res.reason not in (REASON_BUDGET, REASON_SAFETY)
-                and self.config.fallback_to_free_cells):
-            b = self.config.budget
-            left = replace(b, max_expansions=max(1, b.max_expansions - res.expansions),
-                           max_edge_checks=max(1, b.max_edge_checks - res.edge_checks),
-                           max_seconds=max(0.0, b.max_seconds - res.seconds))
-            res2, graph = self._search(q_s, q_g, sc, gc, free, progress, timings, left)
-            searched = "free cells"
-            res = SearchResult(res2.found, res2.reason, res2.nodes, res2.cost,
-                               res.expansions + res2.expansions,
-                               res.edge_checks + res2.edge_checks,
-                               res.rejected_edges + res2.rejected_edges,
-                               res.seconds + res2.seconds, res2.budget_detail)
+        # The roads first; then any free cell; then also squeezing out of the start's or into
+        # the goal's cell (a point taught next to a part may have no other way out).
+        tries = [("roads", (on_roads & free) | escape, False)]
+        if self.config.fallback_to_free_cells:
+            tries += [("free cells", free, False), ("free cells", free, True)]
+        res = graph = searched = None
+        for name, searchable, exempt in tries:
+            budget = self.config.budget
+            if res is not None:
+                if res.found or res.reason in (REASON_BUDGET, REASON_SAFETY):
+                    break
+                budget = replace(budget,
+                                 max_expansions=max(1, budget.max_expansions - res.expansions),
+                                 max_edge_checks=max(1, budget.max_edge_checks - res.edge_checks),
+                                 max_seconds=max(0.0, budget.max_seconds - res.seconds))
+            nxt, graph = self._search(q_s, q_g, sc, gc, searchable, progress, timings, budget,
+                                      exempt)
+            searched = name
+            res = nxt if res is None else SearchResult(
+                nxt.found, nxt.reason, nxt.nodes, nxt.cost, res.expansions + nxt.expansions,
+                res.edge_checks + nxt.edge_checks, res.rejected_edges + nxt.rejected_edges,
+                res.seconds + nxt.seconds, nxt.budget_detail)
         timings["total"] = time.perf_counter() - t0
         if not res.found:
             if res.reason == REASON_SAFETY:
@@ -408,7 +414,8 @@ class RoadmapPlanner:
 
     def _search(self, q_s: Array, q_g: Array, sc: int, gc: int, searchable: Array,
                 progress: Progress | None, timings: dict[str, float],
-                budget: SearchBudget | None = None) -> tuple[SearchResult, JointGraph]:
+                budget: SearchBudget | None = None, exempt_terminals: bool = False,
+                ) -> tuple[SearchResult, JointGraph]:
         w = self.world
         t0 = time.perf_counter()
         cells, offsets, Q = w.cell_positions()
@@ -417,7 +424,8 @@ class RoadmapPlanner:
         graph, (s_id, g_id) = JointGraph.build(
             w.grid.shape, cells, offsets, Q, searchable, squeeze,
             self.config.occupancy_penalty * occ, self._weights(),
-            extra=[(sc, q_s), (gc, q_g)], max_edge=self.config.max_edge)
+            extra=[(sc, q_s), (gc, q_g)], max_edge=self.config.max_edge,
+            exempt_extras=exempt_terminals)
         timings["graph"] = timings.get("graph", 0.0) + time.perf_counter() - t0
         t1 = time.perf_counter()
         res = lazy_astar(graph, s_id, g_id, self._edge, budget or self.config.budget, progress,

@@ -220,8 +220,8 @@ def test_goal_equal_to_start_ends_in_the_start_posture_and_exports(planner, scen
 def test_when_no_smoothed_transfer_verifies_few_joint_moves_do(planner, plan, scenario, robot,
                                                                monkeypatch):
     """Every fitted trajectory refused (as when lines and arcs graze a part taught right next
-    to the path): the transfer falls back to straight joint moves along the roadmap path,
-    shortcut wherever one move is valid - verified like everything else."""
+    to the path): the final transfer falls back to straight joint moves along the roadmap
+    path, shortcut wherever one move is valid - verified like everything else."""
     import assistant.planning.mission_planner as mp_mod
     from assistant.trajectory.assemble import AssemblyResult
 
@@ -243,3 +243,9 @@ def test_when_no_smoothed_transfer_verifies_few_joint_moves_do(planner, plan, sc
     known = CollisionChecker(robot, scenario.known_obstacles())
     assert known.check_path(list(tr.piece.trajectory.dense_joint_path())) is None
     assert np.allclose(motions[-1].target.q, locs["P10"])
+    # Exploring keeps to the roads (their clearance keeps it off what is not known yet).
+    explo = planner.plan_transfer(locs["P1"], locs["P10"], label="fallback", exploring=True,
+                                  roadmap_plan=road)
+    assert explo.ok and any("joint moves along the roadmap path" in n
+                            for n in explo.report.notes)
+    assert len(explo.piece.trajectory.motions) == len(road.joint_path) - 1

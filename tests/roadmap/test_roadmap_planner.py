@@ -12,7 +12,7 @@ from assistant.roadmap.astar import SearchBudget
 from assistant.roadmap.planner import PlanFailure, RoadmapConfig, RoadmapPlanner
 from assistant.roadmap.voronoi import build_voronoi
 from assistant.robot_model import CollisionShape, ShapeKind
-from assistant.transforms import make_T
+from assistant.transforms import make_T, rot_z
 from assistant.world.fusion import Source
 from assistant.world.model import WorldConfig, WorldModel
 from assistant.world.reachability import ReachabilityConfig
@@ -170,3 +170,35 @@ def test_a_point_taught_on_a_part_is_a_valid_goal(planner, rv2aj):
     plan = planner.plan(Q_START, q_on)
     assert plan.ok, plan.reason
     assert planner.checker.check_path(plan.joint_path) is None
+
+
+def test_a_start_taught_between_the_table_and_a_part_is_left_diagonally(rv2aj, monkeypatch):
+    """TCP 52 mm above the table, beside a box: the start cell's face neighbours are table and
+    box, so every step out is a corner squeeze. The planner's last try lifts the rule for the
+    start and goal cells (found as the generated benchmark cell 128, where OMPL found a path
+    and we answered "no path")."""
+    from assistant.roadmap import graph
+
+    def box(name, c, yaw, s):
+        return Obstacle(name, make_T(rot_z(yaw), np.array(c)),
+                        (CollisionShape(ShapeKind.BOX, tuple(s)),))
+
+    obs = [box("table", [0.0, 0.0, -0.01], 0.0, [1.2, 1.2, 0.02]),
+           box("B1", [0.3004, -0.1332, 0.115], 2.8921, [0.0804, 0.048, 0.2301]),
+           box("B2", [0.4129, 0.0277, 0.0802], 2.5749, [0.0813, 0.127, 0.1604])]
+    q_s = np.array([-0.0936, 1.372, 1.6217, -0.483, 3.0333])
+    q_g = np.array([1.1368, 1.4233, 0.9457, 0.2648, 1.7441])
+    checker = CollisionChecker(rv2aj, obs)
+    planner = RoadmapPlanner(rv2aj, checker, WorldModel(rv2aj, obs, WorldConfig()))
+    planner.build()
+    assert rv2aj.fk(q_s)[2, 3] < 0.06 and checker.is_valid(q_s)
+    plan = planner.plan(q_s, q_g)
+    assert plan.ok, plan.reason
+    assert plan.searched == "free cells"
+    assert checker.check_path(plan.joint_path) is None
+    # Never lifting the rule, the start is cut off.
+    build = graph.JointGraph.build
+    monkeypatch.setattr(graph.JointGraph, "build", staticmethod(
+        lambda *a, **k: build(*a, **{**k, "exempt_extras": False})))
+    cut_off = planner.plan(q_s, q_g)
+    assert not cut_off.ok and cut_off.failure == PlanFailure.NO_PATH
