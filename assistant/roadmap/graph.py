@@ -5,12 +5,12 @@ postures); the A* never searches cell centres (thesis §8.5.6: joint positions g
 distances, decoupled from the cell size). Every node of a cell connects to every node of the
 cell itself and of its 26 neighbours, except across a *corner squeeze*: a diagonal step whose
 face neighbours along two (or three) of its axes include at least two blocked cells passes
-between them, which the arm's volume forbids (thesis Fig. 23). On request steps out of or
-into the cell of an `extra` node (the start and goal postures) are exempt: a point taught
+between them, which the arm's volume forbids (thesis Fig. 23). Steps out of or into cells
+named `squeeze_exempt` (the planner names the start's or goal's) are exempt: a point taught
 next to a table or a part sits in a cell whose face neighbours are the part, and the rule can
 cut it off although a plain move up and away is free (every edge is still checked exactly by
-the lazy search). The planner asks for that only when the search with the rule finds nothing:
-elsewhere the rule keeps paths from squeezing past what was just hit.
+the lazy search). The planner exempts a terminal only when the rule leaves it no edge, or as
+a last try: elsewhere the rule keeps paths from squeezing past what was just hit.
 
 Cost of an edge u -> v: the arm-radius-weighted Euclidean joint distance ||W (q_v - q_u)||
 (W = arm radii, so it approximates how far the arm travels, metres) plus the occupancy penalty
@@ -21,6 +21,7 @@ q_goal)|| is consistent because the penalty is >= 0.
 from __future__ import annotations
 
 import itertools
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -67,10 +68,10 @@ class JointGraph:
     def build(shape: tuple[int, int, int], cells: Array, offsets: Array, Q: Array,
               searchable: Array, squeeze_blocked: Array, penalty: Array, weights: Array,
               extra: list[tuple[int, Array]] = (), max_edge: float = np.inf,
-              exempt_extras: bool = False) -> tuple[JointGraph, list[int]]:
+              squeeze_exempt: Sequence[int] = ()) -> tuple[JointGraph, list[int]]:
         """Graph over the positions of the searchable cells, plus `extra` (cell, q) nodes
-        (start, goal); with `exempt_extras` the squeeze rule does not apply to steps into or
-        out of their cells. Returns the graph and the node ids of the extras."""
+        (start, goal); the squeeze rule does not apply to steps into or out of the cells
+        `squeeze_exempt`. Returns the graph and the node ids of the extras."""
         n_cells = int(np.prod(shape))
         searchable = np.asarray(searchable, bool).reshape(-1).copy()
         counts = np.diff(offsets)
@@ -93,8 +94,7 @@ class JointGraph:
         g = JointGraph(tuple(shape), node_q, node_cell, cell_start, searchable,
                        np.asarray(squeeze_blocked, bool).reshape(-1),
                        np.asarray(penalty, float).reshape(-1), np.asarray(weights, float),
-                       float(max_edge),
-                       np.unique(extra_cells) if exempt_extras else np.zeros(0, np.int64))
+                       float(max_edge), np.unique(np.asarray(squeeze_exempt, dtype=np.int64)))
         return g, extra_ids
 
     @property

@@ -28,6 +28,7 @@ along the path instead of jumping to the table's fixed value.
 from __future__ import annotations
 
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 from enum import Enum
 
@@ -294,7 +295,8 @@ class RoadmapPlanner:
         lab = vmap.label.reshape(-1)
         on_roads = (lab == ROAD) | (lab == s_lab) | (lab == g_lab)
         # The roads first; then any free cell; then also squeezing out of the start's or into
-        # the goal's cell (a point taught next to a part may have no other way out).
+        # the goal's cell (a point taught next to a part may have no other way out; one the
+        # rule leaves no edge at all is exempt from the first try on, see `_search`).
         tries = [("roads", (on_roads & free) | escape, False)]
         if self.config.fallback_to_free_cells:
             tries += [("free cells", free, False), ("free cells", free, True)]
@@ -416,16 +418,28 @@ class RoadmapPlanner:
                 progress: Progress | None, timings: dict[str, float],
                 budget: SearchBudget | None = None, exempt_terminals: bool = False,
                 ) -> tuple[SearchResult, JointGraph]:
+        """One lazy A* over the `searchable` cells' positions.
+
+        A terminal the squeeze rule leaves without a single edge (a point taught between
+        the table and a part) is exempt from the rule at once - searching on would only
+        exhaust the reachable free space before giving up; `exempt_terminals` exempts both.
+        """
         w = self.world
         t0 = time.perf_counter()
         cells, offsets, Q = w.cell_positions()
         occ = w.occupancy().reshape(-1)
         squeeze = (w.occupied() | (w.reachable() & ~w.has_valid())).reshape(-1)
-        graph, (s_id, g_id) = JointGraph.build(
-            w.grid.shape, cells, offsets, Q, searchable, squeeze,
-            self.config.occupancy_penalty * occ, self._weights(),
-            extra=[(sc, q_s), (gc, q_g)], max_edge=self.config.max_edge,
-            exempt_extras=exempt_terminals)
+
+        def build(exempt: Sequence[int]) -> tuple[JointGraph, list[int]]:
+            return JointGraph.build(w.grid.shape, cells, offsets, Q, searchable, squeeze,
+                                    self.config.occupancy_penalty * occ, self._weights(),
+                                    extra=[(sc, q_s), (gc, q_g)],
+                                    max_edge=self.config.max_edge, squeeze_exempt=exempt)
+
+        graph, (s_id, g_id) = build((sc, gc) if exempt_terminals else ())
+        cut_off = [c for c, i in ((sc, s_id), (gc, g_id)) if not len(graph.successors(i)[0])]
+        if cut_off and not exempt_terminals:
+            graph, (s_id, g_id) = build(cut_off)
         timings["graph"] = timings.get("graph", 0.0) + time.perf_counter() - t0
         t1 = time.perf_counter()
         res = lazy_astar(graph, s_id, g_id, self._edge, budget or self.config.budget, progress,

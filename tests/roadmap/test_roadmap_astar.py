@@ -136,7 +136,8 @@ def test_corner_squeeze_is_forbidden_only_between_two_blocked_faces():
         # An extra node (start/goal) elsewhere does not change the rule for other cells.
         for extra in ([], [(int(np.ravel_multi_index((2, 2, 2), shape)), np.zeros(1))]):
             g, _ = JointGraph.build(shape, cells, offsets, Q, np.ones(n, bool), squeeze,
-                                    np.zeros(n), np.ones(1), extra=extra, exempt_extras=True)
+                                    np.zeros(n), np.ones(1), extra=extra,
+                                    squeeze_exempt=[c for c, _ in extra])
             out.append(set(g.neighbour_cells(int(np.ravel_multi_index((0, 0, 0),
                                                                       shape))).tolist()))
         assert out[0] == out[1]
@@ -154,8 +155,8 @@ def test_corner_squeeze_is_forbidden_only_between_two_blocked_faces():
 
 def test_start_and_goal_cells_are_exempt_from_the_squeeze_rule():
     """A taught point next to a table: the start cell's face neighbours are the table, so
-    every diagonal step up and away is a "squeeze". With the exemption (the planner's last
-    try) the search leaves (and enters the goal) that way; the exact edge check decides."""
+    every diagonal step up and away is a "squeeze". With the start's and goal's cells exempt
+    the search leaves (and enters the goal) that way; the exact edge check decides."""
     shape = (3, 3, 3)
     n = 27
     idx = lambda *c: int(np.ravel_multi_index(c, shape))  # noqa: E731
@@ -172,7 +173,7 @@ def test_start_and_goal_cells_are_exempt_from_the_squeeze_rule():
 
     extra = [(start, np.array([0.0])), (goal, np.array([0.26]))]
     g, (s, t) = JointGraph.build(shape, cells, offsets, Q, searchable, blocked, np.zeros(n),
-                                 np.ones(1), extra=extra, exempt_extras=True)
+                                 np.ones(1), extra=extra, squeeze_exempt=(start, goal))
     assert idx(1, 1, 1) in g.neighbour_cells(start).tolist()  # up and away, diagonally
     assert goal in g.neighbour_cells(idx(1, 1, 1)).tolist()  # and into the goal's cell
     res = lazy_astar(g, s, t, AlwaysValid())
