@@ -61,7 +61,7 @@ class JointGraph:
     penalty: Array  # (n_cells,) float: cost added when entering the cell
     weights: Array  # (dof,)
     max_edge: float = np.inf
-    #: Cells the squeeze rule does not apply to (those of the extra nodes), sorted.
+    #: Cells (sorted) whose steps in or out the squeeze rule spares: start or goal cells.
     squeeze_exempt: Array = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
 
     @staticmethod

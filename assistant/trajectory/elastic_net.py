@@ -330,8 +330,8 @@ class _Net:
         if not len(idx):
             return 0.0, 0, 0
         # A particle refused at both lengths last sweep is pinned against a constraint (the
-        # octree, the arm's gap): its next full move is refused again nineteen times in
-        # twenty, so it proposes the half move straight away and is not retried.
+        # octree, the arm's gap): it proposes the half move straight away and is not
+        # retried - a retry call for it almost never bought a move (module docstring).
         pinned = self._pinned[idx]
         D[pinned] *= 0.5
         trial[idx[pinned]] = P0[idx[pinned]] + D[pinned]
