@@ -492,9 +492,8 @@ class CollisionChecker:
     # ------------------------------------------------------------------ motions
     def motion_samples(self, q0: Array, q1: Array, max_step: float | None = None) -> int:
         """Number of steps so that no point of the arm moves more than max_step per step."""
-        step = self.max_step if max_step is None else max_step
-        travel = float(np.sum(self._radii * np.abs(np.asarray(q1) - np.asarray(q0))))
-        return max(1, int(np.ceil(travel / step)))
+        return int(self.motion_samples_along(np.stack([np.asarray(q0), np.asarray(q1)]),
+                                             max_step)[0])
 
     def motion_samples_along(self, path: Array, max_step: float | None = None) -> Array:
         """`motion_samples` of each segment of a joint path (M, dof), in one pass."""

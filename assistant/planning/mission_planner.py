@@ -232,7 +232,9 @@ class MissionPlanner:
                 exempt = self.world.recorded_collisions_at(q0)
                 short = shortcut_joint_path(
                     joint_path, lambda a, b: self.verifier.check_motion(a, b, exempt).valid)
-                if len(short) < len(joint_path):  # verify samples differently: keep the path
+                # Each shortcut passed `check_motion`; `verify` samples the dense moves on
+                # its own, and should it still refuse one, the searched path is next.
+                if len(short) < len(joint_path):
                     tries.insert(0, (short, "the shortened roadmap path"))
             for path, what in tries:
                 traj = _joint_moves(self.robot, path, label, cfg.assembly)

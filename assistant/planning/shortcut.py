@@ -4,7 +4,7 @@ When no smoothed (line/arc) trajectory verifies, a transfer falls back to joint 
 the roadmap's path. That path steps from leaf to leaf, a dozen or more vertices; a program
 of a dozen joint moves is slow to run and hard to read. From each kept vertex the farthest
 later vertex that one straight joint move reaches validly is taken next (greedy, as the
-shortcutting of sampling planners does), so the fallback is usually two to four moves. The
+shortcutting of sampling planners does), so the fallback is usually a few moves. The
 moves are checked exactly by the caller's `valid_move`; consecutive vertices are the
 search's own edges, already checked, so the result always exists.
 """

@@ -159,7 +159,10 @@ def test_start_and_goal_cells_are_exempt_from_the_squeeze_rule():
     the search leaves (and enters the goal) that way; the exact edge check decides."""
     shape = (3, 3, 3)
     n = 27
-    idx = lambda *c: int(np.ravel_multi_index(c, shape))  # noqa: E731
+
+    def idx(*c: int) -> int:
+        return int(np.ravel_multi_index(c, shape))
+
     table = [idx(i, j, 0) for i in range(3) for j in range(3)]
     start, goal = idx(0, 0, 0), idx(2, 2, 0)
     blocked = np.zeros(n, bool)
