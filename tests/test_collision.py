@@ -222,3 +222,38 @@ def test_certified_rows_skip_the_exact_check_but_not_the_limits(checker, rv2aj):
     assert np.isnan(margin).all()
     ok, margin = checker.is_valid_batch_margin(q_hit[None])
     assert not ok[0] and np.isnan(margin[0])
+
+
+def test_certified_motion_samples_answer_like_the_plain_batch(checker, rv2aj):
+    """`is_valid_samples` gives exactly `is_valid_batch`'s answers for the samples of many
+    motions at once (free, grazing, crossing the boxes, leaving the joint limits), and checks
+    fewer rows exactly: the margins of every fourth sample cover the ones around it."""
+    rng = np.random.default_rng(23)
+    lo, hi = rv2aj.limits.lower, rv2aj.limits.upper
+    rows, groups = [], []
+    for g in range(40):
+        q0 = rng.uniform(lo, hi)
+        q1 = q0 + rng.normal(scale=0.4, size=5)  # some leave the limits
+        n = checker.motion_samples(q0, q1)
+        rows.append(q0 + (np.arange(n + 1) / n)[:, None] * (q1 - q0))
+        groups.append(np.full(n + 1, g))
+    Q, G = np.concatenate(rows), np.concatenate(groups)
+    plain = checker.is_valid_batch(Q)
+    assert 0.2 < plain.mean() < 0.95  # both answers are well represented
+    exact_rows = []
+    original = checker.in_collision_batch
+
+    def counted(Q_):
+        exact_rows.append(len(Q_))
+        return original(Q_)
+
+    checker.in_collision_batch = counted
+    try:
+        assert np.array_equal(checker.is_valid_samples(Q, G), plain)
+    finally:
+        del checker.in_collision_batch
+    assert sum(exact_rows) < 0.4 * len(Q)  # 21 %; with no certificate ~60 %
+    # One motion (no groups) and motions too short to skip anything answer alike.
+    one = rows[0]
+    assert np.array_equal(checker.is_valid_samples(one), checker.is_valid_batch(one))
+    assert np.array_equal(checker.is_valid_samples(one[:2]), checker.is_valid_batch(one[:2]))

@@ -160,14 +160,19 @@ class _EdgeCheck:
 
     def first_invalid_fractions(self, Q0: Array, Q1: Array) -> list[float | None]:
         """Several edges in one batched validity call, sampled exactly as the checker's own
-        motion check (`motion_samples`); falls back to one call per edge otherwise."""
+        motion check (`motion_samples`, certified by margins with `is_valid_samples` where
+        the checker offers it); falls back to one call per edge otherwise."""
         samples = getattr(self.checker, "motion_samples", None)
         if samples is None:
             return [self.first_invalid_fraction(a, b) for a, b in zip(Q0, Q1, strict=True)]
         ns = [int(samples(a, b)) for a, b in zip(Q0, Q1, strict=True)]
         fr = [np.arange(n + 1) / n for n in ns]
         Q = np.concatenate([a + f[:, None] * (b - a) for a, b, f in zip(Q0, Q1, fr, strict=True)])
-        ok = self.checker.is_valid_batch(Q)
+        along = getattr(self.checker, "is_valid_samples", None)
+        if along is not None:
+            ok = along(Q, np.repeat(np.arange(len(fr)), [len(f) for f in fr]))
+        else:
+            ok = self.checker.is_valid_batch(Q)
         if self.world.collisions:
             ok &= ~self.world.near_recorded_collision(Q, self.exempt)
         out: list[float | None] = []
