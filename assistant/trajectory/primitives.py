@@ -256,6 +256,10 @@ class _Fitter:
                 prim = self.fit(kind, O, t0, s, e)
                 if prim is None:
                     continue
+                # A score below best_score's reach cannot win: skip the full look-ahead.
+                if best_score is not None and not self._may_reach(
+                        prim, best_score[0], best_score[0]):
+                    continue
                 score = (*self.next_reach(prim), e, kind == PrimitiveKind.LINE)
                 if best_score is None or score > best_score:
                     best, best_score = prim, score
@@ -277,6 +281,33 @@ class _Fitter:
                   or e) for k2 in PrimitiveKind}
         best = max(r.values())
         return best, r[PrimitiveKind.LINE] == best
+
+    def _may_reach(self, prim: Primitive, line_to: int, arc_to: int) -> bool:
+        """Whether the line after `prim` may reach node `line_to`, or the arc `arc_to`.
+
+        One fit per type at exactly that end (or the gallop's answer if it is already known)
+        instead of a full gallop: the look-ahead asks this of many candidates that cannot
+        beat the best one found. Growth is monotone but for rare nodes that fit again after
+        one that does not, where the gallop may still land beyond; there, a candidate is
+        passed over that the full look-ahead might have preferred.
+        """
+        e = prim.last_node
+        if e == self.n - 1:
+            return True
+        for kind, target in ((PrimitiveKind.LINE, line_to), (PrimitiveKind.ARC, arc_to)):
+            if target <= e:  # any reach counts as e (see `next_reach`)
+                return True
+            target = max(target, e + _min_nodes(kind))
+            if target > self.n - 1:
+                continue
+            t0 = _constraint(prim.kind, kind, prim.tangent_end)
+            key = (kind, e, prim.end.tobytes(), None if t0 is None else t0.tobytes())
+            if key in self._reach:
+                if (self._reach[key] or e) >= target:
+                    return True
+            elif self.fit(kind, prim.end, t0, e, target, True) is not None:
+                return True
+        return False
 
     def refine_end(self, prim: Primitive, reach: tuple[int, bool]) -> Primitive:
         """Slide the junction point along the primitive (the thesis' junction calculation).
@@ -301,6 +332,9 @@ class _Fitter:
                 break
             cand = _shift_end(prim, k * step)
             if cand is None or cand.distance(pts).max() > self.p.tolerance:
+                continue
+            # Only a farther reach (or as far, by a line where the best was an arc) wins.
+            if not self._may_reach(cand, best_reach[0] + best_reach[1], best_reach[0] + 1):
                 continue
             r = self.next_reach(cand)
             if r > best_reach:
