@@ -253,17 +253,23 @@ def verify(robot: Robot, traj: Trajectory, verifier: PathVerifier | None, *,
             fail = _failure(robot, traj, i, j / max(1, len(Q) - 1), Q[j],
                             f"joint limit: {viol}")
             return _rejected(robot, traj, fail, max_deviation, fallbacks)
-    if verifier is not None:
-        for i, Q in enumerate(paths):
-            hit = verifier.check_path(list(Q))
-            if hit is not None:
-                seg, mc = hit
-                frac = (seg + (mc.first_invalid_fraction or 0.0)) / max(1, len(Q) - 1)
-                q = Q[seg] + (mc.first_invalid_fraction or 0.0) * (Q[seg + 1] - Q[seg])
-                what = mc.report.describe() if mc.report is not None else "invalid"
-                return _rejected(robot, traj, _failure(robot, traj, i, frac, q, what),
-                                 max_deviation, fallbacks)
     dense = traj.dense_joint_path()
+    if verifier is not None:
+        # One check of the whole dense path (its segments are the motions' segments in
+        # order, each motion's first row being the previous one's last): the first invalid
+        # segment is the one a check motion by motion would find, at one call's cost.
+        hit = verifier.check_path(list(dense))
+        if hit is not None:
+            g, mc = hit
+            ends = np.cumsum([len(Q) - 1 for Q in paths])  # segments up to each motion's end
+            i = int(np.searchsorted(ends, g, side="right"))
+            Q = paths[i]
+            seg = g - (int(ends[i - 1]) if i else 0)
+            frac = (seg + (mc.first_invalid_fraction or 0.0)) / max(1, len(Q) - 1)
+            q = Q[seg] + (mc.first_invalid_fraction or 0.0) * (Q[seg + 1] - Q[seg])
+            what = mc.report.describe() if mc.report is not None else "invalid"
+            return _rejected(robot, traj, _failure(robot, traj, i, frac, q, what),
+                             max_deviation, fallbacks)
     clearance = (verifier.min_clearance_along(list(dense), max_step=clearance_step)
                  if verifier is not None else None)
     if clearance is not None and not np.isfinite(clearance):

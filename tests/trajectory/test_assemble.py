@@ -95,6 +95,28 @@ def test_trajectory_through_a_box_is_refused(rv2aj, corner):
     assert res.candidate is not None  # kept for display only
 
 
+def test_a_hit_on_the_last_motion_is_placed_as_a_motion_by_motion_check_would(rv2aj, corner):
+    """Verification checks the whole dense path at once; the failure it reports must name
+    the motion, fraction and posture that checking each motion's own path finds."""
+    particles, fit = corner
+    size = (0.03, 0.03, 0.10)
+    post = box("post", [0.20, 0.06, Z + 0.04], size)
+    clear = assemble_trajectory(rv2aj, fit, particles, None).trajectory
+    checker = CollisionChecker(rv2aj, [TABLE, post])
+    res = verify(rv2aj, clear, checker)
+    assert not res.ok
+    f = res.report.failure
+    paths = [m.joint_path for m in clear.motions]
+    hits = [checker.check_path(list(Q)) for Q in paths]
+    i = next(k for k, h in enumerate(hits) if h is not None)
+    seg, mc = hits[i]
+    assert (f.motion_index, f.motion_kind) == (i, "linear") and i == 2
+    assert f.fraction == pytest.approx((seg + mc.first_invalid_fraction) / (len(paths[i]) - 1))
+    q = paths[i][seg] + mc.first_invalid_fraction * (paths[i][seg + 1] - paths[i][seg])
+    assert np.allclose(f.q, q)
+    assert "post" in f.description
+
+
 def test_joint_limit_violation_is_refused(rv2aj, corner):
     particles, fit = corner
     res = assemble_trajectory(rv2aj, fit, particles, None)
