@@ -160,7 +160,7 @@ def _clearance_at_every_sample(checker, path, max_step=0.01) -> float:
 
 
 def test_path_clearance_is_the_minimum_over_every_sample(cell_obstacles, rv2aj):
-    """The bounded search asks FCL for few pairs, yet returns the brute-force minimum - also
+    """The bounded search measures few pairs, yet returns the brute-force minimum - also
     when the path passes through an obstacle (penetration depths are not bounded)."""
     checker = CollisionChecker(rv2aj, cell_obstacles[:2])  # no table: varied minima
     rng = np.random.default_rng(11)
@@ -168,7 +168,10 @@ def test_path_clearance_is_the_minimum_over_every_sample(cell_obstacles, rv2aj):
     for _ in range(8):
         path = rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper, size=(3, 5))
         fast = checker.min_clearance_along(list(path))
-        assert fast == pytest.approx(_clearance_at_every_sample(checker, path), abs=1e-12)
+        # Round links against boxes are measured in closed form; FCL's GJK answers there
+        # lie above the true distance by up to about 0.1 mm.
+        ref = _clearance_at_every_sample(checker, path)
+        assert ref - 1e-4 < fast <= ref + 1e-12
         found.append(fast)
     assert min(found) < 0.0 < max(found)  # through an obstacle and clear of both
 
