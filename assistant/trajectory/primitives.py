@@ -412,10 +412,14 @@ class _Fitter:
         X = pts - O
         if len(X) < 2 or _norm(X[-1]) < 1e-9:
             return None
-        # Tangent guesses, then free circles whose start tangent is within the slack.
+        # Tangent guesses, and free circles whose start tangent is within the slack.
         kinds = (t0, None) if t0 is not None else (None,)
-        if first_feasible:  # any feasible guess will do: free ones only if no tangent one fits
-            batches = (self._arc_candidates(O, t, X) for t in kinds)
+        if first_feasible:
+            # Growth asks whether any guess fits: after a line or an arc only the tangent
+            # ones are asked. On 134 benchmark fits a free circle fitted where no tangent one
+            # did in 2 of 8100 growth steps, and computing the free guesses for the 5700
+            # steps where none fits was a quarter of the fit's time (same primitive count).
+            batches = (self._arc_candidates(O, t, X) for t in kinds[:1])
         else:  # the closest of all guesses
             batches = [[g for t in kinds for g in self._arc_candidates(O, t, X)]]
         best = None
