@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import numpy as np
-import pytest
 import trimesh
 
 from assistant.collision import CollisionChecker, Obstacle
@@ -88,7 +87,6 @@ def test_clearance_near_turned_boxes_and_a_mesh_is_exact_with_few_fcl_calls(rv2a
         if fast > 0.0:  # (a penetration depth has no bound: every overlapping pair is measured)
             assert n_fast <= 10, (fast, n_fast)
         found.append(fast)
-    print(found)
     assert min(v for v in found if v > 0.0) < 0.05  # some clear paths pass near an obstacle
 
 
