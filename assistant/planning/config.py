@@ -41,13 +41,16 @@ def _final_net() -> ElasticNetParams:
     # High (over-relaxed) shrink pulls the final path taut, usually settling well inside the
     # 300 iterations; stage 2 forms the arcs. At 20 mm spacing 60 stage-2 iterations gave
     # the primitives of 150 (30 did not: arcs were still forming). At the 40 mm transfer
-    # spacing 20 do as well as 40: on 80 generated cells (240 transfers, seeds 100-179) all
-    # planned either way, 225 vs 224 verified at the first fit, 1359 vs 1374 primitives, TCP
-    # length +0.1 %, median clearance 10.7 vs 10.4 mm, and the median transfer 12 % faster
-    # (the thesis scenario's final program: 9 primitives, 1.150 m, vs 8 and 1.138 m). The
-    # turn angles still drift a few degrees per ten iterations at 40 - stage 2 has no
-    # natural end here, and the 5 mm fit no longer sees the difference.
-    return ElasticNetParams.final(stage1_iterations=300, stage2_iterations=20,
+    # spacing stage 2 has no natural end (its turn angles keep drifting a few degrees per ten
+    # iterations) and the 5 mm fit sees little of it; each iteration is ~0.8 ms. Final
+    # transfers on generated cells, stage-2 iterations 20 vs 8:
+    #   seeds 120-199 (240): all planned; first fit verified 218 vs 222; primitives 1403 vs
+    #     1371; TCP length +0.12 %; median clearance 10.0 vs 10.2 mm; median 0.104 vs 0.096 s
+    #   seeds 220-279 (180, not used to choose): all planned; 172 vs 171; 1040 vs 1020;
+    #     +0.09 %; 11.4 vs 11.2 mm; median 0.114 vs 0.102 s
+    #   (0 and 4 iterations: fewer primitives but longer paths and 1-1.5 mm less clearance)
+    # The thesis scenario's final program: 10 primitives, 1.169 m (9 and 1.150 m with 20).
+    return ElasticNetParams.final(stage1_iterations=300, stage2_iterations=8,
                                   spacing=TRANSFER_NET_SPACING, min_gap=TRANSFER_MIN_GAP)
 
 
