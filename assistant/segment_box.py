@@ -2,10 +2,10 @@
 
 The clearance report (`CollisionChecker.min_clearance_along`) asks FCL for the distance of
 the pairs that may be nearest, in the order of a lower bound. The covering spheres of the
-broad phase bound a capsule link only loosely (a 250 mm upper arm is covered by spheres 21 mm
-larger than the capsule), so hundreds of pairs along a path used to tie below the answer and
-each cost an FCL call. A capsule is the set of points within r of its axis segment, and an
-obstacle lies inside its oriented bounding box, so
+broad phase bound a capsule link only loosely (the RV-2AJ's 250 mm upper arm is covered by
+spheres 25 mm larger than the capsule), so hundreds to thousands of pairs along a path used
+to fall below the answer and each cost an FCL call. A capsule is the set of points within r
+of its axis segment, and an obstacle lies inside its oriented bounding box, so
 
     distance(capsule, obstacle) >= distance(axis segment, box) - r,
 

@@ -301,7 +301,7 @@ class _Fitter:
             if target > self.n - 1:
                 continue
             t0 = _constraint(prim.kind, kind, prim.tangent_end)
-            key = (kind, e, prim.end.tobytes(), None if t0 is None else t0.tobytes())
+            key = _reach_key(kind, e, prim.end, t0)
             if key in self._reach:
                 if (self._reach[key] or e) >= target:
                     return True
@@ -347,7 +347,7 @@ class _Fitter:
         Remembered per arguments: the look-ahead of the chosen primitive asks exactly what
         the next `choose` asks first.
         """
-        key = (kind, s, O.tobytes(), None if t0 is None else t0.tobytes())
+        key = _reach_key(kind, s, O, t0)
         if key not in self._reach:
             self._reach[key] = self._gallop(kind, O, t0, s)
         return self._reach[key]
@@ -571,6 +571,11 @@ def _constraint(prev: PrimitiveKind | None, kind: PrimitiveKind, t_in: Array | N
     if prev is None or (prev == PrimitiveKind.LINE and kind == PrimitiveKind.LINE):
         return None
     return t_in
+
+
+def _reach_key(kind: PrimitiveKind, s: int, O: Array, t0: Array | None) -> tuple:
+    """What `_Fitter.reach` remembers its answers by (the exact start point and tangent)."""
+    return kind, s, O.tobytes(), None if t0 is None else t0.tobytes()
 
 
 def _min_nodes(kind: PrimitiveKind) -> int:
