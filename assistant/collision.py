@@ -1,11 +1,11 @@
 """Exact collision checking of the robot against the cell and itself (python-fcl).
 
-Every answer comes from FCL's exact narrow phase; numpy only decides which pairs cannot touch.
-The broad phase covers each link shape with a few spheres (`fcl_shapes.covering_spheres`) and
-each obstacle with its axis-aligned box, vectorised over many configurations at once, so a
-batch of configurations in free space costs a few array operations and only the pairs that
-might touch reach FCL. Because the bounds are conservative the result equals the brute-force
-FCL answer (checked by the tests and `benchmarks/collision.py`).
+Every answer comes from FCL's exact narrow phase; the broad phase only decides which pairs
+cannot touch. It covers each link shape with a few spheres (`fcl_shapes.covering_spheres`)
+and each obstacle with its axis-aligned box, over many configurations in one compiled loop
+(`broad_phase`), so a batch of configurations in free space costs microseconds and only the
+pairs that might touch reach FCL. Because the bounds are conservative the result equals the
+brute-force FCL answer (checked by the tests and `benchmarks/collision.py`).
 
 Self-collision skips adjacent links and the pairs that never touch (or always touch) over a
 sampled sweep of the joint space, computed once per robot description.
@@ -21,6 +21,7 @@ from typing import Protocol
 import fcl
 import numpy as np
 
+from assistant.broad_phase import sphere_broad_phase
 from assistant.fcl_shapes import covering_spheres, fcl_geometry, fcl_transform, world_aabb
 from assistant.robot_model import CollisionShape, Robot, ShapeKind
 from assistant.segment_box import axis_segment, oriented_bounds, segment_box_bounds
@@ -162,8 +163,10 @@ class CollisionChecker:
                 sph_c.append(c)
                 sph_r.append(r)
                 sph_owner += [idx] * len(r)
-        self._sph_local = np.concatenate(sph_c) if sph_c else np.zeros((0, 3))
-        self._sph_r = np.concatenate(sph_r) if sph_r else np.zeros(0)
+        self._sph_local = np.ascontiguousarray(np.concatenate(sph_c) if sph_c else
+                                               np.zeros((0, 3)), dtype=float)
+        self._sph_r = np.ascontiguousarray(np.concatenate(sph_r) if sph_r else np.zeros(0),
+                                           dtype=float)
         self._sph_shape = np.asarray(sph_owner, dtype=np.int64)
         self._sph_link = np.array([self._rshapes[i].link for i in sph_owner], dtype=np.int64)
         # Obstacles. The fixed base link takes part in self-collision only: an object that
@@ -219,9 +222,6 @@ class CollisionChecker:
         self._shape_link = np.array([rs.link for rs in self._rshapes], dtype=np.int64)
         self._shape_T = (np.stack([rs.shape.T_link_shape for rs in self._rshapes])
                          if self._rshapes else np.zeros((0, 4, 4)))
-        self._pair_has_sph = np.isin(np.arange(len(self._self_pairs)), self._sp_pair)
-        self._sp_starts = np.searchsorted(self._sp_pair,
-                                          np.nonzero(self._pair_has_sph)[0])
 
     @property
     def self_pairs(self) -> list[tuple[str, str]]:
@@ -333,32 +333,14 @@ class CollisionChecker:
         """
         N = frames.shape[0]
         R, E, P = len(self._rshapes), len(self._env), len(self._self_pairs)
-        env_c = np.zeros((N, R, E), dtype=bool)
-        self_c = np.zeros((N, P), dtype=bool)
-        gap = np.full(N, np.inf) if with_gap else None
         if len(self._sph_r) == 0:
-            return env_c, self_c, (np.full(N, -np.inf) if with_gap else None)
-        C = self._sphere_centres(frames)
-        if E:
-            dist2 = self._sphere_box_dist2(C)
-            near = dist2 <= (self._sph_r[None, :, None] ** 2)
-            near[:, self._sph_link == 0, :] = False  # the fixed base cannot move into anything
-            # Reduce spheres to shapes: each shape's spheres are contiguous.
-            env_c[:, self._shape_has_sph, :] = np.logical_or.reduceat(
-                near, self._sph_starts, axis=1)
-            if gap is not None:
-                moving = self._sph_link != 0
-                clear = np.sqrt(dist2[:, moving].min(axis=2)) - self._sph_r[moving][None]
-                gap = np.minimum(gap, clear.min(axis=1, initial=np.inf))
-        if P:
-            diff = C[:, self._sp_a] - C[:, self._sp_b]
-            d2 = np.einsum("npk,npk->np", diff, diff)
-            rr = self._sph_r[self._sp_a] + self._sph_r[self._sp_b]
-            near = d2 <= (rr ** 2)[None]
-            self_c[:, self._pair_has_sph] = np.logical_or.reduceat(near, self._sp_starts, axis=1)
-            if gap is not None and len(rr):
-                gap = np.minimum(gap, (np.sqrt(d2) - rr[None]).min(axis=1))
-        return env_c, self_c, gap
+            return (np.zeros((N, R, E), dtype=bool), np.zeros((N, P), dtype=bool),
+                    np.full(N, -np.inf) if with_gap else None)
+        env_c, self_c, gap = sphere_broad_phase(
+            np.ascontiguousarray(frames, dtype=float), self._sph_link, self._sph_local,
+            self._sph_r, self._sph_shape, self._env_lo, self._env_hi, self._sp_a, self._sp_b,
+            self._sp_pair, R, P)
+        return env_c, self_c, (gap if with_gap else None)
 
     def _contacts(self, frames_n: Array, env_c: Array, self_c: Array) -> list[Contact]:
         """Every (link, obstacle) and self contact among one configuration's broad-phase
