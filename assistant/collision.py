@@ -21,7 +21,7 @@ from typing import Protocol
 import fcl
 import numpy as np
 
-from assistant.broad_phase import sphere_broad_phase
+from assistant.broad_phase import prune_round_pairs, sphere_broad_phase
 from assistant.fcl_shapes import covering_spheres, fcl_geometry, fcl_transform, world_aabb
 from assistant.robot_model import CollisionShape, Robot, ShapeKind
 from assistant.segment_box import axis_segment, oriented_bounds, segment_box_bounds
@@ -131,6 +131,12 @@ class CollisionChecker:
     #: pays: on the planning benchmark's motion checks a stride of 4 took 17 % less time
     #: than checking every sample, 3 about the same (18 %), 8 only 8 % less.
     CERTIFY_STRIDE = 4
+    #: Broad-phase pairs whose round shapes' axis segments prove them farther apart than
+    #: this (m) never reach FCL (`broad_phase.prune_round_pairs`); nearer ones, and every
+    #: pair with a mesh or box robot shape, FCL decides. 0.1 mm stays far above FCL's own
+    #: tolerance, so the answers remain FCL's. On the planning benchmark's cells the bound
+    #: cleared 79 % of the obstacle pairs the covering spheres passed.
+    PRUNE_APART = 1e-4
 
     def __init__(
         self,
@@ -212,6 +218,9 @@ class CollisionChecker:
                     sp_a.append(x)
                     sp_b.append(y)
                     sp_pair.append(pi)
+        self._pair_a = np.array([a for a, _ in self._self_pairs], dtype=np.int64)
+        self._pair_b = np.array([b for _, b in self._self_pairs], dtype=np.int64)
+        self._round = ~np.isnan(self._seg_r)
         self._sp_a = np.asarray(sp_a, dtype=np.int64)
         self._sp_b = np.asarray(sp_b, dtype=np.int64)
         self._sp_pair = np.asarray(sp_pair, dtype=np.int64)
@@ -475,6 +484,12 @@ class CollisionChecker:
             if gaps is not None:
                 gaps[start : start + len(block)] = gap
             maybe = np.nonzero(env_c.any(axis=(1, 2)) | self_c.any(axis=1))[0]
+            if len(maybe) and self._round.any():
+                prune_round_pairs(frames, maybe, env_c, self_c, self._shape_link,
+                                  self._seg_a, self._seg_b, self._seg_r, self._env_R,
+                                  self._env_c, self._env_h, self._pair_a, self._pair_b,
+                                  self.PRUNE_APART)
+                maybe = maybe[env_c[maybe].any(axis=(1, 2)) | self_c[maybe].any(axis=1)]
             if len(maybe):
                 out[start + maybe] = self._first_contacts(frames[maybe], env_c[maybe],
                                                           self_c[maybe])
