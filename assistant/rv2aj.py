@@ -30,6 +30,7 @@ from assistant.robot_model import (
     Tool,
 )
 from assistant.rv2aj_pose_batch import PoseCandidates, pose_candidates
+from assistant.rv2aj_position_ik import planar_position_ik
 from assistant.transforms import axis_angle, inv_T, rot_y, rot_z, rotation_angle
 from assistant.urdf_writer import urdf_from_chain
 
@@ -60,6 +61,8 @@ JOINT_NAMES = ["J1", "J2", "J3", "J5", "J6"]
 
 # Orientation of the flange at q = 0: R(q) = Rz(q1) Ry(q2 + q3 + q5) R0 Rz(q6).
 _R0 = flange_frame(RV2AJ_DH, np.zeros(5))[:3, :3]
+#: (L1, L2, L3, L6) for the compiled position IK.
+_ARM = np.array([L1, L2, L3, L6])
 
 
 @dataclass(frozen=True)
@@ -366,7 +369,7 @@ class RV2AJ(Robot):
         move an on-axis TCP): both are pulled `gain` of the way from the seed's towards the
         reference's, like the null-space pull of a Newton step. If that pitch leaves the
         limits or cannot reach, pitches up to `pitch_window` away are tried, nearest first,
-        all particles at once (no per-call Python scan).
+        up to the first that works (one compiled loop over the rows, `rv2aj_position_ik`).
 
         Args:
             targets: TCP points (N, 3), base frame.
@@ -386,7 +389,6 @@ class RV2AJ(Robot):
             return None
         targets = np.atleast_2d(np.asarray(targets, dtype=float))
         seeds = np.atleast_2d(np.asarray(seeds, dtype=float))
-        n = len(seeds)
         s_seed = seeds[:, 1] + seeds[:, 2] + seeds[:, 3]
         pitch = s_seed.copy()
         q6 = seeds[:, 4].copy()
@@ -395,62 +397,11 @@ class RV2AJ(Robot):
             s_ref = reference[:, 1] + reference[:, 2] + reference[:, 3]
             pitch += gain * _wrap(s_ref - s_seed)
             q6 += gain * (reference[:, 4] - q6)
-        Q = seeds.copy()
-        ok = np.zeros(n, dtype=bool)
-        Q0, ok0 = self._planar_ik(targets, seeds, pitch[:, None], q6, float(p_ft[2]), max_jump)
-        ok0 = ok0[:, 0]
-        Q[ok0], ok[ok0] = Q0[ok0, 0], True
-        rest = np.nonzero(~ok)[0]
-        if len(rest) and pitch_window > 0.0:
-            k = np.arange(1, int(np.floor(pitch_window / pitch_step)) + 1) * pitch_step
-            offsets = np.stack([k, -k], axis=1).reshape(-1)  # +1, -1, +2, -2, ... steps
-            cand = pitch[rest, None] + offsets[None]
-            Qc, okc = self._planar_ik(targets[rest], seeds[rest], cand, q6[rest],
-                                      float(p_ft[2]), max_jump)
-            found = okc.any(axis=1)
-            first = np.argmax(okc, axis=1)
-            rows = rest[found]
-            Q[rows] = Qc[found, first[found]]
-            ok[rows] = True
-        return Q, ok
-
-    def _planar_ik(self, targets: Array, seeds: Array, pitch: Array, q6: Array,
-                   tool_length: float, max_jump: float) -> tuple[Array, Array]:
-        """Closed-form position IK for each row and each candidate pitch: (N, K, 5), (N, K).
-
-        A candidate is ok when reachable, inside the joint limits and within `max_jump` of
-        its seed in every joint; every angle is taken as the copy nearest the seed's.
-        """
-        n, k = pitch.shape
-        q1s = seeds[:, 0]
-        face = np.arctan2(targets[:, 1], targets[:, 0])
-        # J1 faces the point or turns away from it (reaching back): the seed's side.
-        a = q1s + _wrap(face - q1s)
-        b = q1s + _wrap(face + np.pi - q1s)
-        q1 = np.where(np.abs(a - q1s) <= np.abs(b - q1s), a, b)
-        r = targets[:, 0] * np.cos(q1) + targets[:, 1] * np.sin(q1)  # signed, in the plane
-        zt = targets[:, 2] - L1
-        le = L6 + tool_length
-        wr = r[:, None] - le * np.sin(pitch)
-        wz = zt[:, None] - le * np.cos(pitch)
-        D = (wr * wr + wz * wz - L2 * L2 - L3 * L3) / (2.0 * L2 * L3)
-        reach = np.abs(D) <= 1.0
-        ac = np.arccos(np.clip(D, -1.0, 1.0))
-        s3 = seeds[:, 2:3]
-        q3 = np.where(np.abs(ac - s3) <= np.abs(-ac - s3), ac, -ac)
-        q2 = np.arctan2(wr, wz) - np.arctan2(L3 * np.sin(q3), L2 + L3 * np.cos(q3))
-        q2 = seeds[:, 1:2] + _wrap(q2 - seeds[:, 1:2])
-        q5 = seeds[:, 3:4] + _wrap(pitch - q2 - q3 - seeds[:, 3:4])
-        Q = np.empty((n, k, 5))
-        Q[..., 0] = q1[:, None]
-        Q[..., 1] = q2
-        Q[..., 2] = q3
-        Q[..., 3] = q5
-        Q[..., 4] = q6[:, None]
         lim = self.limits
-        ok = reach & np.all((Q >= lim.lower - 1e-9) & (Q <= lim.upper + 1e-9), axis=2)
-        ok &= np.abs(Q - seeds[:, None, :]).max(axis=2) <= max_jump
-        return Q, ok
+        return planar_position_ik(targets, seeds, pitch, q6, _ARM, float(p_ft[2]),
+                                  float(max_jump), lim.lower, lim.upper,
+                                  int(np.floor(pitch_window / pitch_step))
+                                  if pitch_window > 0.0 else 0, float(pitch_step))
 
     def _ik_position_only(self, p_target: Array, seed: Array | None) -> IKResult:
         """Any orientation: scan the approach pitch in the arm plane, keep solutions in limits.

@@ -118,3 +118,59 @@ def test_off_axis_tools_use_the_general_method(rv2aj, coarse_path):
     assert res.ok.all()
     assert np.linalg.norm(robot.batch_fk(res.joints).positions - parts.points - 0.002,
                           axis=1).max() < 1e-6
+
+
+def _reference_position_ik(robot, targets, seeds, pitch, q6, max_jump, offsets):
+    """The numpy formulation the compiled loop replaced: every candidate pitch of every
+    row evaluated, the first that works (pulled pitch, then the offsets in order) taken."""
+    from assistant.rv2aj import L1, L2, L3, L6, _wrap
+
+    cand = np.concatenate([pitch[:, None], pitch[:, None] + offsets[None]], axis=1)
+    q1s = seeds[:, 0]
+    face = np.arctan2(targets[:, 1], targets[:, 0])
+    a = q1s + _wrap(face - q1s)
+    b = q1s + _wrap(face + np.pi - q1s)
+    q1 = np.where(np.abs(a - q1s) <= np.abs(b - q1s), a, b)
+    r = targets[:, 0] * np.cos(q1) + targets[:, 1] * np.sin(q1)
+    le = L6 + float(robot.T_flange_tool[2, 3])
+    wr = r[:, None] - le * np.sin(cand)
+    wz = (targets[:, 2] - L1)[:, None] - le * np.cos(cand)
+    D = (wr * wr + wz * wz - L2 * L2 - L3 * L3) / (2.0 * L2 * L3)
+    ac = np.arccos(np.clip(D, -1.0, 1.0))
+    s3 = seeds[:, 2:3]
+    q3 = np.where(np.abs(ac - s3) <= np.abs(-ac - s3), ac, -ac)
+    q2 = np.arctan2(wr, wz) - np.arctan2(L3 * np.sin(q3), L2 + L3 * np.cos(q3))
+    q2 = seeds[:, 1:2] + _wrap(q2 - seeds[:, 1:2])
+    q5 = seeds[:, 3:4] + _wrap(cand - q2 - q3 - seeds[:, 3:4])
+    Q = np.stack([np.broadcast_to(q1[:, None], q2.shape), q2, q3, q5,
+                  np.broadcast_to(q6[:, None], q2.shape)], axis=2)
+    lim = robot.limits
+    ok = (np.abs(D) <= 1.0) & np.all((Q >= lim.lower - 1e-9) & (Q <= lim.upper + 1e-9), axis=2)
+    ok &= np.abs(Q - seeds[:, None, :]).max(axis=2) <= max_jump
+    found = ok.any(axis=1)
+    out = seeds.copy()
+    out[found] = Q[found, np.argmax(ok, axis=1)[found]]
+    return out, found, np.argmax(ok, axis=1)
+
+
+def test_closed_form_ik_takes_the_nearest_working_pitch(rv2aj, rng):
+    """The compiled loop stops at the first pitch that works; the numpy formulation it
+    replaced evaluated them all: the same joints row for row, including rows that needed
+    the search (targets raised or lowered next to J5's limits)."""
+    lim = rv2aj.limits
+    seeds = rng.uniform(lim.lower * 0.95, lim.upper * 0.95, size=(3000, 5))
+    seeds[:1000, 3] = np.sign(seeds[:1000, 3]) * np.radians(89.0)  # J5 at its limit
+    targets = rv2aj.batch_fk(seeds).positions + rng.uniform(-0.006, 0.006, (3000, 3))
+    ref = seeds + rng.normal(0.0, 0.2, (3000, 5))
+    Q, ok = rv2aj.batch_position_ik(targets, seeds, ref, gain=0.5, max_jump=0.25)
+    s_seed = seeds[:, 1:4].sum(1)
+    pitch = s_seed + 0.5 * ((ref[:, 1:4].sum(1) - s_seed + np.pi) % (2 * np.pi) - np.pi)
+    q6 = seeds[:, 4] + 0.5 * (ref[:, 4] - seeds[:, 4])
+    step, n = np.radians(1.0), int(np.floor(np.radians(40.0) / np.radians(1.0)))
+    offsets = np.stack([np.arange(1, n + 1) * step, -np.arange(1, n + 1) * step], 1).ravel()
+    Q_ref, ok_ref, which = _reference_position_ik(rv2aj, targets, seeds, pitch, q6, 0.25,
+                                                  offsets)
+    assert np.array_equal(ok, ok_ref)
+    np.testing.assert_allclose(Q, Q_ref, rtol=0, atol=1e-12)
+    searched = ok_ref & (which > 0)
+    assert searched.sum() > 50 and (~ok_ref).sum() > 50  # both the search and refusals

@@ -1,0 +1,86 @@
+"""The RV-2AJ's closed-form position IK next to seeds, one compiled loop (numba).
+
+The elastic net asks this for every moved particle in every sweep (`RV2AJ.batch_position_ik`
+explains the geometry: J1 faces the point, a tool pitch fixes the wrist, J2/J3 solve a
+two-link triangle on the seed's elbow branch). As numpy it evaluated every candidate pitch
+of every failed row before picking the first that worked; the loop stops at the first, and
+costs no per-call array set-up.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+Array = np.ndarray
+
+_PI = np.pi
+_TWO_PI = 2.0 * np.pi
+
+
+@njit(cache=True)
+def _wrap(a: float) -> float:
+    """Angle into [-pi, pi) (as `rv2aj._wrap`)."""
+    return (a + _PI) % _TWO_PI - _PI
+
+
+@njit(cache=True)
+def _planar(tx: float, ty: float, tz: float, seed: Array, pitch: float, q6: float,
+            arm: Array, tool_length: float, max_jump: float, lower: Array, upper: Array,
+            out: Array) -> bool:
+    """Joints for one TCP point and one tool pitch into `out`; True if reachable, inside
+    the limits and within `max_jump` of the seed in every joint (angles nearest the seed's).
+    """
+    L1, L2, L3, L6 = arm[0], arm[1], arm[2], arm[3]
+    face = np.arctan2(ty, tx)
+    a = seed[0] + _wrap(face - seed[0])
+    b = seed[0] + _wrap(face + _PI - seed[0])
+    q1 = a if abs(a - seed[0]) <= abs(b - seed[0]) else b  # the seed's side
+    r = tx * np.cos(q1) + ty * np.sin(q1)
+    le = L6 + tool_length
+    wr = r - le * np.sin(pitch)
+    wz = tz - L1 - le * np.cos(pitch)
+    D = (wr * wr + wz * wz - L2 * L2 - L3 * L3) / (2.0 * L2 * L3)
+    reach = abs(D) <= 1.0
+    ac = np.arccos(min(max(D, -1.0), 1.0))
+    q3 = ac if abs(ac - seed[2]) <= abs(-ac - seed[2]) else -ac
+    q2 = np.arctan2(wr, wz) - np.arctan2(L3 * np.sin(q3), L2 + L3 * np.cos(q3))
+    q2 = seed[1] + _wrap(q2 - seed[1])
+    q5 = seed[3] + _wrap(pitch - q2 - q3 - seed[3])
+    out[0], out[1], out[2], out[3], out[4] = q1, q2, q3, q5, q6
+    ok = reach
+    for j in range(5):
+        v = out[j]
+        if v < lower[j] - 1e-9 or v > upper[j] + 1e-9 or abs(v - seed[j]) > max_jump:
+            ok = False
+    return ok
+
+
+@njit(cache=True)
+def planar_position_ik(targets: Array, seeds: Array, pitch: Array, q6: Array, arm: Array,
+                       tool_length: float, max_jump: float, lower: Array, upper: Array,
+                       n_steps: int, step: float) -> tuple[Array, Array]:
+    """Per row: the pulled `pitch` first, then pitch +- 1, 2, ... `n_steps` steps of `step`
+    (nearest first, + before -) until one works. Returns (joints (N, 5), ok (N,)); refused
+    rows keep their seeds."""
+    n = targets.shape[0]
+    Q = seeds.copy()
+    ok = np.zeros(n, dtype=np.bool_)
+    q = np.empty(5)
+    for i in range(n):
+        tx, ty, tz = targets[i, 0], targets[i, 1], targets[i, 2]
+        found = _planar(tx, ty, tz, seeds[i], pitch[i], q6[i], arm, tool_length, max_jump,
+                        lower, upper, q)
+        m = 1
+        while not found and m <= n_steps:
+            off = m * step
+            found = _planar(tx, ty, tz, seeds[i], pitch[i] + off, q6[i], arm, tool_length,
+                            max_jump, lower, upper, q)
+            if not found:
+                found = _planar(tx, ty, tz, seeds[i], pitch[i] - off, q6[i], arm,
+                                tool_length, max_jump, lower, upper, q)
+            m += 1
+        if found:
+            Q[i] = q
+            ok[i] = True
+    return Q, ok
