@@ -48,7 +48,10 @@ from assistant.world.octree import OctreeGrid
 
 Array = np.ndarray
 
-FORMAT_VERSION = 1
+#: 2: TCP positions from the RV-2AJ's compiled closed form (`rv2aj_fk_batch`); its sin/cos may
+#: differ from numpy's in the last bit, which can bin a position on a leaf boundary into the
+#: neighbouring leaf, so tables cached by 1 are not reused.
+FORMAT_VERSION = 2
 #: Thesis d_step: half a 62.5 mm leaf (Table 8 / §8.5.2).
 THESIS_D_STEP = 0.03125
 

@@ -1,0 +1,58 @@
+"""The RV-2AJ's TCP poses for many configurations: the closed form as one compiled loop.
+
+The planners ask for a few to a few dozen poses at a time (a sweep of the elastic net, a
+fitted arc), where the numpy form - two dozen array expressions - cost ~60 us per call
+whatever the batch; the loop costs ~2 us plus ~0.1 us per pose, and is no slower on the
+reachability table's 131k-configuration chunks.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+Array = np.ndarray
+
+
+@njit(cache=True)
+def tcp_poses(Q: Array, arm: Array, BP: Array, BM: Array, BK: Array, v: Array,
+              tool_offset: bool) -> tuple[Array, Array]:
+    """(positions (N, 3), rotations (N, 3, 3)) of the TCP for joints Q (N, 5).
+
+    p_flange = (r cos q1, r sin q1, z) with r, z the planar arm sums; the rotation is
+    Rz(q1) Ry(s) B with s = q2 + q3 + q5 and B = R0 Rz(q6) R_ft = c6 BP + s6 BM + BK; the TCP
+    sits at p_flange + R v (v = R_ft^T p_ft) when the tool has an offset. `arm` holds
+    (L1, L2, L3, L6).
+    """
+    L1, L2, L3, L6 = arm[0], arm[1], arm[2], arm[3]
+    n = Q.shape[0]
+    pos = np.empty((n, 3))
+    rot = np.empty((n, 3, 3))
+    for k in range(n):
+        q1, q2, q3, q5, q6 = Q[k, 0], Q[k, 1], Q[k, 2], Q[k, 3], Q[k, 4]
+        c1, s1 = np.cos(q1), np.sin(q1)
+        a23 = q2 + q3
+        s = a23 + q5
+        cs, ss = np.cos(s), np.sin(s)
+        c6, s6 = np.cos(q6), np.sin(q6)
+        r = L2 * np.sin(q2) + L3 * np.sin(a23) + L6 * ss
+        z = L2 * np.cos(q2) + L3 * np.cos(a23) + L6 * cs + L1
+        for j in range(3):
+            b0 = c6 * BP[0, j] + s6 * BM[0, j] + BK[0, j]
+            b1 = c6 * BP[1, j] + s6 * BM[1, j] + BK[1, j]
+            b2 = c6 * BP[2, j] + s6 * BM[2, j] + BK[2, j]
+            c0 = cs * b0 + ss * b2
+            rot[k, 0, j] = c1 * c0 - s1 * b1
+            rot[k, 1, j] = s1 * c0 + c1 * b1
+            rot[k, 2, j] = cs * b2 - ss * b0
+        if tool_offset:
+            for i in range(3):
+                pos[k, i] = rot[k, i, 0] * v[0] + rot[k, i, 1] * v[1] + rot[k, i, 2] * v[2]
+            pos[k, 0] += r * c1
+            pos[k, 1] += r * s1
+            pos[k, 2] += z
+        else:
+            pos[k, 0] = r * c1
+            pos[k, 1] = r * s1
+            pos[k, 2] = z
+    return pos, rot
