@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import json
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -105,8 +106,10 @@ def cmd_serve(args: argparse.Namespace) -> int:
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         print(f"cellteach: WARNING: listening on {args.host}: anyone who can reach this "
               "computer can drive the robot from a browser.", file=sys.stderr)
+    from assistant.jit_warmup import warm_up
     from web.app import serve
 
+    threading.Thread(target=warm_up, name="jit-warm-up", daemon=True).start()
     app = serve(session, host=args.host, port=args.port, max_upload_mb=args.max_upload_mb)
     print(f"cellteach: serving {session.sample or 'a session'} at {app.url}", file=sys.stderr)
     print(f"cellteach: session folder {session.folder} (autosaved)", file=sys.stderr)
@@ -130,6 +133,11 @@ def cmd_run(script_path: Path, out: Path) -> int:
         return 2
     out.mkdir(parents=True, exist_ok=True)
     folder = out / "session"
+    # Compile the kernels before any robot link is connected: on the first run after an
+    # install that takes seconds, which inside a link's exchange would look like a lost link.
+    from assistant.jit_warmup import warm_up
+
+    warm_up()
     try:
         if script.cell:
             base = script.path.parent

@@ -5,8 +5,18 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from assistant.jit_warmup import warm_up
 from assistant.robot_model import Tool
 from assistant.rv2aj import RV2AJ, RV2AJConfig
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _compiled_kernels() -> None:
+    """Compile (or load) the numba kernels once before any test. On a clean checkout the
+    first call would otherwise compile inside whatever test comes first - for the link
+    tests inside an emulator's request handler, where the seconds it takes look like a
+    lost link."""
+    warm_up()
 
 
 @pytest.fixture(scope="session")

@@ -8,6 +8,11 @@ it); the DH batch must give the single-configuration chain's frames.
 
 from __future__ import annotations
 
+import json
+import os
+import subprocess
+import sys
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -175,3 +180,21 @@ def test_pruned_pairs_keep_fcls_answers(crowded, rv2aj):
     near = np.concatenate([free, hit])
     assert np.array_equal(crowded.in_collision_batch(near),
                           np.array([crowded.in_collision_naive(q) for q in near]))
+
+
+def test_warm_up_compiles_every_kernel(tmp_path):
+    """In a fresh process with an empty numba cache, nothing is compiled until `warm_up`,
+    and after it every kernel is (so `cellteach serve` compiles them all up front)."""
+    code = (
+        "import json\n"
+        "from assistant import jit_warmup as w\n"
+        "before = [bool(k.signatures) for k in w.KERNELS]\n"
+        "w.warm_up()\n"
+        "print(json.dumps([before, [bool(k.signatures) for k in w.KERNELS]]))\n")
+    env = dict(os.environ, NUMBA_CACHE_DIR=str(tmp_path))
+    env.pop("NUMBA_DISABLE_JIT", None)
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                         text=True, timeout=300, check=True)
+    before, after = json.loads(out.stdout.strip().splitlines()[-1])
+    assert not any(before)
+    assert all(after)
