@@ -42,8 +42,8 @@ def _final_net() -> ElasticNetParams:
     # 300 iterations; stage 2 forms the arcs. At 20 mm spacing 60 stage-2 iterations gave
     # the primitives of 150 (30 did not: arcs were still forming). At the 40 mm transfer
     # spacing stage 2 has no natural end (its turn angles keep drifting a few degrees per ten
-    # iterations) and the 5 mm fit sees little of it; each iteration is ~0.8 ms. Final
-    # transfers on generated cells, stage-2 iterations 20 vs 8:
+    # iterations) and the 5 mm fit sees little of it; each iteration was ~0.8 ms then (before
+    # the compiled checker). Final transfers on generated cells, stage-2 iterations 20 vs 8:
     #   seeds 120-199 (240): all planned; first fit verified 218 vs 222; primitives 1403 vs
     #     1371; TCP length +0.12 %; median clearance 10.0 vs 10.2 mm; median 0.104 vs 0.096 s
     #   seeds 220-279 (180, not used to choose): all planned; 172 vs 171; 1040 vs 1020;
