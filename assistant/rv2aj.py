@@ -62,7 +62,7 @@ JOINT_NAMES = ["J1", "J2", "J3", "J5", "J6"]
 
 # Orientation of the flange at q = 0: R(q) = Rz(q1) Ry(q2 + q3 + q5) R0 Rz(q6).
 _R0 = flange_frame(RV2AJ_DH, np.zeros(5))[:3, :3]
-#: (L1, L2, L3, L6) for the compiled position IK.
+#: (L1, L2, L3, L6) for the compiled TCP poses and position IK.
 _ARM = np.array([L1, L2, L3, L6])
 
 
