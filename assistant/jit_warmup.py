@@ -1,12 +1,12 @@
 """Compile the numba kernels before their first use.
 
-The kernels (`broad_phase`, `segment_box`, `dh`, `rv2aj_fk_batch`, `rv2aj_position_ik`)
-compile on their first call and cache the result on disk; only the first run after an
-install pays, ~10 s for all of them on this 2-core machine. `cellteach serve` runs
-`warm_up` in a background thread at start, so that first run does not stall the operator's
-first world build or plan (a compile reports no progress); `cellteach run` and the tests
-call it before anything else, so no compile happens inside a robot link's exchange, where
-seconds look like a lost link.
+The kernels (`broad_phase`, `segment_box`, `dh`, `rv2aj_fk_batch`, `rv2aj_position_ik`,
+`trajectory.fit_kernels`) compile on their first call and cache the result on disk; only the
+first run after an install pays, ~20 s for all of them on this 2-core machine. `cellteach
+serve` runs `warm_up` in a background thread at start, so that first run does not stall the
+operator's first world build or plan (a compile reports no progress); `cellteach run` and
+the tests call it before anything else, so no compile happens inside a robot link's
+exchange, where seconds look like a lost link.
 """
 
 from __future__ import annotations
@@ -24,11 +24,19 @@ from assistant.dh import _chain_frames_kernel
 from assistant.rv2aj_fk_batch import tcp_poses
 from assistant.rv2aj_position_ik import planar_position_ik
 from assistant.segment_box import _segment_box_distances, segment_box_distance_one
+from assistant.trajectory.fit_kernels import (
+    arc_distances,
+    circle_through_kernel,
+    fit_arc,
+    fit_line,
+    line_distances,
+)
 
 #: Every compiled entry point (the test checks `warm_up` compiles each of them).
 KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            _segment_box_distances, _segment_segment_distance, _chain_frames_kernel, tcp_poses,
-           planar_position_ik)
+           planar_position_ik, fit_line, fit_arc, line_distances, arc_distances,
+           circle_through_kernel)
 
 
 def warm_up() -> float:
@@ -37,6 +45,7 @@ def warm_up() -> float:
     from assistant.collision import CollisionChecker, Obstacle
     from assistant.robot_model import CollisionShape, ShapeKind, Tool
     from assistant.rv2aj import RV2AJ, RV2AJConfig
+    from assistant.trajectory.primitives import ArcPrimitive, FitParams, fit_primitives
     from assistant.transforms import make_T
 
     t0 = time.perf_counter()
@@ -50,4 +59,12 @@ def warm_up() -> float:
     checker.min_clearance_along([q[0], q[0] + 0.3])
     tcp = robot.batch_fk(q).positions
     robot.batch_position_ik(tcp + 0.001, q, q)
+    # a quarter circle then a straight run: lines, arcs (free and tangent) and their ends
+    a = np.linspace(0.0, np.pi / 2, 12)
+    arc = np.stack([0.1 * np.cos(a), 0.1 * np.sin(a), np.zeros_like(a)], axis=1)
+    run = arc[-1] + np.outer(np.linspace(0.02, 0.2, 10), [-1.0, 0.0, 0.0])
+    fit = fit_primitives(np.vstack([arc, run]), FitParams(tolerance=0.001))
+    for prim in fit.primitives:
+        prim.distance(arc)
+    ArcPrimitive.through(arc[0], arc[5], arc[-1])
     return time.perf_counter() - t0

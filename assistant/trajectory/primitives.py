@@ -14,12 +14,12 @@ grows node by node while *every* node it covers stays within the tolerance:
 The thesis grows angle corridors (for lines: the directions through the start that touch all
 node spheres; for arcs: a shrinking normal-vector corridor and a feasible radius interval);
 we fit the candidate directly and test its true maximum deviation, which is the same
-question answered exactly. At each start both types are grown; the thesis keeps the one that
-covers the most nodes. We add a one-step look-ahead: for each type, its last few possible
-end nodes are tried and the choice is the one that lets the *next* primitive reach farthest
-(then the most nodes, then a line before an arc). That is the "care at transition points"
-of §8.6.3: a line otherwise overshoots into a following arc by about sqrt(2 R tolerance),
-and the tangent arc after it can then not fit.
+question answered exactly (the fits themselves are compiled: `fit_kernels`). At each start
+both types are grown; the thesis keeps the one that covers the most nodes. We add a one-step
+look-ahead: for each type, its last few possible end nodes are tried and the choice is the
+one that lets the *next* primitive reach farthest (then the most nodes, then a line before
+an arc). That is the "care at transition points" of §8.6.3: a line otherwise overshoots into
+a following arc by about sqrt(2 R tolerance), and the tangent arc after it can then not fit.
 
 Joints: line/arc, arc/line and arc/arc are tangent by construction (the next primitive
 starts at the previous end with its end tangent). Line/line corners are left to the
@@ -35,6 +35,14 @@ from dataclasses import dataclass
 from enum import Enum
 
 import numpy as np
+
+from assistant.trajectory.fit_kernels import (
+    arc_distances,
+    circle_through_kernel,
+    fit_arc,
+    fit_line,
+    line_distances,
+)
 
 Array = np.ndarray
 
@@ -79,11 +87,7 @@ class LinePrimitive:
 
     def distance(self, points: Array) -> Array:
         """Distance of each point to the segment."""
-        d = self.end - self.start
-        L2 = float(d @ d)
-        X = np.atleast_2d(points) - self.start
-        s = np.clip(X @ d / L2, 0.0, 1.0) if L2 > 0 else np.zeros(len(X))
-        return np.linalg.norm(X - s[:, None] * d, axis=1)
+        return line_distances(_vec(self.start), _vec(self.end), _rows(points))
 
 
 @dataclass(frozen=True)
@@ -122,16 +126,9 @@ class ArcPrimitive:
 
     def distance(self, points: Array) -> Array:
         """Distance of each point to the arc (not the full circle)."""
-        X = np.atleast_2d(points) - self.centre
-        h = X @ self.normal
-        V = X - h[:, None] * self.normal
-        rho = np.linalg.norm(V, axis=1)
-        phi = _angles_about(self.start - self.centre, V, self.normal)
-        on = phi <= self.sweep + 1e-12
-        d_arc = np.sqrt(h ** 2 + (rho - self.radius) ** 2)
-        d_end = np.minimum(np.linalg.norm(np.atleast_2d(points) - self.start, axis=1),
-                           np.linalg.norm(np.atleast_2d(points) - self.end, axis=1))
-        return np.where(on, d_arc, d_end)
+        return arc_distances(_vec(self.start), _vec(self.end), _vec(self.centre),
+                             float(self.radius), _vec(self.normal), float(self.sweep),
+                             _rows(points))
 
     @staticmethod
     def through(start: Array, via: Array, end: Array, first_node: int = 0,
@@ -386,154 +383,26 @@ class _Fitter:
             return self._line(O, t0, pts, s, e)
         return self._arc(O, t0, pts, s, e, first_feasible)
 
-    # ------------------------------------------------------------ lines
+    # ------------------------------------------------------------ lines and arcs
     def _line(self, O: Array, t0: Array | None, pts: Array, s: int, e: int,
               ) -> LinePrimitive | None:
-        X = pts - O
-        _, _, Vt = np.linalg.svd(X, full_matrices=False)
-        d_ls = Vt[0] * np.sign(Vt[0] @ X.sum(axis=0) or 1.0)
-        if t0 is not None:
-            dirs = [t0, _within_cone(d_ls, t0, self.p.tangent_slack)]
-        else:
-            dirs = [d_ls, _unit(X[-1])]
-        tol = self.p.tolerance
-        for d in dirs:
-            proj = X @ d
-            if proj[-1] <= 0.0 or np.any(np.diff(proj) < -tol):
-                continue
-            prim = LinePrimitive(O, O + proj[-1] * d, s, e)
-            if prim.distance(pts).max() <= tol:
-                return prim
-        return None
+        ok, end = fit_line(_vec(O), _tangent(t0), t0 is not None, _rows(pts),
+                           self.p.tolerance, self.p.tangent_slack)
+        return LinePrimitive(O, end, s, e) if ok else None
 
-    # ------------------------------------------------------------ arcs
     def _arc(self, O: Array, t0: Array | None, pts: Array, s: int, e: int,
              first_feasible: bool = False) -> ArcPrimitive | None:
-        X = pts - O
-        if len(X) < 2 or _norm(X[-1]) < 1e-9:
-            return None
-        # Tangent guesses, and free circles whose start tangent is within the slack.
-        kinds = (t0, None) if t0 is not None else (None,)
-        if first_feasible:
-            # Growth asks whether any guess fits: after a line or an arc only the tangent
-            # ones are asked. On 134 benchmark fits a free circle fitted where no tangent one
-            # did in 2 of 8100 growth steps, and computing the free guesses for the 5700
-            # steps where none fits was a quarter of the fit's time (same primitive count).
-            batches = (self._arc_candidates(O, t, X) for t in kinds[:1])
-        else:  # the closest of all guesses
-            batches = [[g for t in kinds for g in self._arc_candidates(O, t, X)]]
-        best = None
-        for cands in batches:
-            for centre, normal in self._on_circle(O, cands, pts):
-                prim = self._arc_from(O, centre, normal, pts, s, e, tangent=t0)
-                if prim is None:
-                    continue
-                if first_feasible:
-                    return prim[0]
-                if best is None or prim[1] < best[1]:
-                    best = prim
-        return None if best is None else best[0]
-
-    def _arc_candidates(self, O: Array, t0: Array | None, X: Array) -> list[tuple[Array, Array]]:
-        """(centre, plane normal) guesses: least squares, and the circle through O/mid/last."""
-        out = []
-        if t0 is None:
-            _, _, Vt = np.linalg.svd(X, full_matrices=False)
-            n = Vt[2] if Vt.shape[0] > 2 else _unit(_cross(X[0], X[-1]))
-            if _norm(n) < 0.5:
-                return out
-            e1 = _unit(X[-1] - (X[-1] @ n) * n)
-            e2 = _cross(n, e1)
-            xy = np.stack([X @ e1, X @ e2], axis=1)
-            c2, *_ = np.linalg.lstsq(2.0 * xy, (xy ** 2).sum(axis=1), rcond=None)
-            out.append((O + c2[0] * e1 + c2[1] * e2, n))
-            try:
-                c, _, n3 = circle_through(O, O + X[len(X) // 2], O + X[-1])
-                out.append((c, n3))
-            except ValueError:
-                pass
-        else:
-            b1 = _unit(_cross(t0, [1.0, 0.0, 0.0] if abs(t0[0]) < 0.9 else [0.0, 1.0, 0.0]))
-            b2 = _cross(t0, b1)
-            Y = np.stack([X @ b1, X @ b2], axis=1)
-            # Plane through O containing t0: its normal is the least-variance direction of the
-            # nodes' components across t0.
-            _, _, Vt = np.linalg.svd(Y, full_matrices=False)
-            for m_coef in (Vt[0], _unit(Y[-1]) if _norm(Y[-1]) > 1e-12 else None):
-                if m_coef is None:
-                    continue
-                m = m_coef[0] * b1 + m_coef[1] * b2  # in-plane normal to t0
-                r2 = (X ** 2).sum(axis=1)
-                xm = X @ m
-                denom = float((r2 ** 2).sum())
-                kappa = float(2.0 * (xm * r2).sum() / denom) if denom > 0 else 0.0
-                if abs(kappa) < 1e-9:
-                    continue
-                out.append((O + m / kappa, _unit(_cross(t0, m / kappa))))
-                # exact circle tangent at O through the last node
-                xl, rl = float(X[-1] @ m), float(X[-1] @ X[-1])
-                if abs(xl) > 1e-12:
-                    k2 = 2.0 * xl / rl
-                    out.append((O + m / k2, _unit(_cross(t0, m / k2))))
-        return out
-
-    def _on_circle(self, O: Array, cands: list[tuple[Array, Array]], pts: Array,
-                   ) -> list[tuple[Array, Array]]:
-        """The guesses (centre, unit normal) whose circle through O passes within the
-        tolerance of every node, with a radius in [r_min, r_max], in their order.
-
-        The arc is part of its circle, so the rest need not be tried; all guesses are tested
-        in one batch (most end here). Normals come back perpendicular to the radius at O.
-        """
-        if not cands:
-            return []
+        """Arc guesses (`fit_kernels.fit_arc`): after a line or an arc, growth asks only the
+        tangent ones. On 134 benchmark fits a free circle fitted where no tangent one did in
+        2 of 8100 growth steps, and computing the free guesses for the 5700 steps where none
+        fits was a quarter of the fit's time (same primitive count)."""
         p = self.p
-        C = np.array([c for c, _ in cands])
-        N = np.array([n for _, n in cands])
-        R0 = O - C
-        r2 = np.einsum("kj,kj->k", R0, R0)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            N = N - (np.einsum("kj,kj->k", N, R0) / r2)[:, None] * R0
-            N /= np.sqrt(np.einsum("kj,kj->k", N, N))[:, None]
-            X = pts[None] - C[:, None]
-            h = np.einsum("kmj,kj->km", X, N)
-            W = X - h[..., None] * N[:, None]
-            rho = np.sqrt(np.einsum("kmj,kmj->km", W, W))
-            dev2 = (h * h + (rho - np.sqrt(r2)[:, None]) ** 2).max(axis=1)
-            keep = ((r2 >= p.r_min ** 2) & (r2 <= p.r_max ** 2) & np.isfinite(C).all(axis=1)
-                    & (dev2 <= p.tolerance ** 2))
-        return [(C[k], N[k]) for k in np.nonzero(keep)[0]]
-
-    def _arc_from(self, O: Array, centre: Array, normal: Array, pts: Array, s: int, e: int,
-                  tangent: Array | None) -> tuple[ArcPrimitive, float] | None:
-        """The arc about `centre` (a guess passed by `_on_circle`) from O over the nodes."""
-        p, tol = self.p, self.p.tolerance
-        r0 = O - centre
-        radius = _norm(r0)
-        X = pts - centre
-        V = np.vstack([r0, X - (X @ normal)[:, None] * normal])
-        # Unwrapped angle of each node about the normal: sum of the signed steps between
-        # consecutive radius vectors (handles sweeps past pi and noise near the start).
-        cr = _cross(V[:-1], V[1:]) @ normal
-        dt = np.einsum("ij,ij->i", V[:-1], V[1:])
-        phi = np.cumsum(np.arctan2(cr, dt))
-        if phi[-1] < 0.0:
-            normal, phi = -normal, -phi
-        if tangent is not None:
-            t_start = _unit(_cross(normal, r0))
-            if t_start @ tangent < np.cos(p.tangent_slack) - 1e-12:
-                return None
-        slack = tol / radius
-        if np.any(np.diff(phi) < -slack) or phi[-1] > p.max_sweep or phi[-1] <= 0.0:
+        ok, r = fit_arc(_vec(O), _tangent(t0), t0 is not None, _rows(pts), p.tolerance,
+                        p.tangent_slack, p.r_min, p.r_max, p.max_sweep, first_feasible)
+        if not ok:
             return None
-        sweep = float(phi[-1])
-        end = centre + _rotate_radius(r0, normal, sweep)
-        via = centre + _rotate_radius(r0, normal, sweep / 2.0)
-        prim = ArcPrimitive(O.copy(), via, end, centre, radius, normal, sweep, s, e)
-        dev = float(prim.distance(pts).max())
-        if dev > tol:
-            return None
-        return prim, dev
+        return ArcPrimitive(O.copy(), r[6:9], r[9:12], r[0:3], float(r[12]), r[3:6],
+                            float(r[13]), s, e)
 
 
 def sample_primitive(prim: Primitive, max_step: float) -> tuple[Array, Array]:
@@ -549,13 +418,10 @@ def sample_primitive(prim: Primitive, max_step: float) -> tuple[Array, Array]:
 
 def circle_through(a: Array, b: Array, c: Array) -> tuple[Array, float, Array]:
     """Centre, radius and unit normal (a->b->c right-handed) of the circle through 3 points."""
-    ab, ac = b - a, c - a
-    n = _cross(ab, ac)
-    nn = float(n @ n)
-    if nn < 1e-18 * max(1e-30, float(ab @ ab) * float(ac @ ac)):
+    ok, centre, radius, n = circle_through_kernel(_vec(a), _vec(b), _vec(c))
+    if not ok:
         raise ValueError("the three points are collinear")
-    centre = a + (_cross(n, ab) * float(ac @ ac) + _cross(ac, n) * float(ab @ ab)) / (2 * nn)
-    return centre, _norm(centre - a), n / np.sqrt(nn)
+    return centre, radius, n
 
 
 def _angles_about(r0: Array, V: Array, normal: Array) -> Array:
@@ -609,31 +475,12 @@ def _snap_end(prim: Primitive, goal: Array) -> Primitive:
         return LinePrimitive(prim.start, goal.copy(), prim.first_node, prim.last_node)
 
 
-def _within_cone(d: Array, axis: Array, angle: float) -> Array:
-    """d, or the closest direction to it within `angle` of `axis`."""
-    c = float(np.clip(d @ axis, -1.0, 1.0))
-    if c >= np.cos(angle):
-        return d
-    perp = _unit(d - c * axis)
-    if not perp.any():
-        return axis
-    return np.cos(angle) * axis + np.sin(angle) * perp
-
-
 def _cross(a: Array, b: Array) -> Array:
-    """Cross product of 3-vectors (or rows), without np.cross's axis handling overhead.
-
-    The fitter crosses single vectors tens of thousands of times per path: those go through
-    Python floats (the same IEEE products, a tenth of the cost of numpy scalars).
-    """
-    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
-    if a.ndim == 1 and b.ndim == 1:
-        a0, a1, a2 = a.tolist()
-        b0, b1, b2 = b.tolist()
-        return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
-    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
-    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
-    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+    """Cross product of two 3-vectors through Python floats (the same IEEE products as
+    np.cross, without its axis handling, which cost more than the product)."""
+    a0, a1, a2 = np.asarray(a, dtype=float).tolist()
+    b0, b1, b2 = np.asarray(b, dtype=float).tolist()
+    return np.array([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0])
 
 
 def _rotate_radius(r0: Array, normal: Array, angle: float) -> Array:
@@ -651,3 +498,19 @@ def _unit(v: Array) -> Array:
     v = np.asarray(v, dtype=float)
     n = _norm(v)
     return v / n if n > 1e-15 else v * 0.0
+
+
+def _vec(v: Array) -> Array:
+    """A contiguous float64 3-vector, as the kernels are compiled for."""
+    return np.ascontiguousarray(v, dtype=np.float64)
+
+
+def _rows(points: Array) -> Array:
+    return np.ascontiguousarray(np.atleast_2d(points), dtype=np.float64)
+
+
+_NO_TANGENT = np.zeros(3)
+
+
+def _tangent(t0: Array | None) -> Array:
+    return _NO_TANGENT if t0 is None else _vec(t0)

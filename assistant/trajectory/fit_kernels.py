@@ -1,0 +1,374 @@
+"""The primitive fitter's geometry, compiled (numba): line and arc fits and distances.
+
+`primitives._Fitter` asks on the order of a hundred "does a line (an arc) from O cover
+nodes s+1..e within the tolerance?" questions per transfer. Each answer is a few dozen small
+vector operations (an SVD of the nodes, up to six circle guesses, an unwrapped angle sweep),
+and as numpy calls they cost ~100 us, a quarter of a planning query; compiled they cost a
+few microseconds. The control flow (growth, look-ahead, junction refinement) stays in Python.
+
+Each kernel follows its former numpy formulation step by step (the tests compare them case
+for case to 1e-9 m); the summation order inside dot products may differ in the last bit, and
+the free circle's least squares goes through its 2x2 normal equations instead of numpy's
+`lstsq` (which alone took 3 s to compile). On the 134 recorded transfer fits of the planning
+benchmark both give the same primitives. A NaN deviation counts as a miss here (numpy's max
+let it through as "within tolerance").
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+Array = np.ndarray
+
+_JIT = {"cache": True, "error_model": "numpy"}
+
+
+@njit(**_JIT)
+def _dot(a: Array, b: Array) -> float:
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@njit(**_JIT)
+def _cross(a: Array, b: Array) -> Array:
+    out = np.empty(3)
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+    return out
+
+
+@njit(**_JIT)
+def _unit(v: Array) -> Array:
+    n = math.sqrt(_dot(v, v))
+    return v / n if n > 1e-15 else v * 0.0
+
+
+@njit(**_JIT)
+def _rotate_radius(r0: Array, normal: Array, angle: float) -> Array:
+    return math.cos(angle) * r0 + math.sin(angle) * _cross(normal, r0)
+
+
+@njit(**_JIT)
+def circle_through_kernel(a: Array, b: Array, c: Array) -> tuple[bool, Array, float, Array]:
+    """(ok, centre, radius, unit normal a->b->c right-handed); ok False if collinear."""
+    ab, ac = b - a, c - a
+    n = _cross(ab, ac)
+    nn = _dot(n, n)
+    if nn < 1e-18 * max(1e-30, _dot(ab, ab) * _dot(ac, ac)):
+        return False, np.zeros(3), 0.0, np.zeros(3)
+    centre = a + (_cross(n, ab) * _dot(ac, ac) + _cross(ac, n) * _dot(ab, ab)) / (2.0 * nn)
+    d = centre - a
+    return True, centre, math.sqrt(_dot(d, d)), n / math.sqrt(nn)
+
+
+@njit(**_JIT)
+def line_distances(start: Array, end: Array, points: Array) -> Array:
+    """Distance of each point (m, 3) to the segment start-end."""
+    d = end - start
+    L2 = _dot(d, d)
+    out = np.empty(len(points))
+    for i in range(len(points)):
+        x = points[i] - start
+        s = 0.0
+        if L2 > 0.0:
+            s = min(max(_dot(x, d) / L2, 0.0), 1.0)
+        r = x - s * d
+        out[i] = math.sqrt(_dot(r, r))
+    return out
+
+
+@njit(**_JIT)
+def arc_distances(start: Array, end: Array, centre: Array, radius: float, normal: Array,
+                  sweep: float, points: Array) -> Array:
+    """Distance of each point (m, 3) to the arc (not the full circle): to the circle where
+    the point's angle about the normal lies within the sweep, else to the nearer end."""
+    r0 = start - centre
+    y_axis = _cross(normal, r0)
+    out = np.empty(len(points))
+    for i in range(len(points)):
+        x = points[i] - centre
+        h = _dot(x, normal)
+        v = x - h * normal
+        rho = math.sqrt(_dot(v, v))
+        phi = math.atan2(_dot(v, y_axis), _dot(v, r0))
+        if phi < 0.0:
+            phi += 2.0 * math.pi
+        if phi <= sweep + 1e-12:
+            out[i] = math.sqrt(h * h + (rho - radius) ** 2)
+        else:
+            ds, de = points[i] - start, points[i] - end
+            out[i] = min(math.sqrt(_dot(ds, ds)), math.sqrt(_dot(de, de)))
+    return out
+
+
+@njit(**_JIT)
+def _max_or_nan(values: Array) -> float:
+    """The largest value; NaN if any is NaN (so a `<= tol` test fails)."""
+    m = -np.inf
+    for v in values:
+        if v != v:
+            return np.nan
+        m = max(m, v)
+    return m
+
+
+@njit(**_JIT)
+def _within_cone(d: Array, axis: Array, angle: float) -> Array:
+    """d, or the closest direction to it within `angle` of `axis`."""
+    c = min(max(_dot(d, axis), -1.0), 1.0)
+    if c >= math.cos(angle):
+        return d
+    perp = _unit(d - c * axis)
+    if not (perp[0] != 0.0 or perp[1] != 0.0 or perp[2] != 0.0):
+        return axis
+    return math.cos(angle) * axis + math.sin(angle) * perp
+
+
+@njit(**_JIT)
+def fit_line(O: Array, t0: Array, has_t0: bool, pts: Array, tol: float, slack: float,
+             ) -> tuple[bool, Array]:
+    """(found, end) of a line from O covering the nodes `pts` (m, 3) within `tol`.
+
+    Directions tried in order: with an incoming tangent t0, t0 itself and the least-squares
+    direction (through O) pulled into the `slack` cone about t0; without, the least-squares
+    direction and the one to the last node. The nodes' projections must advance (no step
+    back by more than tol) and the segment ends at the last node's projection.
+    """
+    m = len(pts)
+    X = pts - O
+    _, _, Vt = np.linalg.svd(X, full_matrices=False)
+    total = X.sum(axis=0)
+    proj_sum = _dot(Vt[0], total)
+    sign = 1.0 if proj_sum == 0.0 else np.sign(proj_sum)
+    d_ls = Vt[0] * sign
+    dirs = np.empty((2, 3))
+    if has_t0:
+        dirs[0] = t0
+        dirs[1] = _within_cone(d_ls, t0, slack)
+    else:
+        dirs[0] = d_ls
+        dirs[1] = _unit(X[m - 1])
+    proj = np.empty(m)
+    for k in range(2):
+        d = dirs[k]
+        for i in range(m):
+            proj[i] = _dot(X[i], d)
+        if not proj[m - 1] > 0.0:
+            continue
+        back = False
+        for i in range(m - 1):
+            if proj[i + 1] - proj[i] < -tol:
+                back = True
+                break
+        if back:
+            continue
+        end = O + proj[m - 1] * d
+        if _max_or_nan(line_distances(O, end, pts)) <= tol:
+            return True, end
+    return False, np.zeros(3)
+
+
+@njit(**_JIT)
+def _free_candidates(O: Array, X: Array, C: Array, N: Array, k: int) -> int:
+    """Circle guesses without a tangent: the least-squares circle in the nodes' best-fit
+    plane, and the circle through O, the middle and the last node. Appended to C, N at k;
+    returns the new count."""
+    m = len(X)
+    if m > 2:
+        _, _, Vt = np.linalg.svd(X, full_matrices=False)
+        n = Vt[2].copy()
+    else:
+        n = _unit(_cross(X[0], X[m - 1]))
+    if math.sqrt(_dot(n, n)) < 0.5:
+        return k
+    e1 = _unit(X[m - 1] - _dot(X[m - 1], n) * n)
+    e2 = _cross(n, e1)
+    # least squares 2 (x, y) . c = x^2 + y^2 through the normal equations (a 2x2 solve;
+    # they are ill-conditioned only for nearly collinear nodes, whose circle is far larger
+    # than r_max anyway)
+    sxx = sxy = syy = bx = by = 0.0
+    for i in range(m):
+        x, y = _dot(X[i], e1), _dot(X[i], e2)
+        q = x * x + y * y
+        sxx += x * x
+        sxy += x * y
+        syy += y * y
+        bx += x * q
+        by += y * q
+    det = 2.0 * (sxx * syy - sxy * sxy)
+    cx = (syy * bx - sxy * by) / det
+    cy = (sxx * by - sxy * bx) / det
+    C[k] = O + cx * e1 + cy * e2
+    N[k] = n
+    k += 1
+    ok, c, _, n3 = circle_through_kernel(O, O + X[m // 2], O + X[m - 1])
+    if ok:
+        C[k], N[k] = c, n3
+        k += 1
+    return k
+
+
+@njit(**_JIT)
+def _tangent_candidates(O: Array, t0: Array, X: Array, C: Array, N: Array, k: int) -> int:
+    """Circle guesses tangent to t0 at O: in the plane through O containing t0 whose normal
+    is the least-variance direction of the nodes across t0 (and the one through the last
+    node), the least-squares curvature and the exact circle through the last node."""
+    m = len(X)
+    helper = np.array([1.0, 0.0, 0.0]) if abs(t0[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    b1 = _unit(_cross(t0, helper))
+    b2 = _cross(t0, b1)
+    Y = np.empty((m, 2))
+    r2 = np.empty(m)
+    for i in range(m):
+        Y[i, 0], Y[i, 1] = _dot(X[i], b1), _dot(X[i], b2)
+        r2[i] = _dot(X[i], X[i])
+    _, _, Vt = np.linalg.svd(Y, full_matrices=False)
+    denom = 0.0
+    for i in range(m):
+        denom += r2[i] * r2[i]
+    ylen = math.sqrt(Y[m - 1, 0] ** 2 + Y[m - 1, 1] ** 2)
+    for j in range(2):
+        if j == 0:
+            mc0, mc1 = Vt[0, 0], Vt[0, 1]
+        elif ylen > 1e-12:
+            mc0, mc1 = Y[m - 1, 0] / ylen, Y[m - 1, 1] / ylen
+        else:
+            continue
+        mv = mc0 * b1 + mc1 * b2  # in-plane normal to t0
+        s = 0.0
+        for i in range(m):
+            s += _dot(X[i], mv) * r2[i]
+        kappa = 2.0 * s / denom if denom > 0.0 else 0.0
+        if abs(kappa) < 1e-9:
+            continue
+        C[k], N[k] = O + mv / kappa, _unit(_cross(t0, mv / kappa))
+        k += 1
+        xl, rl = _dot(X[m - 1], mv), _dot(X[m - 1], X[m - 1])
+        if abs(xl) > 1e-12:
+            k2 = 2.0 * xl / rl
+            C[k], N[k] = O + mv / k2, _unit(_cross(t0, mv / k2))
+            k += 1
+    return k
+
+
+@njit(**_JIT)
+def _on_circle(O: Array, C: Array, N: Array, pts: Array, r_min: float, r_max: float,
+               tol: float) -> Array:
+    """Indices of the guesses whose circle through O passes within tol of every node with
+    a radius in [r_min, r_max]; their normals in N are made perpendicular to the radius
+    at O (in place)."""
+    keep = np.empty(len(C), dtype=np.int64)
+    nk = 0
+    tol2 = tol * tol
+    for k in range(len(C)):
+        c = C[k]
+        R0 = O - c
+        r2 = _dot(R0, R0)
+        n = N[k] - (_dot(N[k], R0) / r2) * R0
+        n = n / math.sqrt(_dot(n, n))
+        N[k] = n
+        if not (r2 >= r_min * r_min and r2 <= r_max * r_max and np.isfinite(c).all()):
+            continue
+        r = math.sqrt(r2)
+        good = True
+        for i in range(len(pts)):
+            x = pts[i] - c
+            h = _dot(x, n)
+            w = x - h * n
+            dv = h * h + (math.sqrt(_dot(w, w)) - r) ** 2
+            if not dv <= tol2:
+                good = False
+                break
+        if good:
+            keep[nk] = k
+            nk += 1
+    return keep[:nk]
+
+
+@njit(**_JIT)
+def _arc_from(O: Array, centre: Array, normal: Array, pts: Array, t0: Array, has_t0: bool,
+              tol: float, slack: float, max_sweep: float, out: Array) -> float:
+    """The arc about `centre` from O over the nodes: writes normal, via, end, radius, sweep
+    into `out` and returns its largest node deviation, or -1 if it does not qualify (nodes
+    stepping back, sweep outside (0, max_sweep], start tangent outside the slack cone,
+    a node off by more than tol)."""
+    m = len(pts)
+    r0 = O - centre
+    radius = math.sqrt(_dot(r0, r0))
+    V = np.empty((m + 1, 3))
+    V[0] = r0
+    for i in range(m):
+        x = pts[i] - centre
+        V[i + 1] = x - _dot(x, normal) * normal
+    # unwrapped angle of each node about the normal: the sum of the signed steps
+    phi = np.empty(m)
+    acc = 0.0
+    for i in range(m):
+        acc += math.atan2(_dot(_cross(V[i], V[i + 1]), normal), _dot(V[i], V[i + 1]))
+        phi[i] = acc
+    if phi[m - 1] < 0.0:
+        normal = -normal
+        phi = -phi
+    if has_t0:
+        t_start = _unit(_cross(normal, r0))
+        if _dot(t_start, t0) < math.cos(slack) - 1e-12:
+            return -1.0
+    step_back = tol / radius
+    for i in range(m - 1):
+        if phi[i + 1] - phi[i] < -step_back:
+            return -1.0
+    sweep = phi[m - 1]
+    if sweep > max_sweep or not sweep > 0.0:
+        return -1.0
+    end = centre + _rotate_radius(r0, normal, sweep)
+    via = centre + _rotate_radius(r0, normal, sweep / 2.0)
+    dev = _max_or_nan(arc_distances(O, end, centre, radius, normal, sweep, pts))
+    if not dev <= tol:
+        return -1.0
+    out[0:3], out[3:6], out[6:9] = normal, via, end
+    out[9], out[10] = radius, sweep
+    return dev
+
+
+@njit(**_JIT)
+def fit_arc(O: Array, t0: Array, has_t0: bool, pts: Array, tol: float, slack: float,
+            r_min: float, r_max: float, max_sweep: float, first_feasible: bool,
+            ) -> tuple[bool, Array]:
+    """(found, [centre, normal, via, end, radius, sweep, deviation]) of an arc from O over
+    the nodes (m, 3).
+
+    Guesses: with t0 the tangent ones, then (unless `first_feasible`) the free ones; without
+    t0 only the free ones. With `first_feasible` the first guess that qualifies is returned
+    (growth only asks whether one exists), else the one with the smallest deviation.
+    """
+    res = np.zeros(15)
+    m = len(pts)
+    X = pts - O
+    if m < 2 or math.sqrt(_dot(X[m - 1], X[m - 1])) < 1e-9:
+        return False, res
+    C = np.empty((6, 3))
+    N = np.empty((6, 3))
+    k = 0
+    if has_t0:
+        k = _tangent_candidates(O, t0, X, C, N, k)
+    if not has_t0 or not first_feasible:
+        k = _free_candidates(O, X, C, N, k)
+    if k == 0:
+        return False, res
+    Ck, Nk = C[:k], N[:k]
+    out = np.empty(11)
+    best = np.inf
+    for j in _on_circle(O, Ck, Nk, pts, r_min, r_max, tol):
+        dev = _arc_from(O, Ck[j], Nk[j], pts, t0, has_t0, tol, slack, max_sweep, out)
+        if dev < 0.0 or not dev < best:
+            continue
+        best = dev
+        res[0:3] = Ck[j]
+        res[3:14] = out
+        res[14] = dev
+        if first_feasible:
+            break
+    return best < np.inf, res
