@@ -1,12 +1,12 @@
 """Compile the numba kernels before their first use.
 
 The kernels (`broad_phase`, `segment_box`, `dh`, `rv2aj_fk_batch`, `rv2aj_position_ik`,
-`trajectory.fit_kernels`) compile on their first call and cache the result on disk; only the
-first run after an install pays, ~20 s for all of them on this 2-core machine. `cellteach
-serve` runs `warm_up` in a background thread at start, so that first run does not stall the
-operator's first world build or plan (a compile reports no progress); `cellteach run` and
-the tests call it before anything else, so no compile happens inside a robot link's
-exchange, where seconds look like a lost link.
+`trajectory.fit_kernels`, `trajectory.net_forces`) compile on their first call and cache the
+result on disk; only the first run after an install pays, ~20 s for all of them on this
+2-core machine. `cellteach serve` runs `warm_up` in a background thread at start, so that
+first run does not stall the operator's first world build or plan (a compile reports no
+progress); `cellteach run` and the tests call it before anything else, so no compile happens
+inside a robot link's exchange, where seconds look like a lost link.
 """
 
 from __future__ import annotations
@@ -31,12 +31,13 @@ from assistant.trajectory.fit_kernels import (
     fit_line,
     line_distances,
 )
+from assistant.trajectory.net_forces import propose_moves
 
 #: Every compiled entry point (the test checks `warm_up` compiles each of them).
 KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            _segment_box_distances, _segment_segment_distance, _chain_frames_kernel, tcp_poses,
            planar_position_ik, fit_line, fit_arc, line_distances, arc_distances,
-           circle_through_kernel)
+           circle_through_kernel, propose_moves)
 
 
 def warm_up() -> float:
@@ -45,6 +46,7 @@ def warm_up() -> float:
     from assistant.collision import CollisionChecker, Obstacle
     from assistant.robot_model import CollisionShape, ShapeKind, Tool
     from assistant.rv2aj import RV2AJ, RV2AJConfig
+    from assistant.trajectory.elastic_net import ElasticNetParams
     from assistant.trajectory.primitives import ArcPrimitive, FitParams, fit_primitives
     from assistant.transforms import make_T
 
@@ -67,4 +69,8 @@ def warm_up() -> float:
     for prim in fit.primitives:
         prim.distance(arc)
     ArcPrimitive.through(arc[0], arc[5], arc[-1])
+    net = ElasticNetParams.final()
+    for stage in (1, 2):
+        propose_moves(arc, stage, 0.5, net.c_equidistance, net.c_rotation, net.c_shrink,
+                      net.c_line_shrink, net.stage1_shrink, net.r_max, net.r_min, net.max_move)
     return time.perf_counter() - t0

@@ -71,6 +71,7 @@ import numpy as np
 
 from assistant.progress import Progress
 from assistant.robot_model import Robot
+from assistant.trajectory.net_forces import propose_moves
 from assistant.trajectory.particles import (
     Particles,
     polyline_length,
@@ -238,13 +239,6 @@ def turn_angles(P: Array) -> Array:
     return np.arccos(np.clip(c, -1.0, 1.0))
 
 
-def polygon_turn_angle(side: float | Array, radius: float) -> float | Array:
-    """Turn angle of a regular polygon with this side inscribed in a circle of this radius."""
-    if radius <= 0.0:
-        return np.pi
-    return 2.0 * np.arcsin(np.minimum(1.0, np.asarray(side) / (2.0 * radius)))
-
-
 class _Net:
     """Mutable state of one relaxation: positions P, joints Q, counters."""
 
@@ -262,9 +256,6 @@ class _Net:
         self.E = np.inf  # mean movement of the last iteration (m)
         n = len(self.P)
         self._pinned = np.zeros(n, dtype=bool)
-        interior = np.arange(1, n - 1)
-        self.colours = [interior[interior % 3 == c] for c in range(3)]
-        self.colours = [c for c in self.colours if len(c)]
         # Certified moves: per particle the joints of its last exact check and the free margin
         # it gave; a move whose arm travel from there stays below the margin needs no exact
         # check (identical answers, see `CollisionChecker.is_valid_batch_margin`).
@@ -309,24 +300,14 @@ class _Net:
         """One sweep: (E, accepted, proposed moves).
 
         Forces are evaluated one colour class at a time on the tentative positions
-        (Gauss-Seidel); the moves are then checked together in one batch (one `allowed`,
-        one IK, one validity call per sweep) and the rejected ones retried at half length,
-        except those pinned (see below).
+        (Gauss-Seidel, compiled: `net_forces.propose_moves`); the moves are then checked
+        together in one batch (one `allowed`, one IK, one validity call per sweep) and the
+        rejected ones retried at half length, except those pinned (see below).
         """
-        P0 = self.P
-        trial = P0.copy()
-        all_idx, all_D = [], []
-        for idx in self.colours:
-            self.P = trial
-            D = self.displacements(idx, stage, lam)
-            scale = np.maximum(1.0, row_norms(D) / self.p.max_move)
-            D /= scale[:, None]
-            trial[idx] += D
-            all_idx.append(idx)
-            all_D.append(D)
-        self.P = P0
-        idx = np.concatenate(all_idx)
-        D = np.concatenate(all_D)
+        P0, p = self.P, self.p
+        idx, D, trial = propose_moves(P0, stage, lam, p.c_equidistance, p.c_rotation,
+                                      p.c_shrink, p.c_line_shrink, p.stage1_shrink, p.r_max,
+                                      p.r_min, p.max_move)
         live = row_norms(D) > 0.0
         idx, D = idx[live], D[live]
         if not len(idx):
@@ -353,67 +334,6 @@ class _Net:
         self.accepted += accepted
         E = float(row_norms(D[ok]).sum()) / max(1, len(P0) - 2)
         return E, accepted, len(idx)
-
-    # ---------------------------------------------------------------- forces
-    def displacements(self, idx: Array, stage: int, lam: float) -> Array:
-        P, p = self.P, self.p
-        A, B, C = P[idx - 1], P[idx], P[idx + 1]
-        AB, BC = B - A, C - B
-        lab = row_norms(AB)
-        lbc = row_norms(BC)
-        AC = C - A
-        t = AC / np.maximum(row_norms(AC), 1e-15)[:, None]
-        F_eq = (lbc - lab)[:, None] * t
-        S = (A - B) + (C - B)
-        F_sh = S - np.einsum("ij,ij->i", S, t)[:, None] * t
-        if stage == 1:
-            return p.c_equidistance * F_eq + p.stage1_shrink * F_sh
-        side = 0.5 * (lab + lbc)
-        F_rot, g3 = self.rotation(idx, t, side)
-        g_min = polygon_turn_angle(side, p.r_max)
-        g_max = polygon_turn_angle(side, p.r_min) if p.r_min > 0.0 else np.full(len(idx), np.inf)
-        line = np.all(g3 < g_min[:, None], axis=1) | (g3[:, 1] > g_max)
-        curve = (p.c_equidistance * F_eq + (1.0 - lam) * p.c_rotation * F_rot
-                 + lam * p.c_shrink * F_sh)
-        straight = p.c_equidistance * F_eq + p.c_line_shrink * F_sh
-        return np.where(line[:, None], straight, curve)
-
-    def rotation(self, idx: Array, t: Array, side: Array) -> tuple[Array, Array]:
-        """F_rot for particles idx (mean length `side` of their two edges) and their three
-        neighbouring turn angles (n, 3).
-
-        The curvature vector k_j = gamma_j * (inward unit normal) of each interior particle is
-        compared with the mean of its neighbours' (projected into B's normal plane and
-        rescaled by 1/cos(gamma_B), exact on a circle). Moving B by d changes k_B by -2d/l
-        and each neighbour's by +d/l, so the exact local correction is l (k_B - target) / 3;
-        F_rot is the mean of four such edge rotations, i.e. a quarter of it.
-        """
-        P = self.P
-        n = len(P)
-        gam = turn_angles(P)  # interior j = 1..n-2 at gam[j-1]
-        S_all = P[:-2] + P[2:] - 2.0 * P[1:-1]
-        a_all = P[2:] - P[:-2]
-        a_all /= np.maximum(row_norms(a_all), 1e-15)[:, None]
-        S_all -= np.einsum("ij,ij->i", S_all, a_all)[:, None] * a_all
-        sn = row_norms(S_all)
-        normal = np.where(sn[:, None] > 1e-12, S_all / np.maximum(sn, 1e-300)[:, None], 0.0)
-        # The end particles have no turn: zero curvature and angle (their neighbours' sums
-        # and angle triples then need no special case).
-        K = np.zeros((n, 3))
-        G = np.zeros(n)
-        K[1:-1] = gam[:, None] * normal
-        G[1:-1] = gam
-        kb = K[idx]
-        cnt = ((idx - 1) >= 1).astype(float) + ((idx + 1) <= n - 2)
-        kmean = (K[idx - 1] + K[idx + 1]) / np.maximum(cnt, 1.0)[:, None]
-        alone = cnt == 0.0  # three particles: no interior neighbour to compare with
-        kmean[alone] = kb[alone]
-        kmean -= np.einsum("ij,ij->i", kmean, t)[:, None] * t
-        cosb = np.maximum(np.cos(G[idx]), 0.5)
-        target = kmean / cosb[:, None]
-        F_rot = 0.25 * side[:, None] * (kb - target) / 3.0
-        g3 = np.stack([G[idx - 1], G[idx], G[idx + 1]], axis=1)
-        return F_rot, g3
 
     # ---------------------------------------------------------------- moves
     def try_moves(self, idx: Array, D: Array, trial: Array) -> Array:
