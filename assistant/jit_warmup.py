@@ -1,12 +1,12 @@
 """Compile the numba kernels before their first use.
 
 The kernels (`broad_phase`, `segment_box`, `dh`, `rv2aj_fk_batch`, `rv2aj_position_ik`,
-`trajectory.fit_kernels`, `trajectory.net_forces`) compile on their first call and cache the
-result on disk; only the first run after an install pays, ~20 s for all of them on this
-2-core machine. `cellteach serve` runs `warm_up` in a background thread at start, so that
-first run does not stall the operator's first world build or plan (a compile reports no
-progress); `cellteach run` and the tests call it before anything else, so no compile happens
-inside a robot link's exchange, where seconds look like a lost link.
+`trajectory.fit_kernels`, `trajectory.net_forces`, `roadmap.brushfire`) compile on their
+first call and cache the result on disk; only the first run after an install pays, ~20 s for
+all of them on this 2-core machine. `cellteach serve` runs `warm_up` in a background thread
+at start, so that first run does not stall the operator's first world build or plan (a
+compile reports no progress); `cellteach run` and the tests call it before anything else, so
+no compile happens inside a robot link's exchange, where seconds look like a lost link.
 """
 
 from __future__ import annotations
@@ -21,6 +21,7 @@ from assistant.broad_phase import (
     sphere_broad_phase,
 )
 from assistant.dh import _chain_frames_kernel
+from assistant.roadmap.brushfire import brushfire_region
 from assistant.rv2aj_fk_batch import tcp_poses
 from assistant.rv2aj_position_ik import planar_position_ik
 from assistant.segment_box import _segment_box_distances, segment_box_distance_one
@@ -37,13 +38,14 @@ from assistant.trajectory.net_forces import propose_moves
 KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            _segment_box_distances, _segment_segment_distance, _chain_frames_kernel, tcp_poses,
            planar_position_ik, fit_line, fit_arc, line_distances, arc_distances,
-           circle_through_kernel, propose_moves)
+           circle_through_kernel, propose_moves, brushfire_region)
 
 
 def warm_up() -> float:
     """Call each kernel through the real API, with the argument types it gets in use;
     returns the seconds it took (compiling or loading the cache)."""
     from assistant.collision import CollisionChecker, Obstacle
+    from assistant.roadmap.voronoi import build_voronoi
     from assistant.robot_model import CollisionShape, ShapeKind, Tool
     from assistant.rv2aj import RV2AJ, RV2AJConfig
     from assistant.trajectory.elastic_net import ElasticNetParams
@@ -69,6 +71,9 @@ def warm_up() -> float:
     for prim in fit.primitives:
         prim.distance(arc)
     ArcPrimitive.through(arc[0], arc[5], arc[-1])
+    source = np.zeros((4, 4, 4), dtype=np.int32)
+    source[0, 0, 0], source[3, 3, 3] = 1, 2
+    build_voronoi(source)
     net = ElasticNetParams.final()
     for stage in (1, 2):
         propose_moves(arc, stage, 0.5, net.c_equidistance, net.c_rotation, net.c_shrink,

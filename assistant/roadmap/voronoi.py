@@ -29,16 +29,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from assistant.roadmap.grid_ops import bbox, dilate, neighbour_any, neighbour_max, neighbour_min
+from assistant.roadmap import brushfire
+from assistant.roadmap.brushfire import ROAD, ROAD_UNREACHABLE, UNREACHED, brushfire_region
+from assistant.roadmap.grid_ops import bbox, dilate
 
 Array = np.ndarray
 
-ROAD = -1
-ROAD_UNREACHABLE = 0
-UNREACHED = -2
+__all__ = ["INF", "ROAD", "ROAD_UNREACHABLE", "UNREACHED", "VoronoiMap", "VoronoiUpdate",
+           "build_voronoi", "update_voronoi"]
+
 #: Distance of cells no front reaches.
-INF = np.int32(2**30)
-_BIG = np.int32(2**30)
+INF = np.int32(brushfire.INF)
 
 
 @dataclass
@@ -107,39 +108,15 @@ def build_voronoi(source: Array, reachable: Array | None = None) -> VoronoiMap:
 
 
 def _recompute(vmap: VoronoiMap, region: Array) -> None:
-    """Recompute dist/tent/label inside `region` with the values outside held fixed."""
+    """Recompute dist/tent/label inside `region` with the values outside held fixed
+    (compiled: `brushfire.brushfire_region`, on the region's bounding box)."""
     sl = bbox(region, margin=1)
     if sl is None:
         return
-    R = region[sl]
+    R = np.ascontiguousarray(region[sl])
     D, T, L = vmap.dist[sl].copy(), vmap.tent[sl].copy(), vmap.label[sl].copy()
-    S, reach = vmap.source[sl], vmap.reachable[sl]
-    src = S > 0
-    D[R], T[R], L[R] = INF, UNREACHED, UNREACHED
-    rs = R & src
-    D[rs], T[rs], L[rs] = 0, S[rs], S[rs]
-    todo = R & ~src
-    fixed = ~R & (D < INF)
-    max_fixed = int(D[fixed].max()) if fixed.any() else -1
-    d = 1
-    while todo.any():
-        prev = D == d - 1
-        if not prev.any() and d - 1 > max_fixed:
-            break  # no front left that could reach the remaining cells
-        has = todo & neighbour_any(prev)
-        if has.any():
-            D[has] = d
-            carrier = prev & (L >= 1)
-            lo = neighbour_min(np.where(carrier, L, _BIG), _BIG)[has]
-            hi = neighbour_max(np.where(carrier, L, -1), -1)[has]
-            tent = np.where((lo == _BIG) | (lo != hi), ROAD, lo).astype(np.int32)
-            T[has] = tent
-            same = (D == d) & (T >= 1)
-            above = neighbour_max(np.where(same, T, -1), -1)[has]
-            road = (tent < 1) | (above > tent)
-            L[has] = np.where(road, np.where(reach[has], ROAD, ROAD_UNREACHABLE), tent)
-            todo &= ~has
-        d += 1
+    brushfire_region(D, T, L, np.ascontiguousarray(vmap.source[sl]),
+                     np.ascontiguousarray(vmap.reachable[sl]), R)
     vmap.dist[sl][R] = D[R]
     vmap.tent[sl][R] = T[R]
     vmap.label[sl][R] = L[R]
