@@ -64,6 +64,9 @@ class CellPositions:
         self.selected = np.zeros(table.n_positions, dtype=bool)
         self.n_selected = np.zeros(n_leaves, dtype=np.int64)
         self.checked_total = 0
+        # `selected_joints` of the current selection (every query asks; it only changes
+        # when the selection does): dropped wherever `selected` is written.
+        self._csr: tuple[Array, Array, Array] | None = None
 
     # ---------------------------------------------------------------- filling
     def fill(self, slots: Array, progress: Progress | None = None) -> FillReport:
@@ -116,6 +119,7 @@ class CellPositions:
         rank = csum - before[owner] - 1
         keep = ok & (rank < self.config.per_cell)
         # The old selection lies inside the examined prefix (it only grows): clear, then set.
+        self._csr = None
         self.selected[p] = False
         self.selected[p[keep]] = True
         self.n_selected[slots] = np.bincount(owner[keep], minlength=len(slots))
@@ -128,6 +132,7 @@ class CellPositions:
         if not len(pi):
             return pi
         self.state[pi] = INVALID_INDICATED
+        self._csr = None
         self.selected[pi] = False  # consistent at once, even if the refill is cancelled
         slots = self.slots_of(pi)
         self._reselect(slots)
@@ -153,3 +158,15 @@ class CellPositions:
         cells, first = np.unique(slot, return_index=True)
         offsets = np.r_[first, len(p)].astype(np.int64)
         return self.table.leaves[cells], offsets, self.table.positions[p]
+
+    def selected_joints(self) -> tuple[Array, Array, Array]:
+        """`selected_csr` with joint values (rad) instead of ids: (cells, offsets, Q).
+
+        Remembered until the selection changes: decoding the ids cost ~2 ms of every
+        planning query, a copy of the result ~0.1 ms (copies, so a caller may write to them;
+        read-only arrays would also be new argument types for the compiled kernels)."""
+        if self._csr is None:
+            cells, offsets, ids = self.selected_csr()
+            self._csr = (cells, offsets, self.table.joints(ids))
+        cells, offsets, Q = self._csr
+        return cells.copy(), offsets.copy(), Q.copy()

@@ -219,9 +219,7 @@ class WorldModel:
 
     def cell_positions(self) -> tuple[Array, Array, Array]:
         """(cells, offsets, Q): selected valid joint positions (rad) grouped by flat leaf id."""
-        table, positions = self._need()
-        cells, offsets, ids = positions.selected_csr()
-        return cells, offsets, table.joints(ids)
+        return self._need()[1].selected_joints()
 
     def tcp_cell(self, q: Array) -> int:
         """Flat leaf id of the TCP at q, -1 outside the octree."""

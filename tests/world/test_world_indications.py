@@ -29,6 +29,8 @@ def test_indication_occupies_the_arm_cells_and_invalidates_nearby_postures(world
     q = np.radians([20.0, 40.0, 60.0, 30.0, 0.0])
     tcp_cell = world.tcp_cell(q)
     assert world.free().reshape(-1)[tcp_cell]
+    _, _, Q_before = world.cell_positions()  # (remembered until the selection changes)
+    assert near_posture(world.table, Q_before, q, world.config.indication.joint_steps).any()
     change = world.indicate_collision(q)
     occ = world.occupied().reshape(-1)
     assert tcp_cell in change.observed_cells.tolist()
