@@ -1,12 +1,13 @@
 """Compile the numba kernels before their first use.
 
 The kernels (`broad_phase`, `segment_box`, `dh`, `rv2aj_fk_batch`, `rv2aj_position_ik`,
-`trajectory.fit_kernels`, `trajectory.net_forces`, `roadmap.brushfire`) compile on their
-first call and cache the result on disk; only the first run after an install pays, ~20 s for
-all of them on this 2-core machine. `cellteach serve` runs `warm_up` in a background thread
-at start, so that first run does not stall the operator's first world build or plan (a
-compile reports no progress); `cellteach run` and the tests call it before anything else, so
-no compile happens inside a robot link's exchange, where seconds look like a lost link.
+`trajectory.fit_kernels`, `trajectory.net_forces`, `roadmap.brushfire`, `world.leaf_lookup`)
+compile on their first call and cache the result on disk; only the first run after an
+install pays, ~20 s for all of them on this 2-core machine. `cellteach serve` runs `warm_up`
+in a background thread at start, so that first run does not stall the operator's first world
+build or plan (a compile reports no progress); `cellteach run` and the tests call it before
+anything else, so no compile happens inside a robot link's exchange, where seconds look like
+a lost link.
 """
 
 from __future__ import annotations
@@ -33,12 +34,13 @@ from assistant.trajectory.fit_kernels import (
     line_distances,
 )
 from assistant.trajectory.net_forces import propose_moves
+from assistant.world.leaf_lookup import leaf_flags
 
 #: Every compiled entry point (the test checks `warm_up` compiles each of them).
 KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            _segment_box_distances, _segment_segment_distance, _chain_frames_kernel, tcp_poses,
            planar_position_ik, fit_line, fit_arc, line_distances, arc_distances,
-           circle_through_kernel, propose_moves, brushfire_region)
+           circle_through_kernel, propose_moves, brushfire_region, leaf_flags)
 
 
 def warm_up() -> float:
@@ -74,6 +76,8 @@ def warm_up() -> float:
     source = np.zeros((4, 4, 4), dtype=np.int32)
     source[0, 0, 0], source[3, 3, 3] = 1, 2
     build_voronoi(source)
+    leaf_flags(np.ascontiguousarray(tcp, dtype=float), np.full(3, -1.0), 0.0625, 32,
+               np.ones(32 ** 3, dtype=bool))
     net = ElasticNetParams.final()
     for stage in (1, 2):
         propose_moves(arc, stage, 0.5, net.c_equidistance, net.c_rotation, net.c_shrink,

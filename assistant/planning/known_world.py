@@ -23,6 +23,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from assistant.collision import CollisionChecker, CollisionReport, Contact, MotionCheck
+from assistant.world.leaf_lookup import leaf_flags
 from assistant.world.model import WorldModel
 
 Array = np.ndarray
@@ -40,11 +41,9 @@ class WorldAllowed:
         self._free = self.world.free().reshape(-1)
 
     def __call__(self, points: Array) -> Array:
-        flat = self.world.grid.flat_of_points(np.atleast_2d(np.asarray(points, dtype=float)))
-        out = np.zeros(len(flat), dtype=bool)
-        inside = flat >= 0
-        out[inside] = self._free[flat[inside]]
-        return out
+        g = self.world.grid
+        P = np.ascontiguousarray(np.atleast_2d(np.asarray(points, dtype=float)))
+        return leaf_flags(P, g.origin, g.leaf, g.n, self._free)
 
 
 class KnownValidity:
