@@ -20,10 +20,12 @@ from scipy.spatial.transform import Rotation
 from assistant.broad_phase import (
     _segment_segment_distance,
     prune_round_pairs,
+    sphere_box_bounds,
     sphere_broad_phase,
 )
 from assistant.collision import CollisionChecker, Obstacle
 from assistant.dh import batch_chain_frames, chain_frames, flange_frame
+from assistant.fcl_shapes import fcl_transform
 from assistant.robot_model import CollisionShape, ShapeKind
 from assistant.segment_box import segment_box_distance, segment_box_distance_one
 from assistant.transforms import make_T
@@ -103,6 +105,54 @@ def test_broad_phase_without_obstacles_or_self_pairs(rv2aj):
         np.array([[0.05, -1.0, -1.0]]), np.array([[1.0, 1.0, 1.0]]),
         np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.int64), 1, 0)
     assert env_c[0, 0, 0] and gap[0] == pytest.approx(0.05 - 0.1)
+
+
+def _reference_bounds(chk: CollisionChecker, frames: np.ndarray) -> np.ndarray:
+    """The clearance report's sphere bounds as numpy array expressions (the code before
+    the kernel): per (configuration, shape, obstacle) the smallest sphere-to-box gap of the
+    shape's spheres, -inf where a sphere reaches the box or the shape has none."""
+    F = frames[:, chk._sph_link]
+    C = (F[..., :3, :3] @ chk._sph_local[:, :, None])[..., 0] + F[..., :3, 3]
+    d = C[:, :, None, :] - np.clip(C[:, :, None, :], chk._env_lo, chk._env_hi)
+    gap = np.sqrt((d * d).sum(-1)) - chk._sph_r[None, :, None]
+    out = np.full((len(frames), len(chk._rshapes), len(chk._env_lo)), -np.inf)
+    for shape in np.unique(chk._sph_shape):
+        bound = gap[:, chk._sph_shape == shape].min(axis=1)
+        out[:, shape] = np.where(bound > 0.0, bound, -np.inf)
+    return out
+
+
+def test_clearance_bounds_match_the_numpy_formulation(crowded, rv2aj):
+    rng = np.random.default_rng(12)
+    Q = rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper, size=(1500, 5))
+    frames = rv2aj.batch_link_poses(Q)
+    got = crowded._clearance_bounds(frames)
+    ref = _reference_bounds(crowded, frames)
+    assert np.array_equal(np.isinf(got), np.isinf(ref))
+    np.testing.assert_allclose(got[np.isfinite(ref)], ref[np.isfinite(ref)], rtol=0,
+                               atol=1e-12)
+    # Bounds and "none known" both occur, shapes without spheres have none.
+    assert 0.05 < np.isfinite(got).mean() < 0.95
+    assert np.all(np.isneginf(got[:, ~np.isin(np.arange(len(crowded._rshapes)),
+                                              crowded._sph_shape)]))
+    # Bounds hold: never above FCL's distance (a sample of finite rows).
+    for k, r, e in np.argwhere(np.isfinite(got))[::997]:
+        rs = crowded._rshapes[r]
+        rs.obj.setTransform(fcl_transform(frames[k][rs.link] @ rs.shape.T_link_shape))
+        d, _ = crowded._pair_distance(rs.obj, crowded._env[e].obj)
+        assert got[k, r, e] <= d + 1e-9
+
+
+def test_clearance_bounds_direct_call():
+    """One sphere of shape 0 on link 1, shape 1 without spheres: a gap, then an overlap."""
+    frames = np.ascontiguousarray(np.broadcast_to(np.eye(4), (2, 2, 4, 4)).copy())
+    frames[1, 1, 0, 3] = 0.9  # the second configuration moves the sphere into the box
+    out = sphere_box_bounds(frames, np.array([1]), np.zeros((1, 3)), np.array([0.1]),
+                            np.array([0]), np.array([[0.5, -1.0, -1.0]]),
+                            np.array([[1.0, 1.0, 1.0]]), 2)
+    assert out.shape == (2, 2, 1)
+    assert out[0, 0, 0] == pytest.approx(0.5 - 0.1)
+    assert np.isneginf(out[1, 0, 0]) and np.all(np.isneginf(out[:, 1]))
 
 
 def test_batch_chain_frames_match_the_single_chain(rv2aj):
