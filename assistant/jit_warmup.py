@@ -19,6 +19,7 @@ import numpy as np
 from assistant.broad_phase import (
     _segment_segment_distance,
     prune_round_pairs,
+    sphere_box_bounds,
     sphere_broad_phase,
 )
 from assistant.dh import _chain_frames_kernel
@@ -33,6 +34,7 @@ from assistant.trajectory.fit_kernels import (
     fit_line,
     line_distances,
 )
+from assistant.trajectory.follow_kernel import walk_nearest
 from assistant.trajectory.net_forces import propose_moves
 from assistant.world.leaf_lookup import leaf_flags
 
@@ -40,7 +42,8 @@ from assistant.world.leaf_lookup import leaf_flags
 KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            _segment_box_distances, _segment_segment_distance, _chain_frames_kernel, tcp_poses,
            planar_position_ik, fit_line, fit_arc, line_distances, arc_distances,
-           circle_through_kernel, propose_moves, brushfire_region, leaf_flags)
+           circle_through_kernel, propose_moves, brushfire_region, leaf_flags,
+           sphere_box_bounds, walk_nearest)
 
 
 def warm_up() -> float:
@@ -50,6 +53,7 @@ def warm_up() -> float:
     from assistant.roadmap.voronoi import build_voronoi
     from assistant.robot_model import CollisionShape, ShapeKind, Tool
     from assistant.rv2aj import RV2AJ, RV2AJConfig
+    from assistant.trajectory.cartesian_follow import follow_poses
     from assistant.trajectory.elastic_net import ElasticNetParams
     from assistant.trajectory.primitives import ArcPrimitive, FitParams, fit_primitives
     from assistant.transforms import make_T
@@ -65,6 +69,8 @@ def warm_up() -> float:
     checker.min_clearance_along([q[0], q[0] + 0.3])
     tcp = robot.batch_fk(q).positions
     robot.batch_position_ik(tcp + 0.001, q, q)
+    bent = np.array([0.3, 0.2, 0.5, 0.3, 0.1])  # off the J1 axis: the batch answers
+    follow_poses(robot, np.stack([robot.fk(bent), robot.fk(bent + 0.01)]), bent)
     # a quarter circle then a straight run: lines, arcs (free and tangent) and their ends
     a = np.linspace(0.0, np.pi / 2, 12)
     arc = np.stack([0.1 * np.cos(a), 0.1 * np.sin(a), np.zeros_like(a)], axis=1)

@@ -3,6 +3,8 @@ the same joints and failures with them as with the scalar IK alone."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -98,6 +100,45 @@ def test_follow_poses_is_the_same_with_the_batch(rv2aj, rng, project):
         fails += not a.ok
     # Both outcomes were compared (unprojected, the turned orientations fail at once).
     assert 0 < fails < 60 if project else fails == 60
+
+
+class _Patchy:
+    """The robot with a batch that cannot answer every third pose: follow_poses switches
+    between the compiled walk and the scalar IK within one move, both ways."""
+
+    def __init__(self, robot):
+        self._robot = robot
+
+    def ik_candidates_batch(self, T):
+        c = self._robot.ik_candidates_batch(T)
+        exact = c.exact.copy()
+        exact[1::3] = False
+        return replace(c, exact=exact)
+
+    def __getattr__(self, name):
+        return getattr(self._robot, name)
+
+
+def test_follow_poses_resumes_the_walk_after_a_scalar_pose(rv2aj, rng):
+    scalar, patchy = _ScalarOnly(rv2aj), _Patchy(rv2aj)
+    fail_at = []
+    for _ in range(60):
+        q0 = rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper)
+        T0, T1 = rv2aj.fk(q0), rv2aj.fk(rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper))
+        u = np.linspace(0.0, 1.0, 30)
+        pts = T0[:3, 3] + u[:, None] * (T1[:3, 3] - T0[:3, 3])
+        poses = poses_from(pts, slerp_rotations(T0[:3, :3], T1[:3, :3], u))
+        a = follow_poses(patchy, poses, q0, max_joint_step=0.1)
+        b = follow_poses(scalar, poses, q0, max_joint_step=0.1)
+        assert (a.ok, a.fail_index, a.message) == (b.ok, b.fail_index, b.message)
+        assert a.joints.shape == b.joints.shape
+        assert np.abs(a.joints - b.joints).max(initial=0.0) < 1e-12
+        assert a.max_orientation_correction == pytest.approx(b.max_orientation_correction,
+                                                             abs=1e-9)
+        if not a.ok and a.fail_index:
+            fail_at.append(a.fail_index)
+    # Failures in both places: at poses the walk handles and at poses the scalar IK does.
+    assert {i % 3 == 1 for i in fail_at} == {True, False}
 
 
 def test_batched_rotations_equal_the_single_ones(rng):

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from assistant.robot_model import IKFailure, Robot
+from assistant.trajectory.follow_kernel import walk_nearest
 from assistant.transforms import axis_angle_batch, rotation_angle, rotation_vector
 
 Array = np.ndarray
@@ -43,39 +44,60 @@ def follow_poses(robot: Robot, poses: Array, q_start: Array, *, max_joint_step: 
         max_joint_step: largest change of any joint between consecutive samples (rad).
         project_orientation: replace an unreachable orientation by the robot's nearest one.
     """
-    q_prev = np.asarray(q_start, dtype=float)
-    out = []
-    worst = 0.0
+    q_prev = np.array(q_start, dtype=float)  # a contiguous copy: one compiled signature
     poses = np.asarray(poses, dtype=float)
-    # Robots with a batched closed form give every branch of every pose at once; a pose it
-    # cannot answer like `ik` (or with no solution: the reason) goes through `ik`.
+    out = np.empty((len(poses), len(q_prev)))
+    worst = 0.0
+    # Robots with a batched closed form give every branch of every pose at once; the walk
+    # over the poses it answers is compiled (`follow_kernel`), a pose it cannot answer like
+    # `ik` (or with no solution: the reason) goes through `ik`.
     batch = getattr(robot, "ik_candidates_batch", None)
     cands = batch(poses) if batch is not None and len(poses) else None
-    for i, T in enumerate(poses):
-        if cands is not None and cands.answers(i, project_orientation):
-            q = cands.nearest(i, q_prev)
-            worst = max(worst, float(cands.angle[i]))
-        else:
-            res = robot.ik(T, q_prev)
-            if (not res.ok and project_orientation and res.failure == IKFailure.ORIENTATION
-                    and res.nearest_T_base_tool is not None):
-                worst = max(worst, rotation_angle(res.nearest_T_base_tool[:3, :3].T @ T[:3, :3]))
-                res = robot.ik(res.nearest_T_base_tool, q_prev)
-            if not res.ok:
-                return FollowResult(_stack(out, q_prev), False, i,
-                                    res.message or "no IK solution", worst)
-            q = np.asarray(res.best(q_prev), dtype=float)
+    usable = None
+    if cands is not None:
+        usable = cands.exact & cands.valid.any(axis=1)
+        if not project_orientation:
+            usable &= ~cands.projected
+    i = 0
+    while i < len(poses):
+        if usable is not None and usable[i]:
+            stop, joint = walk_nearest(cands.joints, cands.valid, usable, q_prev,
+                                       max_joint_step, i, out)
+            if stop > i:
+                worst = max(worst, float(cands.angle[i:stop].max()))
+                q_prev = out[stop - 1]
+            if joint >= 0:
+                worst = max(worst, float(cands.angle[stop]))
+                return _jump(robot, out, stop, joint, out[stop] - q_prev, worst)
+            i = stop
+            continue
+        T = poses[i]
+        res = robot.ik(T, q_prev)
+        if (not res.ok and project_orientation and res.failure == IKFailure.ORIENTATION
+                and res.nearest_T_base_tool is not None):
+            worst = max(worst, rotation_angle(res.nearest_T_base_tool[:3, :3].T @ T[:3, :3]))
+            res = robot.ik(res.nearest_T_base_tool, q_prev)
+        if not res.ok:
+            return FollowResult(out[:i].copy(), False, i, res.message or "no IK solution",
+                                worst)
+        q = np.asarray(res.best(q_prev), dtype=float)
         jump = np.abs(q - q_prev)
         if jump.max() > max_joint_step:
-            j = int(np.argmax(jump))
-            name = robot.joint_names[j]
-            return FollowResult(
-                _stack(out, q_prev), False, i,
-                f"{name} would jump {np.degrees(jump[j]):.1f} deg between two samples "
-                "(arm branch change or singularity)", worst)
-        out.append(q)
+            return _jump(robot, out, i, int(np.argmax(jump)), q - q_prev, worst)
+        out[i] = q
         q_prev = q
-    return FollowResult(_stack(out, q_prev), True, None, "", worst)
+        i += 1
+    return FollowResult(out, True, None, "", worst)
+
+
+def _jump(robot: Robot, out: Array, i: int, j: int, step: Array, worst: float,
+          ) -> FollowResult:
+    """The walk stops at pose i: joint j would jump by step[j] (a branch change or a
+    singularity, where the controller would stop too)."""
+    return FollowResult(
+        out[:i].copy(), False, i,
+        f"{robot.joint_names[j]} would jump {np.degrees(abs(step[j])):.1f} deg between two "
+        "samples (arm branch change or singularity)", worst)
 
 
 def slerp_rotations(R0: Array, R1: Array, u: Array) -> Array:
@@ -98,7 +120,3 @@ def poses_from(points: Array, rotations: Array) -> Array:
     T[:, :3, 3] = points
     T[:, 3, 3] = 1.0
     return T
-
-
-def _stack(rows: list[Array], q: Array) -> Array:
-    return np.array(rows) if rows else np.zeros((0, len(q)))
