@@ -24,6 +24,7 @@ from assistant.broad_phase import (
 )
 from assistant.dh import _chain_frames_kernel
 from assistant.roadmap.brushfire import brushfire_region
+from assistant.roadmap.graph_kernel import neighbour_cells, neighbour_nodes
 from assistant.rv2aj_fk_batch import tcp_poses
 from assistant.rv2aj_position_ik import planar_position_ik
 from assistant.segment_box import _segment_box_distances, segment_box_distance_one
@@ -43,13 +44,14 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            _segment_box_distances, _segment_segment_distance, _chain_frames_kernel, tcp_poses,
            planar_position_ik, fit_line, fit_arc, line_distances, arc_distances,
            circle_through_kernel, propose_moves, brushfire_region, leaf_flags,
-           sphere_box_bounds, walk_nearest)
+           sphere_box_bounds, walk_nearest, neighbour_cells, neighbour_nodes)
 
 
 def warm_up() -> float:
     """Call each kernel through the real API, with the argument types it gets in use;
     returns the seconds it took (compiling or loading the cache)."""
     from assistant.collision import CollisionChecker, Obstacle
+    from assistant.roadmap.graph import JointGraph
     from assistant.roadmap.voronoi import build_voronoi
     from assistant.robot_model import CollisionShape, ShapeKind, Tool
     from assistant.rv2aj import RV2AJ, RV2AJConfig
@@ -82,6 +84,10 @@ def warm_up() -> float:
     source = np.zeros((4, 4, 4), dtype=np.int32)
     source[0, 0, 0], source[3, 3, 3] = 1, 2
     build_voronoi(source)
+    cells = np.arange(8, dtype=np.int64)
+    graph, _ = JointGraph.build((2, 2, 2), cells, np.arange(9), np.zeros((8, 5)),
+                                np.ones(8, bool), np.zeros(8, bool), np.zeros(8), np.ones(5))
+    graph.successors(0)
     leaf_flags(np.ascontiguousarray(tcp, dtype=float), np.full(3, -1.0), 0.0625, 32,
                np.ones(32 ** 3, dtype=bool))
     net = ElasticNetParams.final()

@@ -20,33 +20,14 @@ q_goal)|| is consistent because the penalty is >= 0.
 
 from __future__ import annotations
 
-import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from assistant.roadmap.graph_kernel import neighbour_cells, neighbour_nodes
+
 Array = np.ndarray
-
-#: The cell itself and its 26 neighbours.
-OFFSETS27 = np.array(list(itertools.product((-1, 0, 1), repeat=3)), dtype=np.int64)
-_FACES = np.array([[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]])
-
-
-def _face_matrix() -> Array:
-    """(27, 6) 0/1: which face steps a move is made of (for the squeeze rule)."""
-    M = np.zeros((27, 6), dtype=np.int64)
-    for i, o in enumerate(OFFSETS27):
-        if np.count_nonzero(o) < 2:
-            continue
-        for a in range(3):
-            if o[a]:
-                M[i, 2 * a + (0 if o[a] > 0 else 1)] = 1
-    return M
-
-
-_FACE_OF_MOVE = _face_matrix()
-
 
 @dataclass
 class JointGraph:
@@ -103,27 +84,8 @@ class JointGraph:
 
     def neighbour_cells(self, cell: int) -> Array:
         """Searchable cells one step from `cell` (itself included), squeeze rule applied."""
-        nx, ny, nz = self.shape
-        i, j, k = cell // (ny * nz), (cell // nz) % ny, cell % nz
-        ijk = np.array([i, j, k]) + OFFSETS27
-        inside = np.all((ijk >= 0) & (ijk < np.array(self.shape)), axis=1)
-        faces = np.array([i, j, k]) + _FACES
-        f_in = np.all((faces >= 0) & (faces < np.array(self.shape)), axis=1)
-        f_flat = (faces[:, 0] * ny + faces[:, 1]) * nz + faces[:, 2]
-        f_blocked = np.zeros(6, dtype=np.int64)
-        f_blocked[f_in] = self.squeeze_blocked[f_flat[f_in]]
-        squeezed = (_FACE_OF_MOVE @ f_blocked) >= 2
-        flat = (ijk[inside, 0] * ny + ijk[inside, 1]) * nz + ijk[inside, 2]
-        keep = ~squeezed[inside]
-        if len(self.squeeze_exempt):  # into or out of an exact posture's cell: any step
-            keep |= np.isin(cell, self.squeeze_exempt) | np.isin(flat, self.squeeze_exempt)
-        flat = flat[keep]
-        return flat[self.searchable[flat]]
-
-    def nodes_of(self, cells: Array) -> Array:
-        s, e = self.cell_start[cells], self.cell_start[cells + 1]
-        lens = e - s
-        return np.repeat(s - np.r_[0, np.cumsum(lens)[:-1]], lens) + np.arange(lens.sum())
+        return neighbour_cells(int(cell), *self.shape, self.searchable, self.squeeze_blocked,
+                               self.squeeze_exempt)
 
     def distance(self, q: Array, Q: Array) -> Array:
         """Weighted joint distance from q to each row of Q (metres of arm travel)."""
@@ -132,8 +94,8 @@ class JointGraph:
 
     def successors(self, u: int) -> tuple[Array, Array]:
         """(node ids, edge costs u -> v) of u's neighbours."""
-        vs = self.nodes_of(self.neighbour_cells(int(self.node_cell[u])))
-        vs = vs[vs != u]
+        vs = neighbour_nodes(int(u), int(self.node_cell[u]), *self.shape, self.searchable,
+                             self.squeeze_blocked, self.squeeze_exempt, self.cell_start)
         d = self.distance(self.node_q[u], self.node_q[vs])
         ok = d <= self.max_edge
         vs, d = vs[ok], d[ok]
