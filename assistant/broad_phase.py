@@ -35,46 +35,55 @@ def sphere_broad_phase(frames: Array, sph_link: Array, sph_local: Array, sph_r: 
     fixed base (link 0) never meet obstacles (the cell reports that overlap), only self pairs.
     """
     n = frames.shape[0]
-    n_sph = sph_r.shape[0]
-    n_env = env_lo.shape[0]
-    env_c = np.zeros((n, n_shapes, n_env), dtype=np.bool_)
+    env_c = np.zeros((n, n_shapes, env_lo.shape[0]), dtype=np.bool_)
     self_c = np.zeros((n, n_pairs), dtype=np.bool_)
     gap = np.full(n, np.inf)
-    centre = np.empty((n_sph, 3))
+    centre = np.empty((sph_r.shape[0], 3))
     for k in range(n):
-        for s in range(n_sph):
-            link = sph_link[s]
-            for a in range(3):
-                centre[s, a] = (frames[k, link, a, 0] * sph_local[s, 0]
-                                + frames[k, link, a, 1] * sph_local[s, 1]
-                                + frames[k, link, a, 2] * sph_local[s, 2]
-                                + frames[k, link, a, 3])
-        g = np.inf
-        for s in range(n_sph):
-            if sph_link[s] == 0:
-                continue
-            r = sph_r[s]
-            for e in range(n_env):
-                d2 = 0.0
-                for a in range(3):
-                    x = centre[s, a]
-                    d = x - min(max(x, env_lo[e, a]), env_hi[e, a])
-                    d2 += d * d
-                if d2 <= r * r:
-                    env_c[k, sph_shape[s], e] = True
-                g = min(g, np.sqrt(d2) - r)
-        for j in range(sp_a.shape[0]):
-            sa, sb = sp_a[j], sp_b[j]
+        gap[k] = _broad_row(frames, k, sph_link, sph_local, sph_r, sph_shape, env_lo, env_hi,
+                            sp_a, sp_b, sp_pair, centre, env_c, self_c)
+    return env_c, self_c, gap
+
+
+@njit(cache=True, inline="always")
+def _broad_row(frames: Array, k: int, sph_link: Array, sph_local: Array, sph_r: Array,
+               sph_shape: Array, env_lo: Array, env_hi: Array, sp_a: Array, sp_b: Array,
+               sp_pair: Array, centre: Array, env_c: Array, self_c: Array) -> float:
+    """`sphere_broad_phase` of row k: flags into env_c[k] and self_c[k], returns its gap
+    (`centre` is scratch space, (S, 3))."""
+    n_sph = sph_r.shape[0]
+    for s in range(n_sph):
+        link = sph_link[s]
+        for a in range(3):
+            centre[s, a] = (frames[k, link, a, 0] * sph_local[s, 0]
+                            + frames[k, link, a, 1] * sph_local[s, 1]
+                            + frames[k, link, a, 2] * sph_local[s, 2]
+                            + frames[k, link, a, 3])
+    g = np.inf
+    for s in range(n_sph):
+        if sph_link[s] == 0:
+            continue
+        r = sph_r[s]
+        for e in range(env_lo.shape[0]):
             d2 = 0.0
             for a in range(3):
-                d = centre[sa, a] - centre[sb, a]
+                x = centre[s, a]
+                d = x - min(max(x, env_lo[e, a]), env_hi[e, a])
                 d2 += d * d
-            rr = sph_r[sa] + sph_r[sb]
-            if d2 <= rr * rr:
-                self_c[k, sp_pair[j]] = True
-            g = min(g, np.sqrt(d2) - rr)
-        gap[k] = g
-    return env_c, self_c, gap
+            if d2 <= r * r:
+                env_c[k, sph_shape[s], e] = True
+            g = min(g, np.sqrt(d2) - r)
+    for j in range(sp_a.shape[0]):
+        sa, sb = sp_a[j], sp_b[j]
+        d2 = 0.0
+        for a in range(3):
+            d = centre[sa, a] - centre[sb, a]
+            d2 += d * d
+        rr = sph_r[sa] + sph_r[sb]
+        if d2 <= rr * rr:
+            self_c[k, sp_pair[j]] = True
+        g = min(g, np.sqrt(d2) - rr)
+    return g
 
 
 @njit(cache=True)
@@ -126,37 +135,47 @@ def prune_round_pairs(frames: Array, rows: Array, env_c: Array, self_c: Array,
     la = np.empty(3)
     lb = np.empty(3)
     for k in rows:
-        for s in range(n_shapes):
-            if np.isnan(seg_r[s]):
-                continue
-            F = frames[k, shape_link[s]]
-            for i in range(3):
-                A[s, i] = (F[i, 0] * seg_a[s, 0] + F[i, 1] * seg_a[s, 1]
-                           + F[i, 2] * seg_a[s, 2] + F[i, 3])
-                B[s, i] = (F[i, 0] * seg_b[s, 0] + F[i, 1] * seg_b[s, 1]
-                           + F[i, 2] * seg_b[s, 2] + F[i, 3])
-        for s in range(n_shapes):
-            if np.isnan(seg_r[s]):
-                continue
-            for e in range(env_c.shape[2]):
-                if not env_c[k, s, e]:
-                    continue
-                for i in range(3):  # R^T (x - centre): the box's frame
-                    la[i] = (box_R[e, 0, i] * (A[s, 0] - box_c[e, 0])
-                             + box_R[e, 1, i] * (A[s, 1] - box_c[e, 1])
-                             + box_R[e, 2, i] * (A[s, 2] - box_c[e, 2]))
-                    lb[i] = (box_R[e, 0, i] * (B[s, 0] - box_c[e, 0])
-                             + box_R[e, 1, i] * (B[s, 1] - box_c[e, 1])
-                             + box_R[e, 2, i] * (B[s, 2] - box_c[e, 2]))
-                if segment_box_distance_one(la, lb, box_h[e]) - seg_r[s] > apart:
-                    env_c[k, s, e] = False
-        for p in range(self_c.shape[1]):
-            a, b = pair_a[p], pair_b[p]
-            if not self_c[k, p] or np.isnan(seg_r[a]) or np.isnan(seg_r[b]):
-                continue
-            if _segment_segment_distance(A[a], B[a], A[b], B[b]) - seg_r[a] - seg_r[b] > apart:
-                self_c[k, p] = False
+        _prune_row(frames, k, env_c, self_c, shape_link, seg_a, seg_b, seg_r, box_R, box_c,
+                   box_h, pair_a, pair_b, apart, A, B, la, lb)
 
+
+@njit(cache=True, inline="always")
+def _prune_row(frames: Array, k: int, env_c: Array, self_c: Array, shape_link: Array,
+               seg_a: Array, seg_b: Array, seg_r: Array, box_R: Array, box_c: Array,
+               box_h: Array, pair_a: Array, pair_b: Array, apart: float, A: Array, B: Array,
+               la: Array, lb: Array) -> None:
+    """`prune_round_pairs` of row k (A, B, la, lb are scratch space)."""
+    n_shapes = seg_r.shape[0]
+    for s in range(n_shapes):
+        if np.isnan(seg_r[s]):
+            continue
+        F = frames[k, shape_link[s]]
+        for i in range(3):
+            A[s, i] = (F[i, 0] * seg_a[s, 0] + F[i, 1] * seg_a[s, 1]
+                       + F[i, 2] * seg_a[s, 2] + F[i, 3])
+            B[s, i] = (F[i, 0] * seg_b[s, 0] + F[i, 1] * seg_b[s, 1]
+                       + F[i, 2] * seg_b[s, 2] + F[i, 3])
+    for s in range(n_shapes):
+        if np.isnan(seg_r[s]):
+            continue
+        for e in range(env_c.shape[2]):
+            if not env_c[k, s, e]:
+                continue
+            for i in range(3):  # R^T (x - centre): the box's frame
+                la[i] = (box_R[e, 0, i] * (A[s, 0] - box_c[e, 0])
+                         + box_R[e, 1, i] * (A[s, 1] - box_c[e, 1])
+                         + box_R[e, 2, i] * (A[s, 2] - box_c[e, 2]))
+                lb[i] = (box_R[e, 0, i] * (B[s, 0] - box_c[e, 0])
+                         + box_R[e, 1, i] * (B[s, 1] - box_c[e, 1])
+                         + box_R[e, 2, i] * (B[s, 2] - box_c[e, 2]))
+            if segment_box_distance_one(la, lb, box_h[e]) - seg_r[s] > apart:
+                env_c[k, s, e] = False
+    for p in range(self_c.shape[1]):
+        a, b = pair_a[p], pair_b[p]
+        if not self_c[k, p] or np.isnan(seg_r[a]) or np.isnan(seg_r[b]):
+            continue
+        if _segment_segment_distance(A[a], B[a], A[b], B[b]) - seg_r[a] - seg_r[b] > apart:
+            self_c[k, p] = False
 
 @njit(cache=True)
 def sphere_box_bounds(frames: Array, sph_link: Array, sph_local: Array, sph_r: Array,
@@ -198,3 +217,99 @@ def sphere_box_bounds(frames: Array, sph_link: Array, sph_local: Array, sph_r: A
                 if not has[r] or out[k, r, e] <= 0.0:
                     out[k, r, e] = -np.inf
     return out
+
+
+#: `certify_samples` status per row: free by the broad phase, outside the joint limits, for
+#: FCL to decide, free by a checked neighbour's margin
+FREE, OUTSIDE_LIMITS, ASK_FCL, CERTIFIED = 0, 1, 2, 3
+
+
+@njit(cache=True)
+def certify_samples(frames: Array, Q: Array, inside: Array, first: Array, last: Array,
+                    stride: int, radii: Array, sph_link: Array, sph_local: Array,
+                    sph_r: Array, sph_shape: Array, env_lo: Array, env_hi: Array, sp_a: Array,
+                    sp_b: Array, sp_pair: Array, n_shapes: int, n_pairs: int,
+                    shape_link: Array, seg_a: Array, seg_b: Array, seg_r: Array,
+                    box_R: Array, box_c: Array, box_h: Array, pair_a: Array, pair_b: Array,
+                    apart: float) -> tuple[Array, Array, Array]:
+    """Everything of `CollisionChecker.is_valid_samples` but FCL, for motions' samples.
+
+    Rows of one motion are consecutive (`first`/`last` mark its ends); `inside` says which
+    rows are within the joint limits. Every `stride`-th row of a motion and its last get the
+    broad phase and its gap; a row whose arm travel (sum of radii x |joint change|) from
+    the checked row before or after it in its motion stays below that row's gap is free
+    (no sphere can have come near anything); the others get the broad phase themselves.
+    Pairs the broad phase passes are pruned (`prune_round_pairs`). Returns status (N,)
+    (FREE, OUTSIDE_LIMITS, ASK_FCL or CERTIFIED) and for ASK_FCL rows the candidate pairs, env_c
+    (N, n_shapes, E) and self_c (N, n_pairs), for FCL to decide.
+    """
+    n, dof = Q.shape
+    env_c = np.zeros((n, n_shapes, env_lo.shape[0]), dtype=np.bool_)
+    self_c = np.zeros((n, n_pairs), dtype=np.bool_)
+    status = np.zeros(n, dtype=np.int8)
+    centre = np.empty((sph_r.shape[0], 3))
+    A = np.empty((n_shapes, 3))
+    B = np.empty((n_shapes, 3))
+    la = np.empty(3)
+    lb = np.empty(3)
+    coarse = np.zeros(n, dtype=np.bool_)
+    # Of the coarse rows: what their gap certifies. A row the broad phase passes to FCL has
+    # a gap <= 0 (a sphere reaches something): it certifies nothing, whatever FCL says.
+    margin = np.full(n, -np.inf)
+    start = 0
+    for k in range(n):
+        if first[k]:
+            start = k
+        coarse[k] = (k - start) % stride == 0 or last[k]
+    for k in range(n):
+        if not inside[k]:
+            status[k] = OUTSIDE_LIMITS
+        elif coarse[k]:
+            margin[k] = _broad_row(frames, k, sph_link, sph_local, sph_r, sph_shape, env_lo,
+                                   env_hi, sp_a, sp_b, sp_pair, centre, env_c, self_c)
+            status[k] = _prune_and_flag(frames, k, env_c, self_c, shape_link, seg_a, seg_b,
+                                        seg_r, box_R, box_c, box_h, pair_a, pair_b, apart,
+                                        A, B, la, lb)
+    prev = -1
+    nxt = np.empty(n, dtype=np.int64)  # the next coarse row at or after each row
+    for k in range(n - 1, -1, -1):
+        nxt[k] = k if coarse[k] else prev
+        if coarse[k]:
+            prev = k
+    prev = -1
+    for k in range(n):
+        if coarse[k]:
+            prev = k
+            continue
+        if not inside[k]:
+            continue
+        free = False
+        for c in (prev, nxt[k]):
+            travel = 0.0
+            for j in range(dof):
+                travel += abs(Q[k, j] - Q[c, j]) * radii[j]
+            if margin[c] > travel + 1e-9:
+                free = True
+                break
+        if free:
+            status[k] = CERTIFIED
+            continue
+        _broad_row(frames, k, sph_link, sph_local, sph_r, sph_shape, env_lo, env_hi, sp_a,
+                   sp_b, sp_pair, centre, env_c, self_c)
+        status[k] = _prune_and_flag(frames, k, env_c, self_c, shape_link, seg_a, seg_b, seg_r,
+                                    box_R, box_c, box_h, pair_a, pair_b, apart, A, B, la, lb)
+    return status, env_c, self_c
+
+
+@njit(cache=True)
+def _prune_and_flag(frames: Array, k: int, env_c: Array, self_c: Array, shape_link: Array,
+                    seg_a: Array, seg_b: Array, seg_r: Array, box_R: Array, box_c: Array,
+                    box_h: Array, pair_a: Array, pair_b: Array, apart: float, A: Array,
+                    B: Array, la: Array, lb: Array) -> int:
+    """Prune row k's candidate pairs; ASK_FCL if any is left, else FREE."""
+    if env_c[k].any() or self_c[k].any():
+        _prune_row(frames, k, env_c, self_c, shape_link, seg_a, seg_b, seg_r, box_R, box_c,
+                   box_h, pair_a, pair_b, apart, A, B, la, lb)
+        if env_c[k].any() or self_c[k].any():
+            return ASK_FCL
+    return FREE

@@ -21,7 +21,15 @@ from typing import Protocol
 import fcl
 import numpy as np
 
-from assistant.broad_phase import prune_round_pairs, sphere_box_bounds, sphere_broad_phase
+from assistant.broad_phase import (
+    ASK_FCL,
+    CERTIFIED,
+    FREE,
+    certify_samples,
+    prune_round_pairs,
+    sphere_box_bounds,
+    sphere_broad_phase,
+)
 from assistant.fcl_shapes import covering_spheres, fcl_geometry, fcl_transform, world_aabb
 from assistant.robot_model import CollisionShape, Robot, ShapeKind
 from assistant.segment_box import axis_segment, oriented_bounds, segment_box_bounds
@@ -409,40 +417,45 @@ class CollisionChecker:
         Q holds the samples of motions in order (rows of one motion consecutive; `groups`
         tells which motion each row belongs to, all one motion if None). Every
         `CERTIFY_STRIDE`-th sample of a motion (and its last) is checked with its free margin
-        (`is_valid_batch_margin`); a sample whose arm travel from a checked neighbour of its
-        motion stays inside that neighbour's margin is free as well, and only the rest get
-        an exact check. The answers are those of `is_valid_batch` row for row (a margin is a
-        proof, and the joint limits are tested on every row); in open space a motion costs a
-        few checks instead of one per `max_step` of arm travel.
+        (as `is_valid_batch_margin`); a sample whose arm travel from a checked neighbour of
+        its motion stays inside that neighbour's margin is free as well, and only the rest
+        get an exact check. The answers are those of `is_valid_batch` row for row (a margin
+        is a proof, and the joint limits are tested on every row); in open space a motion
+        costs a few checks instead of one per `max_step` of arm travel. All but FCL runs in
+        one compiled pass (`broad_phase.certify_samples`): as numpy calls, the bookkeeping
+        of a 70-sample roadmap edge cost more than its checks.
         """
         Q = np.atleast_2d(np.asarray(Q, dtype=float))
         n = len(Q)
         stride = self.CERTIFY_STRIDE
-        if n <= 2 or stride <= 1:
+        if n <= 2 or stride <= 1 or len(self._sph_r) == 0:
             return self.is_valid_batch(Q)
-        g = np.zeros(n, dtype=np.int64) if groups is None else np.asarray(groups)
-        k = np.arange(n)
-        first = np.r_[True, g[1:] != g[:-1]]
-        last = np.r_[g[1:] != g[:-1], True]
-        start = np.maximum.accumulate(np.where(first, k, 0))
-        coarse = ((k - start) % stride == 0) | last
-        ci = np.flatnonzero(coarse)
-        ok = self.robot.limits.contains_batch(Q)
-        valid_c, margin_c = self.is_valid_batch_margin(Q[ci])
-        ok[ci] = valid_c
-        margin_c = np.where(valid_c, margin_c, -np.inf)  # an invalid sample covers nothing
-        # Checked neighbours of each sample in its own motion: the one at or before it and
-        # the one at or after it (coarse samples mark every motion's first and last row).
-        prev = np.searchsorted(ci, k, side="right") - 1
-        nxt = np.minimum(prev + 1, len(ci) - 1)
-        rest = np.flatnonzero(~coarse & ok)
-        p, q = prev[rest], nxt[rest]
-        free = ((margin_c[p] > self.travel(Q[ci[p]], Q[rest]) + 1e-9)
-                | (margin_c[q] > self.travel(Q[ci[q]], Q[rest]) + 1e-9))
-        todo = rest[~free]
-        if len(todo):
-            ok[todo] = ~self.in_collision_batch(Q[todo])
+        frames, status, env_c, self_c = self._certify(Q, groups)
+        ok = (status == FREE) | (status == CERTIFIED)
+        rows = np.flatnonzero(status == ASK_FCL)
+        if len(rows):
+            ok[rows] = ~self._first_contacts(frames[rows], env_c[rows], self_c[rows])
         return ok
+
+    def _certify(self, Q: Array, groups: Array | None) -> tuple[Array, Array, Array, Array]:
+        """Link frames of the rows of Q and `broad_phase.certify_samples`' answers for them:
+        the sampling, broad phase, margins and pruning in one compiled pass."""
+        n = len(Q)
+        g = np.zeros(n, dtype=np.int64) if groups is None else np.asarray(groups)
+        change = g[1:] != g[:-1]
+        first, last = np.r_[True, change], np.r_[change, True]
+        inside = self.robot.limits.contains_batch(Q)
+        frames = np.ascontiguousarray(
+            np.concatenate([self.robot.batch_link_poses(Q[i : i + self.chunk])
+                            for i in range(0, n, self.chunk)]), dtype=float)
+        status, env_c, self_c = certify_samples(
+            frames, np.ascontiguousarray(Q), inside, first, last, self.CERTIFY_STRIDE,
+            self._radii, self._sph_link, self._sph_local, self._sph_r, self._sph_shape,
+            self._env_lo, self._env_hi, self._sp_a, self._sp_b, self._sp_pair,
+            len(self._rshapes), len(self._self_pairs), self._shape_link, self._seg_a,
+            self._seg_b, self._seg_r, self._env_R, self._env_c, self._env_h, self._pair_a,
+            self._pair_b, self.PRUNE_APART)
+        return frames, status, env_c, self_c
 
     def travel(self, Q0: Array, Q1: Array) -> Array:
         """Upper bound (m) on how far any point of the arm moves between rows of Q0 and Q1

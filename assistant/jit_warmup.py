@@ -18,6 +18,7 @@ import numpy as np
 
 from assistant.broad_phase import (
     _segment_segment_distance,
+    certify_samples,
     prune_round_pairs,
     sphere_box_bounds,
     sphere_broad_phase,
@@ -44,7 +45,8 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            _segment_box_distances, _segment_segment_distance, _chain_frames_kernel, tcp_poses,
            planar_position_ik, fit_line, fit_arc, line_distances, arc_distances,
            circle_through_kernel, propose_moves, brushfire_region, leaf_flags,
-           sphere_box_bounds, walk_nearest, neighbour_cells, neighbour_nodes)
+           sphere_box_bounds, walk_nearest, neighbour_cells, neighbour_nodes,
+           certify_samples)
 
 
 def warm_up() -> float:
@@ -69,6 +71,7 @@ def warm_up() -> float:
     checker = CollisionChecker(robot, [block])
     checker.is_valid_batch_margin(np.vstack([q, q + 0.3]))
     checker.min_clearance_along([q[0], q[0] + 0.3])
+    checker.check_motion(q[0], q[0] + 0.3)
     tcp = robot.batch_fk(q).positions
     robot.batch_position_ik(tcp + 0.001, q, q)
     bent = np.array([0.3, 0.2, 0.5, 0.3, 0.1])  # off the J1 axis: the batch answers
