@@ -37,6 +37,9 @@ class EventPump:
         self._unsubscribe: Callable[[], None] | None = None
         self._idle = threading.Event()
         self._idle.set()
+        #: Set by `stop`: items still queued or in a batch are dropped, not drawn - after
+        #: the page stops, its handles must not be touched.
+        self._halt = threading.Event()
         self._pending = 0
         self._lock = threading.Lock()
         self.errors: list[str] = []
@@ -89,6 +92,8 @@ class EventPump:
             if any(item is _STOP for item in batch):
                 return
             for item in _coalesce(batch):
+                if self._halt.is_set():
+                    return
                 try:
                     if isinstance(item, Event):
                         self._dispatch(item)
@@ -107,7 +112,9 @@ class EventPump:
         return self._idle.wait(timeout)
 
     def stop(self) -> None:
+        """Stop drawing: the item being drawn finishes (up to 2 s), nothing after it runs."""
         self.detach()
+        self._halt.set()
         self._q.put(_STOP)
         self._thread.join(2.0)
 

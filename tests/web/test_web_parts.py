@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import threading
+import time
+from collections.abc import Callable
 from types import SimpleNamespace
 
 import numpy as np
@@ -55,6 +57,37 @@ def test_a_failing_redraw_does_not_stop_the_pump():
     assert pump.wait_idle(10)
     pump.stop()
     assert calls == ["a", "bad", "b"] and len(pump.errors) == 1
+
+
+def test_a_stopped_pump_draws_nothing_more():
+    """Items already taken in a batch when the page stops are dropped: after `App.stop` the
+    server is gone, and a handle touched then only warns ("closed connection")."""
+    ran: list[int] = []
+    gate0, gate1, entered1 = threading.Event(), threading.Event(), threading.Event()
+
+    def job(k: int) -> Callable[[], None]:
+        def run() -> None:
+            ran.append(k)
+            if k == 0:
+                gate0.wait(10)
+            if k == 1:
+                entered1.set()
+                gate1.wait(10)
+        return run
+
+    pump = EventPump(lambda ev: None)
+    pump.post(job(0))
+    for k in range(1, 6):  # queued while job 0 runs: one batch after it
+        pump.post(job(k))
+    gate0.set()
+    assert entered1.wait(10)
+    stopper = threading.Thread(target=pump.stop)
+    stopper.start()
+    while not pump._halt.is_set():
+        time.sleep(0.001)
+    gate1.set()
+    stopper.join(10)
+    assert ran == [0, 1]
 
 
 def test_pick_finds_the_face_the_ray_meets_first():
