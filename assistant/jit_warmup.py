@@ -1,13 +1,13 @@
 """Compile the numba kernels before their first use.
 
 The kernels (`broad_phase`, `segment_box`, `dh`, `rv2aj_fk_batch`, `rv2aj_position_ik`,
-`trajectory.fit_kernels`, `trajectory.net_forces`, `roadmap.brushfire`, `world.leaf_lookup`)
-compile on their first call and cache the result on disk; only the first run after an
-install pays, ~20 s for all of them on this 2-core machine. `cellteach serve` runs `warm_up`
-in a background thread at start, so that first run does not stall the operator's first world
-build or plan (a compile reports no progress); `cellteach run` and the tests call it before
-anything else, so no compile happens inside a robot link's exchange, where seconds look like
-a lost link.
+`trajectory.fit_kernels`, `trajectory.net_forces`, `trajectory.follow_kernel`,
+`roadmap.brushfire`, `roadmap.graph_kernel`, `world.leaf_lookup`) compile on their first
+call and cache the result on disk; only the first run after an install pays, ~30 s for all
+of them on this 2-core machine. `cellteach serve` runs `warm_up` in a background thread at
+start, so that first run does not stall the operator's first world build or plan (a compile
+reports no progress); `cellteach run` and the tests call it before anything else, so no
+compile happens inside a robot link's exchange, where seconds look like a lost link.
 """
 
 from __future__ import annotations
