@@ -80,23 +80,31 @@ class _ScalarOnly:
         return getattr(self._robot, name)
 
 
+def _random_move(robot: RV2AJ, rng: np.random.Generator, n: int):
+    """A straight TCP move of n poses from a random posture q0 to another one's pose."""
+    q0 = rng.uniform(robot.limits.lower, robot.limits.upper)
+    T0, T1 = robot.fk(q0), robot.fk(rng.uniform(robot.limits.lower, robot.limits.upper))
+    u = np.linspace(0.0, 1.0, n)
+    pts = T0[:3, 3] + u[:, None] * (T1[:3, 3] - T0[:3, 3])
+    return q0, poses_from(pts, slerp_rotations(T0[:3, :3], T1[:3, :3], u))
+
+
+def _assert_same_follow(a, b) -> None:
+    assert (a.ok, a.fail_index, a.message) == (b.ok, b.fail_index, b.message)
+    assert a.joints.shape == b.joints.shape
+    assert np.abs(a.joints - b.joints).max(initial=0.0) < 1e-12
+    assert a.max_orientation_correction == pytest.approx(b.max_orientation_correction, abs=1e-9)
+
+
 @pytest.mark.parametrize("project", [True, False])
 def test_follow_poses_is_the_same_with_the_batch(rv2aj, rng, project):
     scalar = _ScalarOnly(rv2aj)
     fails = 0
     for _ in range(60):
-        q0 = rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper)
-        T0, T1 = rv2aj.fk(q0), rv2aj.fk(rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper))
-        u = np.linspace(0.0, 1.0, 40)
-        pts = T0[:3, 3] + u[:, None] * (T1[:3, 3] - T0[:3, 3])
-        poses = poses_from(pts, slerp_rotations(T0[:3, :3], T1[:3, :3], u))
+        q0, poses = _random_move(rv2aj, rng, 40)
         a = follow_poses(rv2aj, poses, q0, max_joint_step=0.1, project_orientation=project)
         b = follow_poses(scalar, poses, q0, max_joint_step=0.1, project_orientation=project)
-        assert (a.ok, a.fail_index, a.message) == (b.ok, b.fail_index, b.message)
-        assert a.joints.shape == b.joints.shape
-        assert np.abs(a.joints - b.joints).max(initial=0.0) < 1e-12
-        assert a.max_orientation_correction == pytest.approx(b.max_orientation_correction,
-                                                             abs=1e-9)
+        _assert_same_follow(a, b)
         fails += not a.ok
     # Both outcomes were compared (unprojected, the turned orientations fail at once).
     assert 0 < fails < 60 if project else fails == 60
@@ -123,18 +131,10 @@ def test_follow_poses_resumes_the_walk_after_a_scalar_pose(rv2aj, rng):
     scalar, patchy = _ScalarOnly(rv2aj), _Patchy(rv2aj)
     fail_at = []
     for _ in range(60):
-        q0 = rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper)
-        T0, T1 = rv2aj.fk(q0), rv2aj.fk(rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper))
-        u = np.linspace(0.0, 1.0, 30)
-        pts = T0[:3, 3] + u[:, None] * (T1[:3, 3] - T0[:3, 3])
-        poses = poses_from(pts, slerp_rotations(T0[:3, :3], T1[:3, :3], u))
+        q0, poses = _random_move(rv2aj, rng, 30)
         a = follow_poses(patchy, poses, q0, max_joint_step=0.1)
         b = follow_poses(scalar, poses, q0, max_joint_step=0.1)
-        assert (a.ok, a.fail_index, a.message) == (b.ok, b.fail_index, b.message)
-        assert a.joints.shape == b.joints.shape
-        assert np.abs(a.joints - b.joints).max(initial=0.0) < 1e-12
-        assert a.max_orientation_correction == pytest.approx(b.max_orientation_correction,
-                                                             abs=1e-9)
+        _assert_same_follow(a, b)
         if not a.ok and a.fail_index:
             fail_at.append(a.fail_index)
     # Failures in both places: at poses the walk handles and at poses the scalar IK does.
