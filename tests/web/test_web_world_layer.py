@@ -27,10 +27,14 @@ def world_layer(tmp_path):
     server = viser.ViserServer(host="127.0.0.1", port=_free_port(), verbose=False)
     try:
         app = build_app(session, server)
-        yield app.scene_layers.world
-    finally:
+    except BaseException:
         session.close()
         server.stop()
+        raise
+    try:
+        yield app.scene_layers.world
+    finally:
+        app.stop()  # the UI thread first: left running, it drew on the stopped server
 
 
 def _block(n: int) -> np.ndarray:
