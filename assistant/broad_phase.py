@@ -53,23 +53,14 @@ def _broad_row(frames: Array, k: int, sph_link: Array, sph_local: Array, sph_r: 
     (`centre` is scratch space, (S, 3))."""
     n_sph = sph_r.shape[0]
     for s in range(n_sph):
-        link = sph_link[s]
-        for a in range(3):
-            centre[s, a] = (frames[k, link, a, 0] * sph_local[s, 0]
-                            + frames[k, link, a, 1] * sph_local[s, 1]
-                            + frames[k, link, a, 2] * sph_local[s, 2]
-                            + frames[k, link, a, 3])
+        _sphere_centre(frames, k, sph_link[s], sph_local[s], centre[s])
     g = np.inf
     for s in range(n_sph):
         if sph_link[s] == 0:
             continue
         r = sph_r[s]
         for e in range(env_lo.shape[0]):
-            d2 = 0.0
-            for a in range(3):
-                x = centre[s, a]
-                d = x - min(max(x, env_lo[e, a]), env_hi[e, a])
-                d2 += d * d
+            d2 = _box_dist2(centre[s], env_lo[e], env_hi[e])
             if d2 <= r * r:
                 env_c[k, sph_shape[s], e] = True
             g = min(g, np.sqrt(d2) - r)
@@ -84,6 +75,24 @@ def _broad_row(frames: Array, k: int, sph_link: Array, sph_local: Array, sph_r: 
             self_c[k, sp_pair[j]] = True
         g = min(g, np.sqrt(d2) - rr)
     return g
+
+
+@njit(cache=True, inline="always")
+def _sphere_centre(frames: Array, k: int, link: int, local: Array, out: Array) -> None:
+    """Centre (base frame) of a sphere at `local` in link `link`, configuration k."""
+    for a in range(3):
+        out[a] = (frames[k, link, a, 0] * local[0] + frames[k, link, a, 1] * local[1]
+                  + frames[k, link, a, 2] * local[2] + frames[k, link, a, 3])
+
+
+@njit(cache=True, inline="always")
+def _box_dist2(c: Array, lo: Array, hi: Array) -> float:
+    """Squared distance of point c to the axis-aligned box lo..hi (0 inside)."""
+    d2 = 0.0
+    for a in range(3):
+        d = c[a] - min(max(c[a], lo[a]), hi[a])
+        d2 += d * d
+    return d2
 
 
 @njit(cache=True)
@@ -177,6 +186,7 @@ def _prune_row(frames: Array, k: int, env_c: Array, self_c: Array, shape_link: A
         if _segment_segment_distance(A[a], B[a], A[b], B[b]) - seg_r[a] - seg_r[b] > apart:
             self_c[k, p] = False
 
+
 @njit(cache=True)
 def sphere_box_bounds(frames: Array, sph_link: Array, sph_local: Array, sph_r: Array,
                       sph_shape: Array, env_lo: Array, env_hi: Array, n_shapes: int) -> Array:
@@ -197,19 +207,10 @@ def sphere_box_bounds(frames: Array, sph_link: Array, sph_local: Array, sph_r: A
     c = np.empty(3)
     for k in range(n):
         for s in range(sph_r.shape[0]):
-            link = sph_link[s]
-            for a in range(3):
-                c[a] = (frames[k, link, a, 0] * sph_local[s, 0]
-                        + frames[k, link, a, 1] * sph_local[s, 1]
-                        + frames[k, link, a, 2] * sph_local[s, 2]
-                        + frames[k, link, a, 3])
+            _sphere_centre(frames, k, sph_link[s], sph_local[s], c)
             owner = sph_shape[s]
             for e in range(n_env):
-                d2 = 0.0
-                for a in range(3):
-                    d = c[a] - min(max(c[a], env_lo[e, a]), env_hi[e, a])
-                    d2 += d * d
-                g = np.sqrt(d2) - sph_r[s]
+                g = np.sqrt(_box_dist2(c, env_lo[e], env_hi[e])) - sph_r[s]
                 if g < out[k, owner, e]:
                     out[k, owner, e] = g
         for r in range(n_shapes):
