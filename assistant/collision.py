@@ -457,10 +457,38 @@ class CollisionChecker:
             self._pair_b, self.PRUNE_APART)
         return frames, status, env_c, self_c
 
+    def net_kernel_checker(self) -> tuple | None:
+        """The broad phase's and the pruning's arrays in `trajectory.net_kernel`'s order,
+        or None without covering spheres (the broad phase then has nothing to decide)."""
+        if len(self._sph_r) == 0:
+            return None
+        return (self._radii, self._sph_link, self._sph_local, self._sph_r, self._sph_shape,
+                self._env_lo, self._env_hi, self._sp_a, self._sp_b, self._sp_pair,
+                len(self._rshapes), len(self._self_pairs), self._shape_link, self._seg_a,
+                self._seg_b, self._seg_r, self._env_R, self._env_c, self._env_h,
+                self._pair_a, self._pair_b, float(self.PRUNE_APART))
+
+    def net_kernel_validity(self) -> tuple[tuple, Array, Array, object] | None:
+        """(`net_kernel_checker`, recorded postures, box half-widths, exact check): the
+        validity of the elastic net's particles for `trajectory.net_kernel`, no recorded
+        collisions here (see `KnownValidity`)."""
+        model = self.net_kernel_checker()
+        if model is None:
+            return None
+        dof = len(self._radii)
+        return model, np.zeros((0, dof)), np.full(dof, np.inf), self._first_contacts
+
     def travel(self, Q0: Array, Q1: Array) -> Array:
         """Upper bound (m) on how far any point of the arm moves between rows of Q0 and Q1
         (straight joint motion): sum(arm radius x |joint change|)."""
-        return np.abs(np.asarray(Q1, dtype=float) - np.asarray(Q0, dtype=float)) @ self._radii
+        d = np.abs(np.asarray(Q1, dtype=float) - np.asarray(Q0, dtype=float))
+        # Summed joint by joint, in order, like the compiled checks (`certify_samples`,
+        # `net_kernel`): a matrix product may add in another order, and the certificates
+        # must come out the same to the bit on every path.
+        out = d[..., 0] * self._radii[0]
+        for j in range(1, len(self._radii)):
+            out = out + d[..., j] * self._radii[j]
+        return out
 
     def _collide_batch(self, Q: Array, with_gap: bool) -> tuple[Array, Array | None]:
         Q = np.atleast_2d(np.asarray(Q, dtype=float))

@@ -102,20 +102,28 @@ def _chain_frames_kernel(Q: Array, F: Array) -> Array:
     out = np.zeros((N, n + 1, 4, 4))
     T = np.empty((4, 4))
     for k in range(N):
-        T[:] = 0.0
-        for r in range(4):
-            T[r, r] = 1.0
-        out[k, 0] = T
-        for i in range(n):
-            c, s = np.cos(Q[k, i]), np.sin(Q[k, i])
-            Ti = out[k, i + 1]
-            for r in range(4):  # T @ Rz(q_i) changes only the first two columns
-                Ti[r, 0] = c * T[r, 0] + s * T[r, 1]
-                Ti[r, 1] = c * T[r, 1] - s * T[r, 0]
-                Ti[r, 2] = T[r, 2]
-                Ti[r, 3] = T[r, 3]
-            for r in range(4):
-                for col in range(4):
-                    T[r, col] = (Ti[r, 0] * F[i, 0, col] + Ti[r, 1] * F[i, 1, col]
-                                 + Ti[r, 2] * F[i, 2, col] + Ti[r, 3] * F[i, 3, col])
+        chain_row(Q[k], F, out[k], T)
     return out
+
+
+@njit(cache=True, inline="always")
+def chain_row(q: Array, F: Array, out: Array, T: Array) -> None:
+    """`_chain_frames_kernel` of one configuration q into out (n+1, 4, 4); T is scratch.
+    Also called per row by compiled planners (`trajectory.net_kernel`)."""
+    n = q.shape[0]
+    T[:] = 0.0
+    for r in range(4):
+        T[r, r] = 1.0
+    out[0] = T
+    for i in range(n):
+        c, s = np.cos(q[i]), np.sin(q[i])
+        Ti = out[i + 1]
+        for r in range(4):  # T @ Rz(q_i) changes only the first two columns
+            Ti[r, 0] = c * T[r, 0] + s * T[r, 1]
+            Ti[r, 1] = c * T[r, 1] - s * T[r, 0]
+            Ti[r, 2] = T[r, 2]
+            Ti[r, 3] = T[r, 3]
+        for r in range(4):
+            for col in range(4):
+                T[r, col] = (Ti[r, 0] * F[i, 0, col] + Ti[r, 1] * F[i, 1, col]
+                             + Ti[r, 2] * F[i, 2, col] + Ti[r, 3] * F[i, 3, col])

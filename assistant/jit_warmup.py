@@ -1,7 +1,8 @@
 """Compile the numba kernels before their first use.
 
 The kernels (`broad_phase`, `segment_box`, `dh`, `rv2aj_fk_batch`, `rv2aj_position_ik`,
-`trajectory.fit_kernels`, `trajectory.net_forces`, `trajectory.follow_kernel`,
+`trajectory.fit_kernels`, `trajectory.net_forces`, `trajectory.net_kernel`,
+`trajectory.follow_kernel`,
 `roadmap.brushfire`, `roadmap.graph_kernel`, `world.leaf_lookup`) compile on their first
 call and cache the result on disk; only the first run after an install pays, ~30 s for all
 of them on this 2-core machine. `cellteach serve` runs `warm_up` in a background thread at
@@ -38,6 +39,7 @@ from assistant.trajectory.fit_kernels import (
 )
 from assistant.trajectory.follow_kernel import walk_nearest
 from assistant.trajectory.net_forces import propose_moves
+from assistant.trajectory.net_kernel import apply_moves, check_moves
 from assistant.world.leaf_lookup import leaf_flags
 
 #: Every compiled entry point (the test checks `warm_up` compiles each of them).
@@ -46,7 +48,7 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            planar_position_ik, fit_line, fit_arc, line_distances, arc_distances,
            circle_through_kernel, propose_moves, brushfire_region, leaf_flags,
            sphere_box_bounds, walk_nearest, neighbour_cells, neighbour_nodes,
-           certify_samples)
+           certify_samples, check_moves, apply_moves)
 
 
 def warm_up() -> float:
@@ -58,7 +60,7 @@ def warm_up() -> float:
     from assistant.robot_model import CollisionShape, ShapeKind, Tool
     from assistant.rv2aj import RV2AJ, RV2AJConfig
     from assistant.trajectory.cartesian_follow import follow_poses
-    from assistant.trajectory.elastic_net import ElasticNetParams
+    from assistant.trajectory.elastic_net import ElasticNetParams, run_elastic_net
     from assistant.trajectory.primitives import ArcPrimitive, FitParams, fit_primitives
     from assistant.transforms import make_T
 
@@ -93,6 +95,14 @@ def warm_up() -> float:
     graph.successors(0)
     leaf_flags(np.ascontiguousarray(tcp, dtype=float), np.full(3, -1.0), 0.0625, 32,
                np.ones(32 ** 3, dtype=bool))
+    # a short net on the RV-2AJ: its compiled move test (`net_kernel`), and the kernel that
+    # applies the moves FCL clears, called from Python with no rows
+    short = ElasticNetParams.final(stage1_iterations=2, stage2_iterations=1)
+    res = run_elastic_net(robot, np.stack([bent, bent + 0.05]), validity=checker, params=short)
+    P, Q = res.particles.points.copy(), res.particles.joints.copy()
+    none = np.zeros(0, dtype=np.int64)
+    apply_moves(P, Q, none, np.zeros(0, dtype=bool), Q[:0], P[:0], np.zeros(0), np.zeros(0),
+                Q.copy(), np.zeros(len(Q)), np.zeros(len(Q)))
     net = ElasticNetParams.final()
     for stage in (1, 2):
         propose_moves(arc, stage, 0.5, net.c_equidistance, net.c_rotation, net.c_shrink,

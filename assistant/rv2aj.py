@@ -64,6 +64,9 @@ JOINT_NAMES = ["J1", "J2", "J3", "J5", "J6"]
 _R0 = flange_frame(RV2AJ_DH, np.zeros(5))[:3, :3]
 #: (L1, L2, L3, L6) for the compiled TCP poses and position IK.
 _ARM = np.array([L1, L2, L3, L6])
+#: `RV2AJ.batch_position_ik`'s search for a workable tool pitch around the pulled one (rad)
+PITCH_WINDOW = float(np.radians(40.0))
+PITCH_STEP = float(np.radians(1.0))
 
 
 @dataclass(frozen=True)
@@ -303,8 +306,8 @@ class RV2AJ(Robot):
 
     def batch_position_ik(self, targets: Array, seeds: Array, reference: Array | None = None,
                           *, gain: float = 0.5, max_jump: float = 0.25,
-                          pitch_window: float = np.radians(40.0),
-                          pitch_step: float = np.radians(1.0)) -> tuple[Array, Array] | None:
+                          pitch_window: float = PITCH_WINDOW,
+                          pitch_step: float = PITCH_STEP) -> tuple[Array, Array] | None:
         """Position-only IK next to seeds for many TCP points at once, in closed form.
 
         Why: the elastic net asks this for every moved particle in every iteration. After
@@ -348,6 +351,20 @@ class RV2AJ(Robot):
                                   float(max_jump), lim.lower, lim.upper,
                                   int(np.floor(pitch_window / pitch_step))
                                   if pitch_window > 0.0 else 0, float(pitch_step))
+
+    def net_kernel_robot(self) -> tuple | None:
+        """The constants `trajectory.net_kernel.check_moves` needs for the elastic net's
+        moves (`batch_position_ik` with its default pitch search, `batch_fk`, the link
+        frames of `batch_link_poses`); None when the tool is off the flange axis."""
+        p_ft = self.T_flange_tool[:3, 3]
+        if abs(p_ft[0]) > 1e-12 or abs(p_ft[1]) > 1e-12:
+            return None
+        BP, BM, BK, v = self._batch_consts
+        lim = self.limits
+        return (_ARM, float(p_ft[2]), lim.lower, lim.upper,
+                int(np.floor(PITCH_WINDOW / PITCH_STEP)), float(PITCH_STEP), BP, BM, BK,
+                np.zeros(3) if v is None else v, v is not None,
+                np.ascontiguousarray(self.chain.fixed_stack, dtype=float))
 
     def _ik_position_only(self, p_target: Array, seed: Array | None) -> IKResult:
         """Any orientation: scan the approach pitch in the arm plane, keep solutions in limits.

@@ -24,35 +24,43 @@ def tcp_poses(Q: Array, arm: Array, BP: Array, BM: Array, BK: Array, v: Array,
     sits at p_flange + R v (v = R_ft^T p_ft) when the tool has an offset. `arm` holds
     (L1, L2, L3, L6).
     """
-    L1, L2, L3, L6 = arm[0], arm[1], arm[2], arm[3]
     n = Q.shape[0]
     pos = np.empty((n, 3))
     rot = np.empty((n, 3, 3))
     for k in range(n):
-        q1, q2, q3, q5, q6 = Q[k, 0], Q[k, 1], Q[k, 2], Q[k, 3], Q[k, 4]
-        c1, s1 = np.cos(q1), np.sin(q1)
-        a23 = q2 + q3
-        s = a23 + q5
-        cs, ss = np.cos(s), np.sin(s)
-        c6, s6 = np.cos(q6), np.sin(q6)
-        r = L2 * np.sin(q2) + L3 * np.sin(a23) + L6 * ss
-        z = L2 * np.cos(q2) + L3 * np.cos(a23) + L6 * cs + L1
-        for j in range(3):
-            b0 = c6 * BP[0, j] + s6 * BM[0, j] + BK[0, j]
-            b1 = c6 * BP[1, j] + s6 * BM[1, j] + BK[1, j]
-            b2 = c6 * BP[2, j] + s6 * BM[2, j] + BK[2, j]
-            c0 = cs * b0 + ss * b2
-            rot[k, 0, j] = c1 * c0 - s1 * b1
-            rot[k, 1, j] = s1 * c0 + c1 * b1
-            rot[k, 2, j] = cs * b2 - ss * b0
-        if tool_offset:
-            for i in range(3):
-                pos[k, i] = rot[k, i, 0] * v[0] + rot[k, i, 1] * v[1] + rot[k, i, 2] * v[2]
-            pos[k, 0] += r * c1
-            pos[k, 1] += r * s1
-            pos[k, 2] += z
-        else:
-            pos[k, 0] = r * c1
-            pos[k, 1] = r * s1
-            pos[k, 2] = z
+        tcp_row(Q[k], arm, BP, BM, BK, v, tool_offset, pos[k], rot[k])
     return pos, rot
+
+
+@njit(cache=True, inline="always")
+def tcp_row(q: Array, arm: Array, BP: Array, BM: Array, BK: Array, v: Array,
+            tool_offset: bool, pos: Array, rot: Array) -> None:
+    """`tcp_poses` of one configuration q (5,) into pos (3,) and rot (3, 3); also called
+    per row by compiled planners (`trajectory.net_kernel`)."""
+    L1, L2, L3, L6 = arm[0], arm[1], arm[2], arm[3]
+    q1, q2, q3, q5, q6 = q[0], q[1], q[2], q[3], q[4]
+    c1, s1 = np.cos(q1), np.sin(q1)
+    a23 = q2 + q3
+    s = a23 + q5
+    cs, ss = np.cos(s), np.sin(s)
+    c6, s6 = np.cos(q6), np.sin(q6)
+    r = L2 * np.sin(q2) + L3 * np.sin(a23) + L6 * ss
+    z = L2 * np.cos(q2) + L3 * np.cos(a23) + L6 * cs + L1
+    for j in range(3):
+        b0 = c6 * BP[0, j] + s6 * BM[0, j] + BK[0, j]
+        b1 = c6 * BP[1, j] + s6 * BM[1, j] + BK[1, j]
+        b2 = c6 * BP[2, j] + s6 * BM[2, j] + BK[2, j]
+        c0 = cs * b0 + ss * b2
+        rot[0, j] = c1 * c0 - s1 * b1
+        rot[1, j] = s1 * c0 + c1 * b1
+        rot[2, j] = cs * b2 - ss * b0
+    if tool_offset:
+        for i in range(3):
+            pos[i] = rot[i, 0] * v[0] + rot[i, 1] * v[1] + rot[i, 2] * v[2]
+        pos[0] += r * c1
+        pos[1] += r * s1
+        pos[2] += z
+    else:
+        pos[0] = r * c1
+        pos[1] = r * s1
+        pos[2] = z

@@ -68,19 +68,27 @@ def planar_position_ik(targets: Array, seeds: Array, pitch: Array, q6: Array, ar
     ok = np.zeros(n, dtype=np.bool_)
     q = np.empty(5)
     for i in range(n):
-        tx, ty, tz = targets[i, 0], targets[i, 1], targets[i, 2]
-        found = _planar(tx, ty, tz, seeds[i], pitch[i], q6[i], arm, tool_length, max_jump,
-                        lower, upper, q)
-        m = 1
-        while not found and m <= n_steps:
-            off = m * step
-            found = _planar(tx, ty, tz, seeds[i], pitch[i] + off, q6[i], arm, tool_length,
-                            max_jump, lower, upper, q)
-            if not found:
-                found = _planar(tx, ty, tz, seeds[i], pitch[i] - off, q6[i], arm,
-                                tool_length, max_jump, lower, upper, q)
-            m += 1
-        if found:
+        if solve_row(targets[i, 0], targets[i, 1], targets[i, 2], seeds[i], pitch[i], q6[i],
+                     arm, tool_length, max_jump, lower, upper, n_steps, step, q):
             Q[i] = q
             ok[i] = True
     return Q, ok
+
+
+@njit(cache=True, inline="always")
+def solve_row(tx: float, ty: float, tz: float, seed: Array, pitch: float, q6: float,
+              arm: Array, tool_length: float, max_jump: float, lower: Array, upper: Array,
+              n_steps: int, step: float, q: Array) -> bool:
+    """`planar_position_ik` of one row into q; True if a pitch worked. Also called per row
+    by compiled planners (`trajectory.net_kernel`)."""
+    found = _planar(tx, ty, tz, seed, pitch, q6, arm, tool_length, max_jump, lower, upper, q)
+    m = 1
+    while not found and m <= n_steps:
+        off = m * step
+        found = _planar(tx, ty, tz, seed, pitch + off, q6, arm, tool_length, max_jump,
+                        lower, upper, q)
+        if not found:
+            found = _planar(tx, ty, tz, seed, pitch - off, q6, arm, tool_length, max_jump,
+                            lower, upper, q)
+        m += 1
+    return found

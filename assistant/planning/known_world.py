@@ -40,6 +40,11 @@ class WorldAllowed:
         """Re-read the grid after the world changed (an indication, an observation)."""
         self._free = self.world.free().reshape(-1)
 
+    def grid_flags(self) -> tuple[Array, float, int, Array]:
+        """(origin, leaf, n, flat free flags): what `__call__` reads, for compiled callers."""
+        g = self.world.grid
+        return g.origin, float(g.leaf), int(g.n), self._free
+
     def __call__(self, points: Array) -> Array:
         g = self.world.grid
         P = np.ascontiguousarray(np.atleast_2d(np.asarray(points, dtype=float)))
@@ -76,6 +81,22 @@ class KnownValidity:
 
     def travel(self, Q0: Array, Q1: Array) -> Array:
         return self.checker.travel(Q0, Q1)
+
+    def net_kernel_validity(self) -> tuple[tuple, Array, Array, object] | None:
+        """`CollisionChecker.net_kernel_validity` with the recorded collision postures
+        (but the exempt ones) and their boxes (`indications.near_posture`)."""
+        base = self.checker.net_kernel_validity()
+        if base is None:
+            return None
+        model, rec_q, half, exact = base
+        table = self.world.table
+        kept = [rc.q for i, rc in enumerate(self.world.collisions) if i not in self.exempt]
+        if table is None or not kept:
+            return base
+        varying = table.counts > 1
+        half = np.full(rec_q.shape[1], np.inf)
+        half[varying] = self.world.config.indication.joint_steps * table.step[varying] + 1e-12
+        return model, np.array(kept, dtype=float), half, exact
 
     def first_invalid_fraction(self, q0: Array, q1: Array) -> float | None:
         mc = KnownVerifier(self.checker, self.world).check_motion(q0, q1, self.exempt)

@@ -72,6 +72,13 @@ import numpy as np
 from assistant.progress import Progress
 from assistant.robot_model import Robot
 from assistant.trajectory.net_forces import propose_moves
+from assistant.trajectory.net_kernel import (
+    ACCEPTED,
+    ASK_FCL,
+    NetKernelModel,
+    apply_moves,
+    check_moves,
+)
 from assistant.trajectory.particles import (
     Particles,
     polyline_length,
@@ -172,6 +179,8 @@ class ElasticNetResult:
     rejected_moves: int
     accepted_moves: int
     seconds: float
+    #: Moves whose exact check a free margin made unnecessary (`MarginValidity`).
+    certified_moves: int = 0
 
     @property
     def iterations(self) -> int:
@@ -227,7 +236,8 @@ def relax(
     s1 = net.run_stage(1, params.stage1_iterations, progress, 0.0, total)
     s2 = net.run_stage(2, params.stage2_iterations, progress, s1.iterations, total)
     return ElasticNetResult(Particles(net.P.copy(), net.Q.copy()), particles, s1, s2,
-                            net.rejected, net.accepted, time.perf_counter() - t0)
+                            net.rejected, net.accepted, time.perf_counter() - t0,
+                            net.certified_moves)
 
 
 def turn_angles(P: Array) -> Array:
@@ -269,6 +279,8 @@ class _Net:
             valid, margin = validity.is_valid_batch_margin(self.Q)
             self._ref_margin = np.where(np.asarray(valid, bool), margin, -np.inf)
             self._gap = self._ref_margin.copy()
+        self._kernel = (_kernel_model(robot, allowed, validity)
+                        if self._certify and COMPILED_MOVES else None)
 
     # ---------------------------------------------------------------- stages
     def run_stage(self, stage: int, budget: int, progress: Progress | None, done: int,
@@ -342,6 +354,8 @@ class _Net:
         Edge midpoints are probed against both the old and the tentative position of each
         neighbour, since the neighbour's own move may be accepted or not.
         """
+        if self._kernel is not None:
+            return self._try_moves_compiled(idx, D, trial)
         new_P = self.P[idx] + D
         ok = np.ones(len(idx), dtype=bool)
         if self.allowed is not None:
@@ -384,6 +398,27 @@ class _Net:
                             np.asarray(self.robot.batch_fk(Qn[pos]).positions, dtype=float))
         return ok
 
+    def _try_moves_compiled(self, idx: Array, D: Array, trial: Array) -> Array:
+        """`try_moves` in one compiled pass (`net_kernel.check_moves`); FCL decides here
+        the few moves the broad phase could not clear."""
+        km, p = self._kernel, self.p
+        grid = km.grid if km.grid is not None else _NO_GRID
+        status, Qn, Pn, margin, gap, frames, env_c, self_c, certified = check_moves(
+            self.P, self.Q, idx, D, trial, *grid, km.grid is not None,
+            p.check_edge_midpoints, km.robot, km.checker, km.recorded_q, km.recorded_half,
+            p.ik.nullspace_gain, p.ik.max_joint_jump, p.ik.tolerance * 10.0, self._ref_Q,
+            self._ref_margin, self._gap, p.min_gap)
+        self.certified_moves += certified
+        ask = np.flatnonzero(status == ASK_FCL)
+        if len(ask):
+            free = ask[~km.first_contacts(frames[ask], env_c[ask], self_c[ask])]
+            rows = np.zeros(len(idx), dtype=bool)
+            rows[free] = True
+            apply_moves(self.P, self.Q, idx, rows, Qn, Pn, margin, gap, self._ref_Q,
+                        self._ref_margin, self._gap)
+            status[free] = ACCEPTED
+        return status == ACCEPTED
+
     def _check_certified(self, particles: Array, Q: Array) -> tuple[Array, Array, Array]:
         """Validity of new joints Q for these particles, skipping the exact check where the
         arm travel from the particle's last exact check stays inside its free margin (less
@@ -400,3 +435,30 @@ class _Net:
         if need > 0.0:  # nearer than min_gap, and nearer than the particle was: refused
             valid &= ~(~sure & (margin < need) & (margin < self._gap[particles]))
         return valid, margin, gap
+
+
+#: Use the compiled move test (`net_kernel`) where robot, validity and `allowed` provide
+#: its pieces; False forces the numpy path (the tests compare the two).
+COMPILED_MOVES = True
+
+_NO_GRID = (np.zeros(3), 1.0, 0, np.zeros(0, dtype=bool))
+
+
+def _kernel_model(robot: Robot, allowed: AllowedFn | None,
+                  validity: ValidityChecker | None) -> NetKernelModel | None:
+    """The compiled move test's model, or None when a piece has no compiled form: a robot
+    without `net_kernel_robot` (or with a tool off the flange axis), a validity without
+    `net_kernel_validity`, an `allowed` without `grid_flags`."""
+    robot_hook = getattr(robot, "net_kernel_robot", None)
+    validity_hook = getattr(validity, "net_kernel_validity", None)
+    if robot_hook is None or validity_hook is None:
+        return None
+    if allowed is not None and not hasattr(allowed, "grid_flags"):
+        return None
+    rob, val = robot_hook(), validity_hook()
+    if rob is None or val is None:
+        return None
+    checker, rec_q, rec_half, exact = val
+    grid = allowed.grid_flags() if allowed is not None else None
+    return NetKernelModel(rob, checker, np.ascontiguousarray(rec_q, dtype=float),
+                          np.ascontiguousarray(rec_half, dtype=float), exact, grid)

@@ -22,14 +22,18 @@ def leaf_flags(points: Array, origin: Array, leaf: float, n: int, flags: Array) 
     """
     out = np.zeros(len(points), dtype=np.bool_)
     for p in range(len(points)):
-        flat = 0
-        inside = True
-        for a in range(3):
-            f = np.floor((points[p, a] - origin[a]) / leaf)
-            if not (f >= 0.0 and f < n):
-                inside = False
-                break
-            flat = flat * n + int(f)
-        if inside:
-            out[p] = flags[flat]
+        out[p] = leaf_flag(points[p, 0], points[p, 1], points[p, 2], origin, leaf, n, flags)
     return out
+
+
+@njit(cache=True, inline="always")
+def leaf_flag(x: float, y: float, z: float, origin: Array, leaf: float, n: int,
+              flags: Array) -> bool:
+    """`leaf_flags` of one point; also called per point by compiled planners
+    (`trajectory.net_kernel`)."""
+    fx = np.floor((x - origin[0]) / leaf)
+    fy = np.floor((y - origin[1]) / leaf)
+    fz = np.floor((z - origin[2]) / leaf)
+    if not (fx >= 0.0 and fx < n and fy >= 0.0 and fy < n and fz >= 0.0 and fz < n):
+        return False
+    return flags[(int(fx) * n + int(fy)) * n + int(fz)]

@@ -216,26 +216,20 @@ class _PlainValidity:
         return self.checker.first_invalid_fraction(q0, q1)
 
 
-def test_certified_moves_give_exactly_the_exactly_checked_net(rv2aj, monkeypatch):
+@pytest.mark.parametrize("compiled", [True, False])
+def test_certified_moves_give_exactly_the_exactly_checked_net(rv2aj, monkeypatch, compiled):
     """Moves that stay inside a particle's free margin skip FCL; the result must not change
-    by a single bit, and the shortcut must really be taken."""
+    by a single bit, and the shortcut must really be taken (by the compiled move test and
+    by the numpy one)."""
     import assistant.trajectory.elastic_net as en
 
+    monkeypatch.setattr(en, "COMPILED_MOVES", compiled)
     obstacle = box("block", [0.27, 0.0, Z], [0.06, 0.06, 0.06])
     checker = CollisionChecker(rv2aj, [TABLE, obstacle])
     s = np.linspace(0.0, 1.0, 14)
     pts = np.stack([0.27 + 0.15 * np.sin(np.pi * s), -0.15 + 0.30 * s, np.full_like(s, Z)], 1)
     Q = ik_path(rv2aj, pts)
     params = ElasticNetParams(stage1_iterations=120, stage2_iterations=40)
-    certified = []
-    original = en._Net._check_certified
-
-    def counting(self, particles, Qn):
-        out = original(self, particles, Qn)
-        certified.append(self.certified_moves)
-        return out
-
-    monkeypatch.setattr(en._Net, "_check_certified", counting)
     fast = run_elastic_net(rv2aj, Q, validity=checker, params=params)
     exact = run_elastic_net(rv2aj, Q, validity=_PlainValidity(checker), params=params)
     assert np.array_equal(fast.particles.joints, exact.particles.joints)
@@ -243,7 +237,8 @@ def test_certified_moves_give_exactly_the_exactly_checked_net(rv2aj, monkeypatch
     assert (fast.rejected_moves, fast.accepted_moves) == (exact.rejected_moves,
                                                           exact.accepted_moves)
     assert exact.rejected_moves > 0  # the block was in the way: exact checks mattered too
-    assert certified and certified[-1] > 0.2 * (fast.accepted_moves + fast.rejected_moves)
+    assert exact.certified_moves == 0
+    assert fast.certified_moves > 0.2 * (fast.accepted_moves + fast.rejected_moves)
 
 
 def test_min_gap_keeps_the_arm_off_the_obstacles(rv2aj):

@@ -1,0 +1,112 @@
+"""The elastic net's compiled move test (`trajectory.net_kernel`) against its numpy path.
+
+Both must give the same net bit for bit, with every test the kernel folds in taking part:
+octree leaves (a recorded collision occupies its leaf), the position IK, joint limits, the
+recorded collision's posture box, margin certificates, the broad phase with `min_gap`, and
+FCL for the moves the broad phase cannot clear.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from planning_fixtures import box, make_planner
+
+import assistant.trajectory.elastic_net as en
+from assistant.planning.known_world import KnownValidity, WorldAllowed
+from assistant.trajectory.elastic_net import ElasticNetParams
+from assistant.trajectory.particles import resample_joint_path
+
+Z = 0.25
+
+
+def _bow_path(robot) -> np.ndarray:
+    """Joints of a bow around the block (position IK, each seeded from the previous)."""
+    s = np.linspace(0.0, 1.0, 14)
+    pts = np.stack([0.27 + 0.15 * np.sin(np.pi * s), -0.15 + 0.30 * s, np.full_like(s, Z)], 1)
+    q, out = None, []
+    for p in pts:
+        T = np.eye(4)
+        T[:3, 3] = p
+        q = robot.ik(T, q, position_only=True).best(q)
+        out.append(q)
+    Q = np.array(out)
+    Q[:, 4] += np.linspace(-0.3, 0.3, len(Q))  # a tool roll that varies: the IK pulls it
+    return Q
+
+
+@pytest.fixture(scope="module")
+def scenes(rv2aj):
+    """A plain cell, and one where the operator flagged a collision on the bow's way back:
+    its posture box and its occupied leaf refuse moves there."""
+    Q = _bow_path(rv2aj)
+    out = {}
+    for recorded in (False, True):
+        planner = make_planner(rv2aj, [box("block", [0.27, 0.0, Z], [0.06, 0.06, 0.06])])
+        if recorded:
+            planner.roadmap.add_collision(Q[9])
+        out[recorded] = planner
+    return out, Q
+
+
+def _run(planner, Q, compiled: bool, min_gap: float, grid: bool, monkeypatch,
+         midpoints: bool = True) -> tuple[en._Net, tuple]:
+    """Both stages of the final net (`relax`), keeping the net's state for comparison."""
+    monkeypatch.setattr(en, "COMPILED_MOVES", compiled)
+    validity = KnownValidity(planner.checker, planner.world)
+    params = ElasticNetParams.final(stage1_iterations=150, stage2_iterations=40,
+                                    min_gap=min_gap, check_edge_midpoints=midpoints)
+    net = en._Net(planner.robot, resample_joint_path(planner.robot, Q, params.spacing),
+                  WorldAllowed(planner.world) if grid else None, validity, params)
+    assert (net._kernel is not None) == compiled
+    s1 = net.run_stage(1, params.stage1_iterations, None, 0, 1)
+    return net, (s1, net.run_stage(2, params.stage2_iterations, None, 0, 1))
+
+
+@pytest.mark.parametrize(("recorded", "grid", "min_gap", "midpoints"),
+                         [(True, True, 0.01, True), (True, False, 0.0, True),
+                          (False, False, 0.0, True), (False, True, 0.03, False)])
+def test_compiled_moves_give_the_numpy_net_bit_for_bit(scenes, monkeypatch, recorded, grid,
+                                                       min_gap, midpoints):
+    """With the octree's leaves or the recorded posture box the net keeps off the block;
+    without them it is pulled against it, and FCL decides the moves the broad phase cannot
+    clear."""
+    planners, Q = scenes
+    planner = planners[recorded]
+    statuses: list[np.ndarray] = []
+    check = en.check_moves
+
+    def recording(*args):
+        out = check(*args)
+        statuses.append(out[0].copy())
+        return out
+
+    monkeypatch.setattr(en, "check_moves", recording)
+    near = planner.world.near_recorded_collision
+    refused_by_box = []
+
+    def counting(Qr, exclude=frozenset()):
+        out = near(Qr, exclude)
+        refused_by_box.append(int(out.sum()))
+        return out
+
+    monkeypatch.setattr(planner.world, "near_recorded_collision", counting)
+    fast, fast_stages = _run(planner, Q, True, min_gap, grid, monkeypatch, midpoints)
+    calls = len(statuses)
+    assert calls, "the compiled move test was not used"
+    slow, slow_stages = _run(planner, Q, False, min_gap, grid, monkeypatch, midpoints)
+    assert len(statuses) == calls  # the numpy run did not use it
+    assert fast_stages == slow_stages
+    # The particles, and what the certificates and min_gap remember about each.
+    for name in ("P", "Q", "_ref_Q", "_ref_margin", "_gap", "_pinned"):
+        assert np.array_equal(getattr(fast, name), getattr(slow, name), equal_nan=True), name
+    assert (fast.rejected, fast.accepted, fast.certified_moves) == (
+        slow.rejected, slow.accepted, slow.certified_moves)
+    # Every test took part: moves were certified and refused, the recorded posture box
+    # refused some (counted in the numpy run), and FCL was asked where nothing else kept
+    # the net off the block.
+    assert fast.rejected > 0
+    assert fast.certified_moves > 0 or min_gap > 0.01  # the margins are 1-2 cm here
+    assert (sum(refused_by_box) > 0) == recorded
+    if not recorded and min_gap == 0.0:
+        assert (np.concatenate(statuses) == en.ASK_FCL).any()
