@@ -615,7 +615,7 @@ class CollisionChecker:
         """
         if len(path) < 2:
             return None
-        A = np.stack([np.asarray(q, dtype=float) for q in path])
+        A = _path_array(path)
         S, F, counts = self._path_samples(A, max_step)
         counts = counts.tolist()
         for start in range(0, len(S), self.chunk):
@@ -662,7 +662,7 @@ class CollisionChecker:
         best = np.inf
         if not self._env:
             return float(best)
-        P = np.stack([np.asarray(q, dtype=float) for q in path])
+        P = _path_array(path)
         if len(P) == 1:
             Q = P
         else:
@@ -750,3 +750,11 @@ class CollisionChecker:
             else:
                 d = 0.0
         return d, res
+
+
+def _path_array(path: Sequence[Array] | Array) -> Array:
+    """A joint path as one (M, dof) float array: a dense path that already is one is used
+    as it is (stacking its rows again cost ~0.2 ms per verification)."""
+    if isinstance(path, np.ndarray) and path.ndim == 2:
+        return np.asarray(path, dtype=float)
+    return np.stack([np.asarray(q, dtype=float) for q in path])

@@ -223,7 +223,7 @@ def _joint_splits(robot: Robot, chain: Array, a: int, b: int, verifier: PathVeri
     """Indices a..b of `chain` to move through in straight joint moves: a -> b if the verifier
     accepts it, else split at the middle index and recurse (no split below one step)."""
     if b - a < 2 or verifier is None or verifier.check_path(
-            list(joint_interpolation(robot, chain[a], chain[b], step))) is None:
+            joint_interpolation(robot, chain[a], chain[b], step)) is None:
         return [a, b]
     m = (a + b) // 2
     left = _joint_splits(robot, chain, a, m, verifier, step)
@@ -258,7 +258,7 @@ def verify(robot: Robot, traj: Trajectory, verifier: PathVerifier | None, *,
         # One check of the whole dense path (its segments are the motions' segments in
         # order, each motion's first row being the previous one's last): the first invalid
         # segment is the one a check motion by motion would find, at one call's cost.
-        hit = verifier.check_path(list(dense))
+        hit = verifier.check_path(dense)
         if hit is not None:
             g, mc = hit
             ends = np.cumsum([len(Q) - 1 for Q in paths])  # segments up to each motion's end
@@ -270,7 +270,7 @@ def verify(robot: Robot, traj: Trajectory, verifier: PathVerifier | None, *,
             what = mc.report.describe() if mc.report is not None else "invalid"
             return _rejected(robot, traj, _failure(robot, traj, i, frac, q, what),
                              max_deviation, fallbacks)
-    clearance = (verifier.min_clearance_along(list(dense), max_step=clearance_step)
+    clearance = (verifier.min_clearance_along(dense, max_step=clearance_step)
                  if verifier is not None else None)
     if clearance is not None and not np.isfinite(clearance):
         clearance = None  # no obstacles known

@@ -70,11 +70,11 @@ def densify_joint_path(robot: Robot, joint_path: Sequence[Array] | Array, max_tc
         if chord.max(initial=0.0) <= max_tcp_step:
             break
         parts = np.maximum(1, np.ceil(chord / max_tcp_step).astype(int))
-        rows = [Q[:1]]
-        for i, k in enumerate(parts):
-            f = (np.arange(1, k + 1) / k)[:, None]
-            rows.append(Q[i] + f * (Q[i + 1] - Q[i]))
-        Q = np.concatenate(rows)
+        # Segment i gets the fractions 1/k .. k/k (k = parts[i]), all segments at once.
+        seg = np.repeat(np.arange(len(parts)), parts)
+        j = np.arange(1, len(seg) + 1) - np.repeat(np.cumsum(parts) - parts, parts)
+        f = (j / parts[seg])[:, None]
+        Q = np.concatenate([Q[:1], Q[seg] + f * (Q[seg + 1] - Q[seg])])
         P = robot.batch_fk(Q).positions
     return Q, np.array(P, dtype=float)
 
