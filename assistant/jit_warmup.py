@@ -1,6 +1,7 @@
 """Compile the numba kernels before their first use.
 
 The kernels (`broad_phase`, `segment_box`, `dh`, `rv2aj_fk_batch`, `rv2aj_position_ik`,
+`rv2aj_pose_batch`,
 `trajectory.fit_kernels`, `trajectory.net_forces`, `trajectory.net_kernel`,
 `trajectory.follow_kernel`,
 `roadmap.brushfire`, `roadmap.graph_kernel`, `world.leaf_lookup`) compile on their first
@@ -28,6 +29,7 @@ from assistant.dh import _chain_frames_kernel
 from assistant.roadmap.brushfire import brushfire_region
 from assistant.roadmap.graph_kernel import neighbour_cells, neighbour_nodes
 from assistant.rv2aj_fk_batch import tcp_poses
+from assistant.rv2aj_pose_batch import _candidates
 from assistant.rv2aj_position_ik import planar_position_ik
 from assistant.segment_box import _segment_box_distances, segment_box_distance_one
 from assistant.trajectory.fit_kernels import (
@@ -37,7 +39,7 @@ from assistant.trajectory.fit_kernels import (
     fit_line,
     line_distances,
 )
-from assistant.trajectory.follow_kernel import walk_nearest
+from assistant.trajectory.follow_kernel import slerp_kernel, walk_nearest
 from assistant.trajectory.net_forces import propose_moves
 from assistant.trajectory.net_kernel import apply_moves, check_moves
 from assistant.world.leaf_lookup import leaf_flags
@@ -48,7 +50,7 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            planar_position_ik, fit_line, fit_arc, line_distances, arc_distances,
            circle_through_kernel, propose_moves, brushfire_region, leaf_flags,
            sphere_box_bounds, walk_nearest, neighbour_cells, neighbour_nodes,
-           certify_samples, check_moves, apply_moves)
+           certify_samples, check_moves, apply_moves, _candidates, slerp_kernel)
 
 
 def warm_up() -> float:
@@ -59,7 +61,7 @@ def warm_up() -> float:
     from assistant.roadmap.voronoi import build_voronoi
     from assistant.robot_model import CollisionShape, ShapeKind, Tool
     from assistant.rv2aj import RV2AJ, RV2AJConfig
-    from assistant.trajectory.cartesian_follow import follow_poses
+    from assistant.trajectory.cartesian_follow import follow_poses, slerp_rotations
     from assistant.trajectory.elastic_net import ElasticNetParams, run_elastic_net
     from assistant.trajectory.primitives import ArcPrimitive, FitParams, fit_primitives
     from assistant.transforms import make_T
@@ -78,6 +80,7 @@ def warm_up() -> float:
     robot.batch_position_ik(tcp + 0.001, q, q)
     bent = np.array([0.3, 0.2, 0.5, 0.3, 0.1])  # off the J1 axis: the batch answers
     follow_poses(robot, np.stack([robot.fk(bent), robot.fk(bent + 0.01)]), bent)
+    slerp_rotations(robot.fk(bent)[:3, :3], robot.fk(bent + 0.01)[:3, :3], np.linspace(0, 1, 3))
     # a quarter circle then a straight run: lines, arcs (free and tangent) and their ends
     a = np.linspace(0.0, np.pi / 2, 12)
     arc = np.stack([0.1 * np.cos(a), 0.1 * np.sin(a), np.zeros_like(a)], axis=1)

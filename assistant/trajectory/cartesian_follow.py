@@ -15,8 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from assistant.robot_model import IKFailure, Robot
-from assistant.trajectory.follow_kernel import walk_nearest
-from assistant.transforms import axis_angle_batch, rotation_angle, rotation_vector
+from assistant.trajectory.follow_kernel import slerp_kernel, walk_nearest
+from assistant.transforms import rotation_angle
 
 Array = np.ndarray
 
@@ -104,13 +104,11 @@ def slerp_rotations(R0: Array, R1: Array, u: Array) -> Array:
     """Rotations (M, 3, 3) from R0 to R1 at fractions u (what controllers interpolate):
     R0 turned by u times the rotation from R0 to R1 about its fixed axis, i.e. slerp.
 
-    As a rotation vector and one batched Rodrigues formula: scipy's `Slerp` gives the same
-    rotations (to 1e-15) at twice the cost, and every LINEAR/CIRCULAR move asks once."""
-    R0 = np.asarray(R0, dtype=float)
-    u = np.clip(np.atleast_1d(np.asarray(u, dtype=float)), 0.0, 1.0)
-    rv = rotation_vector(R0.T @ np.asarray(R1, dtype=float))
-    angle = float(np.linalg.norm(rv))
-    return R0 @ axis_angle_batch(np.broadcast_to(rv, (len(u), 3)), u * angle)
+    One compiled loop (`follow_kernel.slerp_kernel`): scipy's `Slerp` gives the same
+    rotations (to 1e-15), and every LINEAR/CIRCULAR move asks once."""
+    u = np.atleast_1d(np.asarray(u, dtype=float))
+    return slerp_kernel(np.ascontiguousarray(R0, dtype=float),
+                        np.ascontiguousarray(R1, dtype=float), np.ascontiguousarray(u))
 
 
 def poses_from(points: Array, rotations: Array) -> Array:
