@@ -25,6 +25,7 @@ from assistant.broad_phase import (
     ASK_FCL,
     CERTIFIED,
     FREE,
+    OUTSIDE_LIMITS,
     certify_samples,
     prune_round_pairs,
     sphere_box_bounds,
@@ -411,7 +412,9 @@ class CollisionChecker:
             margin[todo] = np.where(hit, np.nan, gap)
         return ok, margin
 
-    def is_valid_samples(self, Q: Array, groups: Array | None = None) -> Array:
+    def is_valid_samples(self, Q: Array, groups: Array | None = None, *,
+                         first_only: bool = False, known_invalid: Array | None = None,
+                         ) -> Array:
         """`is_valid_batch` of the samples of one or more motions, exactly, at less cost.
 
         Q holds the samples of motions in order (rows of one motion consecutive; `groups`
@@ -424,17 +427,37 @@ class CollisionChecker:
         costs a few checks instead of one per `max_step` of arm travel. All but FCL runs in
         one compiled pass (`broad_phase.certify_samples`): as numpy calls, the bookkeeping
         of a 70-sample roadmap edge cost more than its checks.
+
+        `known_invalid` flags rows the caller already refuses (e.g. recorded collision
+        postures). With `first_only` only each motion's first invalid row matters (what a
+        motion check reports): rows after it are returned invalid without FCL. An edge
+        into an obstacle has dozens of samples inside it, each an FCL question otherwise.
         """
         Q = np.atleast_2d(np.asarray(Q, dtype=float))
         n = len(Q)
         stride = self.CERTIFY_STRIDE
         if n <= 2 or stride <= 1 or len(self._sph_r) == 0:
-            return self.is_valid_batch(Q)
+            ok = self.is_valid_batch(Q)
+            return ok if known_invalid is None else ok & ~known_invalid
         frames, status, env_c, self_c = self._certify(Q, groups)
-        ok = (status == FREE) | (status == CERTIFIED)
-        rows = np.flatnonzero(status == ASK_FCL)
+        bad = status == OUTSIDE_LIMITS
+        if known_invalid is not None:
+            bad |= known_invalid
+        ok = ((status == FREE) | (status == CERTIFIED)) & ~bad
+        rows = np.flatnonzero((status == ASK_FCL) & ~bad)
+        if not first_only:
+            if len(rows):
+                ok[rows] = ~self._first_contacts(frames[rows], env_c[rows], self_c[rows])
+            return ok
+        motion = _motion_ids(n, groups)
+        first_bad = np.full(int(motion[-1]) + 1, n)
+        np.minimum.at(first_bad, motion[bad], np.flatnonzero(bad))
+        rows = rows[rows < first_bad[motion[rows]]]
         if len(rows):
-            ok[rows] = ~self._first_contacts(frames[rows], env_c[rows], self_c[rows])
+            hit = self._first_contacts(frames[rows], env_c[rows], self_c[rows], motion[rows])
+            ok[rows] = ~hit
+            np.minimum.at(first_bad, motion[rows[hit]], rows[hit])
+        ok[np.arange(n) > first_bad[motion]] = False
         return ok
 
     def _certify(self, Q: Array, groups: Array | None) -> tuple[Array, Array, Array, Array]:
@@ -512,10 +535,13 @@ class CollisionChecker:
                                                           self_c[maybe])
         return out, gaps
 
-    def _first_contacts(self, frames: Array, env_c: Array, self_c: Array) -> Array:
+    def _first_contacts(self, frames: Array, env_c: Array, self_c: Array,
+                        motions: Array | None = None) -> Array:
         """Exact flag per row for the broad phase's candidate pairs: obstacle pairs, then
         self pairs, stopping at the first contact. The bookkeeping is done for all rows at
-        once and a shape is posed only when a pair of its row first needs it."""
+        once and a shape is posed only when a pair of its row first needs it. With
+        `motions` (a label per row, rows in order), a row after a hit row of its motion is
+        not checked and counts as a hit."""
         n = len(frames)
         hit = np.zeros(n, dtype=bool)
         ek, es, ee = np.nonzero(env_c)  # ordered by row, then robot shape, then obstacle
@@ -541,11 +567,18 @@ class CollisionChecker:
         def collide(a: fcl.CollisionObject, b: fcl.CollisionObject) -> bool:
             return bool(fcl.collide(a, b, self._req, fcl.CollisionResult()))
 
+        stop = None if motions is None else motions.tolist()
+        stopped = set()
         for k in range(n):
+            if stop is not None and stop[k] in stopped:
+                hit[k] = True
+                continue
             hit[k] = (any(collide(posed(es_l[j], k), env[ee_l[j]])
                           for j in range(e_at[k], e_at[k + 1]))
                       or any(collide(posed(pairs[j][0], k), posed(pairs[j][1], k))
                              for j in range(p_at[k], p_at[k + 1])))
+            if hit[k] and stop is not None:
+                stopped.add(stop[k])
         return hit
 
     def in_collision_naive(self, q: Array) -> bool:
@@ -596,7 +629,7 @@ class CollisionChecker:
         for start in range(0, n + 1, self.chunk):
             f = fr[start : start + self.chunk]
             Q = q0[None] + f[:, None] * (q1 - q0)[None]
-            ok = self.is_valid_samples(Q)
+            ok = self.is_valid_samples(Q, first_only=True)
             if not ok.all():
                 k = int(np.argmin(ok))
                 return MotionCheck(float(f[k]), n, self.check(Q[k]))
@@ -621,7 +654,7 @@ class CollisionChecker:
         for start in range(0, len(S), self.chunk):
             s, f = S[start : start + self.chunk], F[start : start + self.chunk]
             Q = A[s] + f[:, None] * (A[s + 1] - A[s])
-            ok = self.is_valid_samples(Q)
+            ok = self.is_valid_samples(Q, first_only=True)
             if not ok.all():
                 k = int(np.argmin(ok))
                 i = int(s[k])
@@ -750,6 +783,14 @@ class CollisionChecker:
             else:
                 d = 0.0
         return d, res
+
+
+def _motion_ids(n: int, groups: Array | None) -> Array:
+    """0, 1, ... per run of equal `groups` labels (rows of one motion are consecutive)."""
+    if groups is None:
+        return np.zeros(n, dtype=np.int64)
+    g = np.asarray(groups)
+    return np.concatenate([[0], np.cumsum(g[1:] != g[:-1])]).astype(np.int64)
 
 
 def _path_array(path: Sequence[Array] | Array) -> Array:

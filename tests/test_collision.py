@@ -281,3 +281,47 @@ def test_certified_motion_samples_answer_like_the_plain_batch(checker, rv2aj):
     one = rows[0]
     assert np.array_equal(checker.is_valid_samples(one), checker.is_valid_batch(one))
     assert np.array_equal(checker.is_valid_samples(one[:2]), checker.is_valid_batch(one[:2]))
+
+
+def test_first_only_samples_give_each_motions_first_invalid_row(checker, rv2aj, monkeypatch):
+    """With `first_only` every motion's first invalid row (limits, FCL, or a row the caller
+    refuses) is the plain batch's, rows after it are invalid, and FCL skips those rows."""
+    rng = np.random.default_rng(29)
+    lo, hi = rv2aj.limits.lower, rv2aj.limits.upper
+    rows, groups = [], []
+    for g in range(60):
+        q0 = rng.uniform(lo, hi)
+        q1 = q0 + rng.normal(scale=0.25, size=5)
+        n = checker.motion_samples(q0, q1)
+        rows.append(q0 + (np.arange(n + 1) / n)[:, None] * (q1 - q0))
+        groups.append(np.full(n + 1, 7 * g))  # any labels, as long as motions are runs
+    Q, G = np.concatenate(rows), np.concatenate(groups)
+    refused = rng.random(len(Q)) < 0.002  # e.g. recorded collision postures
+    plain = checker.is_valid_batch(Q) & ~refused
+    import fcl
+
+    calls = [0]
+    collide = fcl.collide
+
+    def counting(*args):
+        calls[0] += 1
+        return collide(*args)
+
+    monkeypatch.setattr(fcl, "collide", counting)
+    full = checker.is_valid_samples(Q, G, known_invalid=refused)
+    asked = [calls[0]]
+    first = checker.is_valid_samples(Q, G, first_only=True, known_invalid=refused)
+    asked.append(calls[0] - asked[0])
+    assert np.array_equal(full, plain)
+    invalid_motions = 0
+    for g in np.unique(G):
+        i = np.flatnonzero(G == g)
+        if plain[i].all():
+            assert first[i].all()
+            continue
+        invalid_motions += 1
+        k = int(np.argmin(plain[i]))
+        assert np.array_equal(first[i[: k + 1]], plain[i[: k + 1]])
+        assert not first[i[k:]].any()
+    assert 10 < invalid_motions < 55  # both kinds of motion are well represented
+    assert asked[1] < 0.5 * asked[0]  # FCL skipped the rows behind each first hit (290/799)

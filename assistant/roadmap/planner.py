@@ -168,13 +168,16 @@ class _EdgeCheck:
         ns = [int(samples(a, b)) for a, b in zip(Q0, Q1, strict=True)]
         fr = [np.arange(n + 1) / n for n in ns]
         Q = np.concatenate([a + f[:, None] * (b - a) for a, b, f in zip(Q0, Q1, fr, strict=True)])
+        near = (self.world.near_recorded_collision(Q, self.exempt)
+                if self.world.collisions else None)
         along = getattr(self.checker, "is_valid_samples", None)
-        if along is not None:
-            ok = along(Q, np.repeat(np.arange(len(fr)), [len(f) for f in fr]))
+        if along is not None:  # only each edge's first invalid sample matters
+            ok = along(Q, np.repeat(np.arange(len(fr)), [len(f) for f in fr]),
+                       first_only=True, known_invalid=near)
         else:
             ok = self.checker.is_valid_batch(Q)
-        if self.world.collisions:
-            ok &= ~self.world.near_recorded_collision(Q, self.exempt)
+            if near is not None:
+                ok &= ~near
         out: list[float | None] = []
         start = 0
         for f in fr:
