@@ -5,7 +5,7 @@ The kernels (`broad_phase`, `segment_box`, `dh`, `rv2aj_fk_batch`, `rv2aj_positi
 `trajectory.fit_kernels`, `trajectory.net_forces`, `trajectory.net_kernel`,
 `trajectory.follow_kernel`,
 `roadmap.brushfire`, `roadmap.graph_kernel`, `world.leaf_lookup`) compile on their first
-call and cache the result on disk; only the first run after an install pays, ~30 s for all
+call and cache the result on disk; only the first run after an install pays, ~40 s for all
 of them on this 2-core machine. `cellteach serve` runs `warm_up` in a background thread at
 start, so that first run does not stall the operator's first world build or plan (a compile
 reports no progress); `cellteach run` and the tests call it before anything else, so no
