@@ -1,7 +1,7 @@
 """Compile the numba kernels before their first use.
 
 The kernels (`broad_phase`, `segment_box`, `dh`, `rv2aj_fk_batch`, `rv2aj_position_ik`,
-`rv2aj_pose_batch`,
+`rv2aj_pose_batch`, `kernel_helpers`,
 `trajectory.fit_kernels`, `trajectory.net_forces`, `trajectory.net_kernel`,
 `trajectory.follow_kernel`,
 `roadmap.brushfire`, `roadmap.graph_kernel`, `world.leaf_lookup`) compile on their first

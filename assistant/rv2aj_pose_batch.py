@@ -17,6 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
+from assistant.kernel_helpers import axis_angle3, mm3, within_limits
 from assistant.robot_model import JointLimits
 
 Array = np.ndarray
@@ -102,7 +103,7 @@ def _candidates(T: Array, R_ft: Array, T_tf: Array, lower: Array, upper: Array, 
         rxy = np.hypot(px, py)
         ex = rxy >= 1e-9
         # Orientation into the vertical plane through J1 and the TCP (one minimal rotation).
-        Rf = _mm3(Rt, R_tf)
+        Rf = mm3(Rt, R_tf)
         R_tool = Rt.copy()
         if ex:
             n = np.array([-py / rxy, px / rxy, 0.0])
@@ -119,10 +120,10 @@ def _candidates(T: Array, R_ft: Array, T_tf: Array, lower: Array, upper: Array, 
                 a_proj /= na
                 axis = np.cross(a, a_proj)
                 s = np.sqrt(axis[0] ** 2 + axis[1] ** 2 + axis[2] ** 2)
-                R_fix = _axis_angle(axis, s, np.arcsin(min(max(s, -1.0), 1.0)))
-                R_tool = _mm3(_mm3(R_fix, Rf), R_ft)
+                R_fix = axis_angle3(axis, s, np.arcsin(min(max(s, -1.0), 1.0)))
+                R_tool = mm3(mm3(R_fix, Rf), R_ft)
                 # The scalar version checks the plane again and would turn once more.
-                a_new = _mm3(R_tool, R_tf)[:, 2]
+                a_new = mm3(R_tool, R_tf)[:, 2]
                 if not abs(a_new[0] * n[0] + a_new[1] * n[1] + a_new[2] * n[2]) <= tol:
                     ex = False
                 tr = 0.0
@@ -131,8 +132,8 @@ def _candidates(T: Array, R_ft: Array, T_tf: Array, lower: Array, upper: Array, 
                         tr += R_tool[r, c] * Rt[r, c]
                 angle[i] = np.arccos(min(max((tr - 1.0) / 2.0, -1.0), 1.0))
         # Flange pose and the branches of `RV2AJ._ik_flange_all`.
-        p = np.array([px, py, pz]) + _mm3(R_tool, T_tf[:3, 3:4])[:, 0]
-        R = _mm3(R_tool, R_tf)
+        p = np.array([px, py, pz]) + mm3(R_tool, T_tf[:3, 3:4])[:, 0]
+        R = mm3(R_tool, R_tf)
         a = R[:, 2].copy()
         exact[i] = ex and np.hypot(p[0], p[1]) >= 1e-9
         base = np.arctan2(p[1], p[0])
@@ -150,7 +151,7 @@ def _candidates(T: Array, R_ft: Array, T_tf: Array, lower: Array, upper: Array, 
             cs, ss = np.cos(s_pitch), np.sin(s_pitch)
             Rz = np.array([[c1, -s1, 0.0], [s1, c1, 0.0], [0.0, 0.0, 1.0]])
             Ry = np.array([[cs, 0.0, ss], [0.0, 1.0, 0.0], [-ss, 0.0, cs]])
-            A = _mm3(_mm3(Rz, Ry), R0)
+            A = mm3(mm3(Rz, Ry), R0)
             q6 = np.arctan2(A[0, 1] * R[0, 0] + A[1, 1] * R[1, 0] + A[2, 1] * R[2, 0],
                             A[0, 0] * R[0, 0] + A[1, 0] * R[1, 0] + A[2, 0] * R[2, 0])
             for sign in (1.0, -1.0):
@@ -162,32 +163,8 @@ def _candidates(T: Array, R_ft: Array, T_tf: Array, lower: Array, upper: Array, 
                     q[j] = (q[j] + np.pi) % (2 * np.pi) - np.pi
                 for v in range(V):
                     k = b * V + v
-                    inside = ok
                     for j in range(5):
                         joints[i, k, j] = q[j] + S[v, j]
-                        x = joints[i, k, j]
-                        if not (x >= lower[j] - 1e-9 and x <= upper[j] + 1e-9):
-                            inside = False
-                    valid[i, k] = inside
+                    valid[i, k] = ok and within_limits(joints[i, k], lower, upper)
                 b += 1
     return joints, valid, projected, angle, exact
-
-
-@njit(cache=True)
-def _axis_angle(axis: Array, norm: float, angle: float) -> Array:
-    """`transforms.axis_angle_batch` of one axis (not necessarily unit) with its norm."""
-    if norm < 1e-15:
-        return np.eye(3)
-    k = axis / norm
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * _mm3(K, K)
-
-
-@njit(cache=True)
-def _mm3(A: Array, B: Array) -> Array:
-    """A (3, 3) @ B (3, k) as plain loops (numba's `@` goes through BLAS, slow at 3 x 3)."""
-    out = np.zeros((3, B.shape[1]))
-    for r in range(3):
-        for c in range(B.shape[1]):
-            out[r, c] = A[r, 0] * B[0, c] + A[r, 1] * B[1, c] + A[r, 2] * B[2, c]
-    return out

@@ -23,6 +23,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from assistant.collision import CollisionChecker, CollisionReport, Contact, MotionCheck
+from assistant.world.indications import posture_box_half
 from assistant.world.leaf_lookup import leaf_flags
 from assistant.world.model import WorldModel
 
@@ -88,14 +89,12 @@ class KnownValidity:
         base = self.checker.net_kernel_validity()
         if base is None:
             return None
-        model, rec_q, half, exact = base
+        model, _, _, exact = base
         table = self.world.table
         kept = [rc.q for i, rc in enumerate(self.world.collisions) if i not in self.exempt]
         if table is None or not kept:
             return base
-        varying = table.counts > 1
-        half = np.full(rec_q.shape[1], np.inf)
-        half[varying] = self.world.config.indication.joint_steps * table.step[varying] + 1e-12
+        half = posture_box_half(table, self.world.config.indication.joint_steps)
         return model, np.array(kept, dtype=float), half, exact
 
     def first_invalid_fraction(self, q0: Array, q1: Array) -> float | None:

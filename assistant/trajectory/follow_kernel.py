@@ -14,6 +14,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from assistant.kernel_helpers import axis_angle3, mm3
+
 Array = np.ndarray
 
 
@@ -65,10 +67,7 @@ def slerp_kernel(R0: Array, R1: Array, u: Array) -> Array:
     angle = 2 atan2(|xyz|, w), stable near 0 and pi; each fraction is then one Rodrigues
     rotation. Through scipy and numpy this was ~0.2 ms per LINEAR/CIRCULAR move.
     """
-    M = np.zeros((3, 3))
-    for r in range(3):
-        for c in range(3):
-            M[r, c] = R0[0, r] * R1[0, c] + R0[1, r] * R1[1, c] + R0[2, r] * R1[2, c]
+    M = mm3(R0.T, R1)
     tr = M[0, 0] + M[1, 1] + M[2, 2]
     q = np.empty(4)  # x, y, z, w
     i = 0
@@ -89,22 +88,6 @@ def slerp_kernel(R0: Array, R1: Array, u: Array) -> Array:
     s = np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2])
     angle = 2.0 * np.arctan2(s, q[3])
     out = np.empty((len(u), 3, 3))
-    K = np.zeros((3, 3))
-    if s > 0.0:
-        kx, ky, kz = q[0] / s, q[1] / s, q[2] / s
-        K[0, 1], K[0, 2], K[1, 0], K[1, 2], K[2, 0], K[2, 1] = -kz, ky, kz, -kx, -ky, kx
-    K2 = np.zeros((3, 3))
-    for r in range(3):
-        for c in range(3):
-            K2[r, c] = K[r, 0] * K[0, c] + K[r, 1] * K[1, c] + K[r, 2] * K[2, c]
-    Ru = np.empty((3, 3))
     for n in range(len(u)):
-        a = min(max(u[n], 0.0), 1.0) * angle
-        sa, ca = np.sin(a), 1.0 - np.cos(a)
-        for r in range(3):
-            for c in range(3):
-                Ru[r, c] = (1.0 if r == c else 0.0) + sa * K[r, c] + ca * K2[r, c]
-        for r in range(3):
-            for c in range(3):
-                out[n, r, c] = R0[r, 0] * Ru[0, c] + R0[r, 1] * Ru[1, c] + R0[r, 2] * Ru[2, c]
+        out[n] = mm3(R0, axis_angle3(q[:3], s, min(max(u[n], 0.0), 1.0) * angle))
     return out

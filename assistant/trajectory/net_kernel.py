@@ -25,6 +25,7 @@ from numba import njit
 
 from assistant.broad_phase import FREE, _broad_row, _prune_and_flag
 from assistant.dh import chain_row
+from assistant.kernel_helpers import within_limits
 from assistant.rv2aj_fk_batch import tcp_row
 from assistant.rv2aj_position_ik import _wrap, solve_row
 from assistant.world.leaf_lookup import leaf_flag
@@ -135,7 +136,7 @@ def check_moves(P: Array, Q: Array, idx: Array, D: Array, trial: Array, grid_ori
         sure = ref_margin[k] > travel + need + 1e-9
         if sure:
             certified += 1
-        if not _inside(q, lower, upper) or _near_recorded(q, rec_q, rec_half):
+        if not within_limits(q, lower, upper) or _near_recorded(q, rec_q, rec_half):
             continue
         if sure:
             status[i] = ACCEPTED
@@ -185,15 +186,6 @@ def _midpoints_free(x: float, y: float, z: float, k: int, P: Array, trial: Array
             if not leaf_flag(0.5 * (x + W[nb, 0]), 0.5 * (y + W[nb, 1]), 0.5 * (z + W[nb, 2]),
                              origin, leaf, n, free):
                 return False
-    return True
-
-
-@njit(cache=True, inline="always")
-def _inside(q: Array, lower: Array, upper: Array) -> bool:
-    """`JointLimits.contains_batch` of one row (tolerance 1e-9)."""
-    for j in range(q.shape[0]):  # noqa: SIM110 - a loop numba compiles, not a generator
-        if not (q[j] >= lower[j] - 1e-9 and q[j] <= upper[j] + 1e-9):
-            return False
     return True
 
 

@@ -74,11 +74,19 @@ def indicated_cells(robot: Robot, grid: OctreeGrid, q: Array,
     return np.unique(flat[flat >= 0])
 
 
+def posture_box_half(table: ReachabilityTable, joint_steps: float) -> Array:
+    """Half-widths (dof,) of a recorded collision's posture box: `joint_steps` grid steps in
+    every varying table joint, inf in the joints the table does not vary."""
+    varying = table.counts > 1
+    half = np.full(len(varying), np.inf)
+    half[varying] = joint_steps * table.step[varying] + 1e-12
+    return half
+
+
 def near_posture(table: ReachabilityTable, Q: Array, q: Array, joint_steps: float) -> Array:
     """Bool per row of Q: within `joint_steps` grid steps of q in every varying table joint."""
-    varying = table.counts > 1
-    d = np.abs(np.asarray(Q)[:, varying] - np.asarray(q)[varying])
-    return np.all(d <= joint_steps * table.step[varying] + 1e-12, axis=1)
+    d = np.abs(np.atleast_2d(np.asarray(Q)) - np.asarray(q))
+    return np.all(d <= posture_box_half(table, joint_steps), axis=1)
 
 
 def nearby_positions(table: ReachabilityTable, q: Array, joint_steps: float) -> Array:
