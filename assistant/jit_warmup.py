@@ -28,6 +28,7 @@ from assistant.broad_phase import (
 from assistant.dh import _chain_frames_kernel
 from assistant.roadmap.brushfire import brushfire_region
 from assistant.roadmap.graph_kernel import neighbour_cells, neighbour_nodes
+from assistant.roadmap.voronoi_update import update_rounds
 from assistant.rv2aj_fk_batch import tcp_poses
 from assistant.rv2aj_pose_batch import _candidates
 from assistant.rv2aj_position_ik import planar_position_ik
@@ -50,7 +51,7 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            planar_position_ik, fit_line, fit_arc, line_distances, arc_distances,
            circle_through_kernel, propose_moves, brushfire_region, leaf_flags,
            sphere_box_bounds, walk_nearest, neighbour_cells, neighbour_nodes,
-           certify_samples, check_moves, apply_moves, _candidates, slerp_kernel)
+           certify_samples, check_moves, apply_moves, _candidates, slerp_kernel, update_rounds)
 
 
 def warm_up() -> float:
@@ -58,7 +59,7 @@ def warm_up() -> float:
     returns the seconds it took (compiling or loading the cache)."""
     from assistant.collision import CollisionChecker, Obstacle
     from assistant.roadmap.graph import JointGraph
-    from assistant.roadmap.voronoi import build_voronoi
+    from assistant.roadmap.voronoi import build_voronoi, update_voronoi
     from assistant.robot_model import CollisionShape, ShapeKind, Tool
     from assistant.rv2aj import RV2AJ, RV2AJConfig
     from assistant.trajectory.cartesian_follow import follow_poses, slerp_rotations
@@ -91,7 +92,9 @@ def warm_up() -> float:
     ArcPrimitive.through(arc[0], arc[5], arc[-1])
     source = np.zeros((4, 4, 4), dtype=np.int32)
     source[0, 0, 0], source[3, 3, 3] = 1, 2
-    build_voronoi(source)
+    vmap = build_voronoi(source)
+    source[0, 3, 0] = 3  # a query's terminal: the incremental update
+    update_voronoi(vmap, source)
     cells = np.arange(8, dtype=np.int64)
     graph, _ = JointGraph.build((2, 2, 2), cells, np.arange(9), np.zeros((8, 5)),
                                 np.ones(8, bool), np.zeros(8, bool), np.zeros(8), np.ones(5))

@@ -24,78 +24,123 @@ _BIG = 2**30
 @njit(cache=True)
 def brushfire_region(D: Array, T: Array, L: Array, S: Array, reach: Array, R: Array) -> None:
     """Recompute dist D, tentative label T and label L (int32, in place) inside region R
-    with the values outside held fixed. S: source labels (> 0), reach: reachable cells."""
+    with the values outside held fixed. S: source labels (> 0), reach: reachable cells.
+
+    The box is copied into flat arrays padded by one cell (a pad cell is never on a layer
+    and carries no label), so a neighbour is a fixed offset and needs no bounds test; each
+    layer grows from the cells of the layer below only (the fixed cells bucketed by their
+    distance once, the region's new cells of a layer are the next front)."""
     nx, ny, nz = D.shape
-    todo = np.zeros(D.shape, dtype=np.bool_)
+    py, pz = ny + 2, nz + 2
+    size = (nx + 2) * py * pz
+    Dp = np.full(size, -1, dtype=np.int32)
+    Tp = np.full(size, -1, dtype=np.int32)
+    Lp = np.full(size, -1, dtype=np.int32)
+    todo = np.zeros(size, dtype=np.bool_)
+    off = np.empty(26, dtype=np.int64)
+    n_off = 0
+    for a in range(-1, 2):
+        for b in range(-1, 2):
+            for c in range(-1, 2):
+                if a != 0 or b != 0 or c != 0:
+                    off[n_off] = (a * py + b) * pz + c
+                    n_off += 1
+    cap = nx * ny * nz
+    front = np.empty(cap, dtype=np.int64)  # padded ids of the layer below (region part)
+    n_front = 0
     n_todo = 0
     max_fixed = -1
     for i in range(nx):
         for j in range(ny):
             for k in range(nz):
+                p = ((i + 1) * py + j + 1) * pz + k + 1
                 if R[i, j, k]:
                     if S[i, j, k] > 0:
-                        D[i, j, k], T[i, j, k], L[i, j, k] = 0, S[i, j, k], S[i, j, k]
+                        Dp[p], Tp[p], Lp[p] = 0, S[i, j, k], S[i, j, k]
+                        front[n_front] = p
+                        n_front += 1
                     else:
-                        D[i, j, k], T[i, j, k], L[i, j, k] = INF, UNREACHED, UNREACHED
-                        todo[i, j, k] = True
+                        Dp[p], Tp[p], Lp[p] = INF, UNREACHED, UNREACHED
+                        todo[p] = True
                         n_todo += 1
-                elif D[i, j, k] < INF:
-                    max_fixed = max(max_fixed, D[i, j, k])
-    stamp = np.zeros(D.shape, dtype=np.int32)  # the layer a cell was last put on the front
-    cap = nx * ny * nz
-    hx = np.empty(cap, dtype=np.int64)
-    hy = np.empty(cap, dtype=np.int64)
-    hz = np.empty(cap, dtype=np.int64)
+                else:
+                    Dp[p], Tp[p], Lp[p] = D[i, j, k], T[i, j, k], L[i, j, k]
+                    if D[i, j, k] < INF:
+                        max_fixed = max(max_fixed, D[i, j, k])
+    # the fixed cells by distance (counting sort): bucket d is fixed[start[d]:start[d + 1]]
+    start = np.zeros(max_fixed + 2, dtype=np.int64)
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                if not R[i, j, k] and D[i, j, k] < INF:
+                    start[D[i, j, k] + 1] += 1
+    for d in range(max_fixed + 1):
+        start[d + 1] += start[d]
+    fixed = np.empty(start[max_fixed + 1], dtype=np.int64)
+    fill = start[:max_fixed + 1].copy()
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                if not R[i, j, k] and D[i, j, k] < INF:
+                    fixed[fill[D[i, j, k]]] = ((i + 1) * py + j + 1) * pz + k + 1
+                    fill[D[i, j, k]] += 1
+    stamp = np.zeros(size, dtype=np.int32)  # the layer a cell was last put on the front
+    has = np.empty(cap, dtype=np.int64)
     buf = np.empty(cap, dtype=np.int32)
     d = 1
     while n_todo > 0:
         # cells of the layer below with an unreached neighbour: the new layer
-        n_prev = 0
-        n_has = 0
-        for i in range(nx):
-            for j in range(ny):
-                for k in range(nz):
-                    if D[i, j, k] != d - 1:
-                        continue
-                    n_prev += 1
-                    for a in range(max(i - 1, 0), min(i + 2, nx)):
-                        for b in range(max(j - 1, 0), min(j + 2, ny)):
-                            for c in range(max(k - 1, 0), min(k + 2, nz)):
-                                if todo[a, b, c] and stamp[a, b, c] != d:
-                                    stamp[a, b, c] = d
-                                    hx[n_has], hy[n_has], hz[n_has] = a, b, c
-                                    n_has += 1
+        lo_f = start[d - 1] if d - 1 <= max_fixed else 0
+        hi_f = start[d] if d - 1 <= max_fixed else 0
+        n_prev = n_front + hi_f - lo_f
         if n_prev == 0 and d - 1 > max_fixed:
             break  # no front left that could reach the remaining cells
+        n_has = 0
+        for f in range(n_prev):
+            p = front[f] if f < n_front else fixed[lo_f + f - n_front]
+            for o in range(26):
+                q = p + off[o]
+                if todo[q] and stamp[q] != d:
+                    stamp[q] = d
+                    has[n_has] = q
+                    n_has += 1
         # tentative label: the one label the layer below carries here, else ROAD
         for h in range(n_has):
-            i, j, k = hx[h], hy[h], hz[h]
+            p = has[h]
             lo, hi = _BIG, -1
-            for a in range(max(i - 1, 0), min(i + 2, nx)):
-                for b in range(max(j - 1, 0), min(j + 2, ny)):
-                    for c in range(max(k - 1, 0), min(k + 2, nz)):
-                        if D[a, b, c] == d - 1 and L[a, b, c] >= 1:
-                            lo = min(lo, L[a, b, c])
-                            hi = max(hi, L[a, b, c])
+            for o in range(26):
+                q = p + off[o]
+                if Dp[q] == d - 1 and Lp[q] >= 1:
+                    lo = min(lo, Lp[q])
+                    hi = max(hi, Lp[q])
             buf[h] = ROAD if (lo == _BIG or lo != hi) else lo
         for h in range(n_has):
-            D[hx[h], hy[h], hz[h]] = d
-            T[hx[h], hy[h], hz[h]] = buf[h]
+            Dp[has[h]] = d
+            Tp[has[h]] = buf[h]
         # even gaps: a neighbour on the same layer with a larger tentative label wins
         for h in range(n_has):
-            i, j, k = hx[h], hy[h], hz[h]
+            p = has[h]
             tent = buf[h]
             above = -1
-            for a in range(max(i - 1, 0), min(i + 2, nx)):
-                for b in range(max(j - 1, 0), min(j + 2, ny)):
-                    for c in range(max(k - 1, 0), min(k + 2, nz)):
-                        if (a != i or b != j or c != k) and D[a, b, c] == d \
-                                and T[a, b, c] >= 1:
-                            above = max(above, T[a, b, c])
+            for o in range(26):
+                q = p + off[o]
+                if Dp[q] == d and Tp[q] >= 1:
+                    above = max(above, Tp[q])
             if tent < 1 or above > tent:
+                i = p // (py * pz) - 1
+                j = (p // pz) % py - 1
+                k = p % pz - 1
                 buf[h] = ROAD if reach[i, j, k] else ROAD_UNREACHABLE
         for h in range(n_has):
-            L[hx[h], hy[h], hz[h]] = buf[h]
-            todo[hx[h], hy[h], hz[h]] = False
+            Lp[has[h]] = buf[h]
+            todo[has[h]] = False
+            front[h] = has[h]
+        n_front = n_has
         n_todo -= n_has
         d += 1
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                if R[i, j, k]:
+                    p = ((i + 1) * py + j + 1) * pz + k + 1
+                    D[i, j, k], T[i, j, k], L[i, j, k] = Dp[p], Tp[p], Lp[p]

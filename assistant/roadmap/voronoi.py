@@ -31,7 +31,8 @@ import numpy as np
 
 from assistant.roadmap import brushfire
 from assistant.roadmap.brushfire import ROAD, ROAD_UNREACHABLE, UNREACHED, brushfire_region
-from assistant.roadmap.grid_ops import bbox, dilate
+from assistant.roadmap.grid_ops import bbox
+from assistant.roadmap.voronoi_update import update_rounds
 
 Array = np.ndarray
 
@@ -134,16 +135,12 @@ def update_voronoi(vmap: VoronoiMap, source: Array, *, d_min: int = 3,
     changed_src = source != vmap.source
     if not changed_src.any():
         return VoronoiUpdate(vmap.copy(), np.zeros(vmap.shape, bool), 0, 0, False)
-    region = dilate(changed_src, d_min)
-    for rnd in range(1, max_rounds + 1):
-        ring = dilate(region, 1) & ~region
-        work = VoronoiMap(source, vmap.reachable, vmap.dist.copy(), vmap.tent.copy(),
-                          vmap.label.copy())
-        _recompute(work, region | ring)
-        diff = _differs(work, vmap)
-        if not (diff & ring).any():
-            return VoronoiUpdate(work, diff, int((region | ring).sum()), rnd, False)
-        region = region | ring | dilate(diff & ring, d_min)
+    D, T, L, diff, cells, rounds, done = update_rounds(
+        vmap.dist, vmap.tent, vmap.label, source, np.ascontiguousarray(vmap.reachable),
+        changed_src, int(d_min), int(max_rounds))
+    if done:
+        return VoronoiUpdate(VoronoiMap(source, vmap.reachable, D, T, L), diff, cells, rounds,
+                             False)
     full = build_voronoi(source, vmap.reachable)
     return VoronoiUpdate(full, _differs(full, vmap), int(np.prod(vmap.shape)), max_rounds, True)
 
