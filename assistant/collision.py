@@ -32,6 +32,12 @@ from assistant.broad_phase import (
     sphere_broad_phase,
 )
 from assistant.fcl_shapes import covering_spheres, fcl_geometry, fcl_transform, world_aabb
+from assistant.motion_rows import (
+    chain_frames_inside,
+    motion_marks,
+    rows_before_first_bad,
+    valid_before_first_bad,
+)
 from assistant.robot_model import CollisionShape, Robot, ShapeKind
 from assistant.segment_box import axis_segment, oriented_bounds, segment_box_bounds
 
@@ -228,6 +234,11 @@ class CollisionChecker:
         self._pair_a = np.array([a for a, _ in self._self_pairs], dtype=np.int64)
         self._pair_b = np.array([b for _, b in self._self_pairs], dtype=np.int64)
         self._round = ~np.isnan(self._seg_r)
+        #: The DH chain's fixed parts when the robot is one (`RV2AJ.dh_fixed_stack`): the
+        #: link frames of checked samples are then computed with the certification's
+        #: bookkeeping (`motion_rows`), else by `robot.batch_link_poses`.
+        hook = getattr(robot, "dh_fixed_stack", None)
+        self._chain_F = hook() if hook is not None else None
         self._sp_a = np.asarray(sp_a, dtype=np.int64)
         self._sp_b = np.asarray(sp_b, dtype=np.int64)
         self._sp_pair = np.asarray(sp_pair, dtype=np.int64)
@@ -439,46 +450,47 @@ class CollisionChecker:
         if n <= 2 or stride <= 1 or len(self._sph_r) == 0:
             ok = self.is_valid_batch(Q)
             return ok if known_invalid is None else ok & ~known_invalid
-        frames, status, env_c, self_c = self._certify(Q, groups)
+        frames, status, env_c, self_c, motion = self._certify(Q, groups)
         bad = status == OUTSIDE_LIMITS
         if known_invalid is not None:
             bad |= known_invalid
         ok = ((status == FREE) | (status == CERTIFIED)) & ~bad
-        rows = np.flatnonzero((status == ASK_FCL) & ~bad)
         if not first_only:
+            rows = np.flatnonzero((status == ASK_FCL) & ~bad)
             if len(rows):
                 ok[rows] = ~self._first_contacts(frames[rows], env_c[rows], self_c[rows])
             return ok
-        motion = _motion_ids(n, groups)
-        first_bad = np.full(int(motion[-1]) + 1, n)
-        np.minimum.at(first_bad, motion[bad], np.flatnonzero(bad))
-        rows = rows[rows < first_bad[motion[rows]]]
-        if len(rows):
-            hit = self._first_contacts(frames[rows], env_c[rows], self_c[rows], motion[rows])
-            ok[rows] = ~hit
-            np.minimum.at(first_bad, motion[rows[hit]], rows[hit])
-        ok[np.arange(n) > first_bad[motion]] = False
+        rows, first_bad = rows_before_first_bad(status == ASK_FCL, bad, motion)
+        hit = (self._first_contacts(frames[rows], env_c[rows], self_c[rows], motion[rows])
+               if len(rows) else np.zeros(0, dtype=bool))
+        valid_before_first_bad(ok, rows, hit, motion, first_bad)
         return ok
 
-    def _certify(self, Q: Array, groups: Array | None) -> tuple[Array, Array, Array, Array]:
-        """Link frames of the rows of Q and `broad_phase.certify_samples`' answers for them:
-        the sampling, broad phase, margins and pruning in one compiled pass."""
+    def _certify(self, Q: Array, groups: Array | None,
+                 ) -> tuple[Array, Array, Array, Array, Array]:
+        """Link frames of the rows of Q, `broad_phase.certify_samples`' answers for them
+        (the sampling, broad phase, margins and pruning in one compiled pass) and each row's
+        motion number."""
         n = len(Q)
         g = np.zeros(n, dtype=np.int64) if groups is None else np.asarray(groups)
-        change = g[1:] != g[:-1]
-        first, last = np.r_[True, change], np.r_[change, True]
-        inside = self.robot.limits.contains_batch(Q)
-        frames = np.ascontiguousarray(
-            np.concatenate([self.robot.batch_link_poses(Q[i : i + self.chunk])
-                            for i in range(0, n, self.chunk)]), dtype=float)
+        first, last, motion = motion_marks(g)
+        Q = np.ascontiguousarray(Q, dtype=float)
+        if self._chain_F is not None:
+            lim = self.robot.limits
+            frames, inside = chain_frames_inside(Q, self._chain_F, lim.lower, lim.upper)
+        else:
+            inside = self.robot.limits.contains_batch(Q)
+            frames = np.ascontiguousarray(
+                np.concatenate([self.robot.batch_link_poses(Q[i : i + self.chunk])
+                                for i in range(0, n, self.chunk)]), dtype=float)
         status, env_c, self_c = certify_samples(
-            frames, np.ascontiguousarray(Q), inside, first, last, self.CERTIFY_STRIDE,
+            frames, Q, inside, first, last, self.CERTIFY_STRIDE,
             self._radii, self._sph_link, self._sph_local, self._sph_r, self._sph_shape,
             self._env_lo, self._env_hi, self._sp_a, self._sp_b, self._sp_pair,
             len(self._rshapes), len(self._self_pairs), self._shape_link, self._seg_a,
             self._seg_b, self._seg_r, self._env_R, self._env_c, self._env_h, self._pair_a,
             self._pair_b, self.PRUNE_APART)
-        return frames, status, env_c, self_c
+        return frames, status, env_c, self_c, motion
 
     def net_kernel_checker(self) -> tuple | None:
         """The broad phase's and the pruning's arrays in `trajectory.net_kernel`'s order,
@@ -605,6 +617,14 @@ class CollisionChecker:
         """Number of steps so that no point of the arm moves more than max_step per step."""
         return int(self.motion_samples_along(np.stack([np.asarray(q0), np.asarray(q1)]),
                                              max_step)[0])
+
+    def motion_samples_between(self, Q0: Array, Q1: Array, max_step: float | None = None,
+                               ) -> Array:
+        """`motion_samples` of each motion Q0[i] -> Q1[i], in one pass."""
+        step = self.max_step if max_step is None else max_step
+        travel = (self._radii * np.abs(np.asarray(Q1, dtype=float)
+                                       - np.asarray(Q0, dtype=float))).sum(1)
+        return np.maximum(1, np.ceil(travel / step).astype(np.int64))
 
     def motion_samples_along(self, path: Array, max_step: float | None = None) -> Array:
         """`motion_samples` of each segment of a joint path (M, dof), in one pass."""
@@ -783,14 +803,6 @@ class CollisionChecker:
             else:
                 d = 0.0
         return d, res
-
-
-def _motion_ids(n: int, groups: Array | None) -> Array:
-    """0, 1, ... per run of equal `groups` labels (rows of one motion are consecutive)."""
-    if groups is None:
-        return np.zeros(n, dtype=np.int64)
-    g = np.asarray(groups)
-    return np.concatenate([[0], np.cumsum(g[1:] != g[:-1])]).astype(np.int64)
 
 
 def _path_array(path: Sequence[Array] | Array) -> Array:

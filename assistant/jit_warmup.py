@@ -26,6 +26,12 @@ from assistant.broad_phase import (
     sphere_broad_phase,
 )
 from assistant.dh import _chain_frames_kernel
+from assistant.motion_rows import (
+    chain_frames_inside,
+    motion_marks,
+    rows_before_first_bad,
+    valid_before_first_bad,
+)
 from assistant.roadmap.brushfire import brushfire_region
 from assistant.roadmap.graph_kernel import neighbour_cells, neighbour_nodes
 from assistant.roadmap.voronoi_update import update_rounds
@@ -51,7 +57,8 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            planar_position_ik, fit_line, fit_arc, line_distances, arc_distances,
            circle_through_kernel, propose_moves, brushfire_region, leaf_flags,
            sphere_box_bounds, walk_nearest, neighbour_cells, neighbour_nodes,
-           certify_samples, check_moves, apply_moves, _candidates, slerp_kernel, update_rounds)
+           certify_samples, check_moves, apply_moves, _candidates, slerp_kernel, update_rounds,
+           motion_marks, chain_frames_inside, rows_before_first_bad, valid_before_first_bad)
 
 
 def warm_up() -> float:

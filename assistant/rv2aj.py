@@ -165,6 +165,11 @@ class RV2AJ(Robot):
         frames, _ = batch_chain_frames(self.chain, np.asarray(Q, dtype=float))
         return frames
 
+    def dh_fixed_stack(self) -> Array:
+        """The fixed parts of the DH chain whose frames `batch_link_poses` gives, for
+        compiled checks that compute the frames themselves (`dh.chain_row`)."""
+        return self.chain.fixed_stack
+
     def batch_fk(self, Q: Array, dtype: type = np.float64) -> BatchPoses:
         """TCP poses of many configurations (closed form, `rv2aj_fk_batch`); float64 inside,
         returned as `dtype`."""

@@ -130,6 +130,7 @@ def test_segment_sample_counts_of_a_path_match_one_by_one(checker, rv2aj):
         one_by_one = [checker.motion_samples(a, b, step)
                       for a, b in zip(path[:-1], path[1:], strict=True)]
         assert checker.motion_samples_along(path, step).tolist() == one_by_one
+        assert checker.motion_samples_between(path[:-1], path[1:], step).tolist() == one_by_one
     assert one_by_one[4] == 1 and max(one_by_one) > 50
 
 
@@ -267,7 +268,7 @@ def test_certified_motion_samples_answer_like_the_plain_batch(checker, rv2aj):
     plain = checker.is_valid_batch(Q)
     assert 0.2 < plain.mean() < 0.95  # both answers are well represented
     assert np.array_equal(checker.is_valid_samples(Q, G), plain)
-    _, status, _, _ = checker._certify(Q, G)
+    _, status, _, _, _ = checker._certify(Q, G)
     # 43 % of the rows had a broad phase of their own (every fourth row of a motion and
     # its last always do); without the certificates every row inside the limits would (82 %).
     checked = (status == FREE) | (status == ASK_FCL)
@@ -325,3 +326,40 @@ def test_first_only_samples_give_each_motions_first_invalid_row(checker, rv2aj, 
         assert not first[i[k:]].any()
     assert 10 < invalid_motions < 55  # both kinds of motion are well represented
     assert asked[1] < 0.5 * asked[0]  # FCL skipped the rows behind each first hit (290/799)
+
+
+def test_compiled_frames_and_limits_are_the_robots_to_the_bit(checker, rv2aj, cell_obstacles):
+    """The certification computes the RV-2AJ's link frames and limit test itself
+    (`motion_rows.chain_frames_inside`): the same bits as `batch_link_poses` and
+    `contains_batch`; and a robot without the DH hook (frames from `batch_link_poses`)
+    gets the same answers from `is_valid_samples`."""
+    from assistant.motion_rows import chain_frames_inside
+
+    rng = np.random.default_rng(31)
+    lo, hi = rv2aj.limits.lower, rv2aj.limits.upper
+    Q = rng.uniform(lo - 0.2, hi + 0.2, (300, 5))
+    frames, inside = chain_frames_inside(Q, rv2aj.dh_fixed_stack(), lo, hi)
+    assert np.array_equal(frames, rv2aj.batch_link_poses(Q))
+    assert np.array_equal(inside, rv2aj.limits.contains_batch(Q))
+    assert 0.1 < inside.mean() < 0.9
+
+    class NoHook:  # the RV-2AJ seen through the plain Robot interface only
+        def __getattr__(self, name):
+            if name == "dh_fixed_stack":
+                raise AttributeError(name)
+            return getattr(rv2aj, name)
+
+    plain = CollisionChecker(NoHook(), cell_obstacles)
+    assert plain._chain_F is None and checker._chain_F is not None
+    rows, groups = [], []
+    for g in range(30):
+        q0 = rng.uniform(lo, hi)
+        q1 = q0 + rng.normal(scale=0.3, size=5)
+        n = checker.motion_samples(q0, q1)
+        rows.append(q0 + (np.arange(n + 1) / n)[:, None] * (q1 - q0))
+        groups.append(np.full(n + 1, g))
+    Q, G = np.concatenate(rows), np.concatenate(groups)
+    for first_only in (False, True):
+        a = checker.is_valid_samples(Q, G, first_only=first_only)
+        assert np.array_equal(a, plain.is_valid_samples(Q, G, first_only=first_only))
+        assert 0.2 < a.mean() < 0.95

@@ -160,20 +160,20 @@ class _EdgeCheck:
 
     def first_invalid_fractions(self, Q0: Array, Q1: Array) -> list[float | None]:
         """Several edges in one batched validity call, sampled exactly as the checker's own
-        motion check (`motion_samples`, certified by margins with `is_valid_samples` where
+        motion check (`motion_samples_between`, certified by margins with `is_valid_samples` where
         the checker offers it); falls back to one call per edge otherwise."""
-        samples = getattr(self.checker, "motion_samples", None)
+        samples = getattr(self.checker, "motion_samples_between", None)
         if samples is None:
             return [self.first_invalid_fraction(a, b) for a, b in zip(Q0, Q1, strict=True)]
-        ns = [int(samples(a, b)) for a, b in zip(Q0, Q1, strict=True)]
+        ns = samples(Q0, Q1).tolist()
         fr = [np.arange(n + 1) / n for n in ns]
         Q = np.concatenate([a + f[:, None] * (b - a) for a, b, f in zip(Q0, Q1, fr, strict=True)])
         near = (self.world.near_recorded_collision(Q, self.exempt)
                 if self.world.collisions else None)
         along = getattr(self.checker, "is_valid_samples", None)
         if along is not None:  # only each edge's first invalid sample matters
-            ok = along(Q, np.repeat(np.arange(len(fr)), [len(f) for f in fr]),
-                       first_only=True, known_invalid=near)
+            groups = None if len(ns) == 1 else np.repeat(np.arange(len(ns)), np.add(ns, 1))
+            ok = along(Q, groups, first_only=True, known_invalid=near)
         else:
             ok = self.checker.is_valid_batch(Q)
             if near is not None:
