@@ -165,8 +165,14 @@ class CellPositions:
         Remembered until the selection changes: decoding the ids cost ~2 ms of every
         planning query, a copy of the result ~0.1 ms (copies, so a caller may write to them;
         read-only arrays would also be new argument types for the compiled kernels)."""
+        cells, offsets, Q = self.decode()
+        return cells.copy(), offsets.copy(), Q.copy()
+
+    def decode(self) -> tuple[Array, Array, Array]:
+        """The remembered (cells, offsets, Q) of `selected_joints`, decoded now if the
+        selection changed (not copies: do not write to them). The roadmap calls it when it
+        builds or updates, so the first query after does not pay the decoding."""
         if self._csr is None:
             cells, offsets, ids = self.selected_csr()
             self._csr = (cells, offsets, self.table.joints(ids))
-        cells, offsets, Q = self._csr
-        return cells.copy(), offsets.copy(), Q.copy()
+        return self._csr
