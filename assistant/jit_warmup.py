@@ -49,6 +49,7 @@ from assistant.trajectory.fit_kernels import (
 from assistant.trajectory.follow_kernel import slerp_kernel, walk_nearest
 from assistant.trajectory.net_forces import propose_moves
 from assistant.trajectory.net_kernel import apply_moves, check_moves
+from assistant.trajectory.net_sweep import halve_retries, repin, sweep_moves
 from assistant.world.leaf_lookup import leaf_flags
 
 #: Every compiled entry point (the test checks `warm_up` compiles each of them).
@@ -58,7 +59,8 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            circle_through_kernel, propose_moves, brushfire_region, leaf_flags,
            sphere_box_bounds, walk_nearest, neighbour_cells, neighbour_nodes,
            certify_samples, check_moves, apply_moves, _candidates, slerp_kernel, update_rounds,
-           motion_marks, chain_frames_inside, rows_before_first_bad, valid_before_first_bad)
+           motion_marks, chain_frames_inside, rows_before_first_bad, valid_before_first_bad,
+           sweep_moves, halve_retries, repin)
 
 
 def warm_up() -> float:

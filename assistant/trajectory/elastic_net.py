@@ -71,7 +71,6 @@ import numpy as np
 
 from assistant.progress import Progress
 from assistant.robot_model import Robot
-from assistant.trajectory.net_forces import propose_moves
 from assistant.trajectory.net_kernel import (
     ACCEPTED,
     ASK_FCL,
@@ -79,6 +78,7 @@ from assistant.trajectory.net_kernel import (
     apply_moves,
     check_moves,
 )
+from assistant.trajectory.net_sweep import halve_retries, repin, sweep_moves
 from assistant.trajectory.particles import (
     Particles,
     polyline_length,
@@ -314,37 +314,26 @@ class _Net:
         Forces are evaluated one colour class at a time on the tentative positions
         (Gauss-Seidel, compiled: `net_forces.propose_moves`); the moves are then checked
         together in one batch (one `allowed`, one IK, one validity call per sweep) and the
-        rejected ones retried at half length, except those pinned (see below).
+        rejected ones retried at half length, except those pinned (see below). The
+        bookkeeping between the tests is compiled too (`net_sweep`).
         """
-        P0, p = self.P, self.p
-        idx, D, trial = propose_moves(P0, stage, lam, p.c_equidistance, p.c_rotation,
-                                      p.c_shrink, p.c_line_shrink, p.stage1_shrink, p.r_max,
-                                      p.r_min, p.max_move)
-        live = row_norms(D) > 0.0
-        idx, D = idx[live], D[live]
+        p = self.p
+        idx, D, trial, pin = sweep_moves(self.P, self._pinned, stage, lam, p.c_equidistance,
+                                         p.c_rotation, p.c_shrink, p.c_line_shrink,
+                                         p.stage1_shrink, p.r_max, p.r_min, p.max_move)
         if not len(idx):
             return 0.0, 0, 0
         # A particle refused at both lengths last sweep is pinned against a constraint (the
-        # octree, the arm's gap): it proposes the half move straight away and is not
+        # octree, the arm's gap): it proposed the half move straight away and is not
         # retried - a retry call for it almost never bought a move (module docstring).
-        pinned = self._pinned[idx]
-        D[pinned] *= 0.5
-        trial[idx[pinned]] = P0[idx[pinned]] + D[pinned]
         ok = self.try_moves(idx, D, trial)
-        refused = ~ok & pinned
-        retry = np.nonzero(~ok & ~pinned)[0]
-        if len(retry):
-            D[retry] *= 0.5
-            trial[idx[retry]] = P0[idx[retry]] + D[retry]
-            ok2 = self.try_moves(idx[retry], D[retry], trial)
-            ok[retry[ok2]] = True
-            refused[retry[~ok2]] = True
-        self._pinned[:] = False
-        self._pinned[idx[refused]] = True
-        self.rejected += int(refused.sum())
+        retry = halve_retries(ok, pin, idx, D, trial, self.P)
+        ok2 = (self.try_moves(idx[retry], D[retry], trial) if len(retry)
+               else np.zeros(0, dtype=bool))
+        self.rejected += repin(ok, pin, retry, ok2, idx, self._pinned)
         accepted = int(ok.sum())
         self.accepted += accepted
-        E = float(row_norms(D[ok]).sum()) / max(1, len(P0) - 2)
+        E = float(row_norms(D[ok]).sum()) / max(1, len(self.P) - 2)
         return E, accepted, len(idx)
 
     # ---------------------------------------------------------------- moves

@@ -15,6 +15,7 @@ from planning_fixtures import box, make_planner
 import assistant.trajectory.elastic_net as en
 from assistant.planning.known_world import KnownValidity, WorldAllowed
 from assistant.trajectory.elastic_net import ElasticNetParams
+from assistant.trajectory.net_forces import propose_moves
 from assistant.trajectory.particles import resample_joint_path
 
 Z = 0.25
@@ -110,3 +111,60 @@ def test_compiled_moves_give_the_numpy_net_bit_for_bit(scenes, monkeypatch, reco
     assert (sum(refused_by_box) > 0) == recorded
     if not recorded and min_gap == 0.0:
         assert (np.concatenate(statuses) == en.ASK_FCL).any()
+
+
+def _reference_iterate(self, stage, lam):
+    """`_Net.iterate` as numpy calls, before its bookkeeping was compiled (`net_sweep`)."""
+    P0, p = self.P, self.p
+    idx, D, trial = propose_moves(P0, stage, lam, p.c_equidistance, p.c_rotation,
+                                  p.c_shrink, p.c_line_shrink, p.stage1_shrink, p.r_max,
+                                  p.r_min, p.max_move)
+    live = en.row_norms(D) > 0.0
+    idx, D = idx[live], D[live]
+    if not len(idx):
+        return 0.0, 0, 0
+    pinned = self._pinned[idx]
+    D[pinned] *= 0.5
+    trial[idx[pinned]] = P0[idx[pinned]] + D[pinned]
+    ok = self.try_moves(idx, D, trial)
+    refused = ~ok & pinned
+    retry = np.nonzero(~ok & ~pinned)[0]
+    if len(retry):
+        D[retry] *= 0.5
+        trial[idx[retry]] = P0[idx[retry]] + D[retry]
+        ok2 = self.try_moves(idx[retry], D[retry], trial)
+        ok[retry[ok2]] = True
+        refused[retry[~ok2]] = True
+    self._pinned[:] = False
+    self._pinned[idx[refused]] = True
+    self.rejected += int(refused.sum())
+    accepted = int(ok.sum())
+    self.accepted += accepted
+    E = float(en.row_norms(D[ok]).sum()) / max(1, len(P0) - 2)
+    return E, accepted, len(idx)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_compiled_sweep_bookkeeping_gives_the_numpy_net_bit_for_bit(scenes, monkeypatch,
+                                                                    compiled):
+    """The sweep's proposals, pinned halves, retries and re-pinning (`net_sweep`) against
+    the numpy form they replaced, with either move test."""
+    planners, Q = scenes
+    planner = planners[True]
+    pins = []
+    repin = en.repin
+
+    def counting(ok, pin, retry, ok2, idx, pinned):
+        pins.append((int(pin.sum()), len(retry)))
+        return repin(ok, pin, retry, ok2, idx, pinned)
+
+    monkeypatch.setattr(en, "repin", counting)
+    fast, fast_stages = _run(planner, Q, compiled, 0.01, True, monkeypatch)
+    monkeypatch.setattr(en._Net, "iterate", _reference_iterate)
+    slow, slow_stages = _run(planner, Q, compiled, 0.01, True, monkeypatch)
+    assert fast_stages == slow_stages
+    for name in ("P", "Q", "_ref_Q", "_ref_margin", "_gap", "_pinned"):
+        assert np.array_equal(getattr(fast, name), getattr(slow, name), equal_nan=True), name
+    assert (fast.rejected, fast.accepted) == (slow.rejected, slow.accepted)
+    # pinned particles and retried moves both occurred
+    assert sum(a for a, _ in pins) > 0 and sum(b for _, b in pins) > 0
