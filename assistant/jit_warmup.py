@@ -33,7 +33,12 @@ from assistant.motion_rows import (
     valid_before_first_bad,
 )
 from assistant.roadmap.brushfire import brushfire_region
-from assistant.roadmap.graph_kernel import neighbour_cells, neighbour_nodes
+from assistant.roadmap.graph_kernel import (
+    expand,
+    neighbour_cells,
+    neighbour_nodes,
+    weighted_distances,
+)
 from assistant.roadmap.voronoi_update import update_rounds
 from assistant.rv2aj_fk_batch import tcp_poses
 from assistant.rv2aj_pose_batch import _candidates
@@ -60,13 +65,14 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            sphere_box_bounds, walk_nearest, neighbour_cells, neighbour_nodes,
            certify_samples, check_moves, apply_moves, _candidates, slerp_kernel, update_rounds,
            motion_marks, chain_frames_inside, rows_before_first_bad, valid_before_first_bad,
-           sweep_moves, halve_retries, repin)
+           sweep_moves, halve_retries, repin, expand, weighted_distances)
 
 
 def warm_up() -> float:
     """Call each kernel through the real API, with the argument types it gets in use;
     returns the seconds it took (compiling or loading the cache)."""
     from assistant.collision import CollisionChecker, Obstacle
+    from assistant.roadmap.astar import lazy_astar
     from assistant.roadmap.graph import JointGraph
     from assistant.roadmap.voronoi import build_voronoi, update_voronoi
     from assistant.robot_model import CollisionShape, ShapeKind, Tool
@@ -108,6 +114,7 @@ def warm_up() -> float:
     graph, _ = JointGraph.build((2, 2, 2), cells, np.arange(9), np.zeros((8, 5)),
                                 np.ones(8, bool), np.zeros(8, bool), np.zeros(8), np.ones(5))
     graph.successors(0)
+    lazy_astar(graph, 0, 7, _AllFree())  # its expansion kernel
     leaf_flags(np.ascontiguousarray(tcp, dtype=float), np.full(3, -1.0), 0.0625, 32,
                np.ones(32 ** 3, dtype=bool))
     # a short net on the RV-2AJ: its compiled move test (`net_kernel`), and the kernel that
@@ -123,3 +130,10 @@ def warm_up() -> float:
         propose_moves(arc, stage, 0.5, net.c_equidistance, net.c_rotation, net.c_shrink,
                       net.c_line_shrink, net.stage1_shrink, net.r_max, net.r_min, net.max_move)
     return time.perf_counter() - t0
+
+
+class _AllFree:
+    """An edge checker that finds every edge free (the warm-up's search)."""
+
+    def first_invalid_fraction(self, q0: np.ndarray, q1: np.ndarray) -> float | None:
+        return None

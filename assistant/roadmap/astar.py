@@ -23,6 +23,7 @@ import numpy as np
 
 from assistant.progress import Progress
 from assistant.roadmap.graph import JointGraph
+from assistant.roadmap.graph_kernel import expand
 
 Array = np.ndarray
 
@@ -183,17 +184,11 @@ def lazy_astar(graph: JointGraph, start: int, goal: int, checker: EdgeChecker,
                           "the machine overloaded?")
         if progress is not None and expansions % 256 == 0:
             progress.update(min(0.99, expansions / budget.max_expansions), "searching roads")
-        vs, cost = graph.successors(u)
-        free = ~closed[vs] & ~dead[vs]
-        vs, cost = vs[free], cost[free]
-        gn = gu + cost
-        better = gn < g[vs] - 1e-12
-        if not better.any():
-            continue
-        vs, gn = vs[better], gn[better]
-        g[vs] = gn
-        parent[vs] = u
-        f = gn + heur(vs)
+        # successors reached cheaper: g, parent and heuristic set in one compiled pass
+        f, gn, vs = expand(u, gu, *graph.shape, graph.searchable, graph.squeeze_blocked,
+                           graph.squeeze_exempt, graph.cell_start, graph.node_q,
+                           graph.node_cell, graph.weights, float(graph.max_edge), graph.penalty,
+                           closed, dead, g, parent, h, q_goal, float(heuristic_weight))
         for fv, gv, v in zip(f.tolist(), gn.tolist(), vs.tolist(), strict=True):
             heapq.heappush(heap, (fv, gv, v, u))
     return result(False, REASON_NO_PATH)

@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from assistant.roadmap.graph_kernel import neighbour_cells, neighbour_nodes
+from assistant.roadmap.graph_kernel import neighbour_cells, neighbour_nodes, weighted_distances
 
 Array = np.ndarray
 
@@ -89,8 +89,8 @@ class JointGraph:
 
     def distance(self, q: Array, Q: Array) -> Array:
         """Weighted joint distance from q to each row of Q (metres of arm travel)."""
-        d = (np.asarray(Q) - q) * self.weights
-        return np.sqrt(np.einsum("ij,ij->i", d, d))
+        return weighted_distances(np.asarray(q, dtype=float),
+                                  np.ascontiguousarray(Q, dtype=float), self.weights)
 
     def successors(self, u: int) -> tuple[Array, Array]:
         """(node ids, edge costs u -> v) of u's neighbours."""

@@ -81,3 +81,62 @@ def neighbour_nodes(u: int, cell: int, nx: int, ny: int, nz: int, searchable: Ar
 def _contains(sorted_ids: Array, x: int) -> bool:
     p = np.searchsorted(sorted_ids, x)
     return p < len(sorted_ids) and sorted_ids[p] == x
+
+
+@njit(cache=True, inline="always")
+def weighted_distance(a: Array, b: Array, w: Array) -> float:
+    """||W (b - a)||, the squares summed in two lanes (even and odd joints, then the two
+    lanes): the order numpy's einsum takes on this kind of machine, fixed here so the
+    graph's costs do not depend on which SIMD path numpy picks."""
+    even, odd = 0.0, 0.0
+    for j in range(a.shape[0]):
+        d = (b[j] - a[j]) * w[j]
+        if j % 2 == 0:
+            even += d * d
+        else:
+            odd += d * d
+    return np.sqrt(even + odd)
+
+
+@njit(cache=True)
+def weighted_distances(q: Array, Q: Array, w: Array) -> Array:
+    """`weighted_distance` from q to each row of Q."""
+    out = np.empty(Q.shape[0])
+    for i in range(Q.shape[0]):
+        out[i] = weighted_distance(q, Q[i], w)
+    return out
+
+
+@njit(cache=True)
+def expand(u: int, gu: float, nx: int, ny: int, nz: int, searchable: Array,
+           squeeze_blocked: Array, exempt: Array, cell_start: Array, node_q: Array,
+           node_cell: Array, weights: Array, max_edge: float, penalty: Array, closed: Array,
+           dead: Array, g: Array, parent: Array, h: Array, q_goal: Array,
+           h_weight: float) -> tuple[Array, Array, Array]:
+    """One A* expansion of node u at cost gu (`astar.lazy_astar`): the successors not closed
+    or dead that u reaches cheaper get g and parent (in place) and are returned as
+    (f, g, node) to queue, in successor order; their heuristic (weight x distance to the
+    goal) is computed once per node into h (NaN = not yet)."""
+    vs = neighbour_nodes(u, node_cell[u], nx, ny, nz, searchable, squeeze_blocked, exempt,
+                         cell_start)
+    f = np.empty(vs.shape[0])
+    gn = np.empty(vs.shape[0])
+    out = np.empty(vs.shape[0], dtype=np.int64)
+    n = 0
+    qu = node_q[u]
+    for v in vs:
+        d = weighted_distance(qu, node_q[v], weights)
+        if not d <= max_edge or closed[v] or dead[v]:
+            continue
+        gv = gu + (d + penalty[node_cell[v]])
+        if not gv < g[v] - 1e-12:
+            continue
+        g[v] = gv
+        parent[v] = u
+        if np.isnan(h[v]):
+            h[v] = h_weight * weighted_distance(q_goal, node_q[v], weights)
+        f[n] = gv + h[v]
+        gn[n] = gv
+        out[n] = v
+        n += 1
+    return f[:n], gn[:n], out[:n]
