@@ -39,6 +39,7 @@ from assistant.roadmap.graph_kernel import (
     neighbour_nodes,
     weighted_distances,
 )
+from assistant.roadmap.grid_ops import connected26
 from assistant.roadmap.voronoi_update import update_rounds
 from assistant.rv2aj_fk_batch import tcp_poses
 from assistant.rv2aj_pose_batch import _candidates
@@ -65,7 +66,8 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            sphere_box_bounds, walk_nearest, neighbour_cells, neighbour_nodes,
            certify_samples, check_moves, apply_moves, _candidates, slerp_kernel, update_rounds,
            motion_marks, chain_frames_inside, rows_before_first_bad, valid_before_first_bad,
-           sweep_moves, halve_retries, repin, expand, weighted_distances)
+           sweep_moves, halve_retries, repin, expand, weighted_distances,
+           connected26)
 
 
 def warm_up() -> float:
@@ -114,6 +116,7 @@ def warm_up() -> float:
     graph, _ = JointGraph.build((2, 2, 2), cells, np.arange(9), np.zeros((8, 5)),
                                 np.ones(8, bool), np.zeros(8, bool), np.zeros(8), np.ones(5))
     graph.successors(0)
+    connected26(source > 0, 0, 63)
     lazy_astar(graph, 0, 7, _AllFree())  # its expansion kernel
     leaf_flags(np.ascontiguousarray(tcp, dtype=float), np.full(3, -1.0), 0.0625, 32,
                np.ones(32 ** 3, dtype=bool))

@@ -9,6 +9,7 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
+from numba import njit
 from scipy import ndimage
 
 Array = np.ndarray
@@ -69,6 +70,35 @@ def components26(mask: Array) -> tuple[Array, int]:
     """Connected components (26-connectivity), labels 1..n, 0 outside the mask."""
     lab, n = ndimage.label(mask, structure=np.ones((3, 3, 3), dtype=bool))
     return lab.astype(np.int32), int(n)
+
+
+@njit(cache=True)
+def connected26(mask: Array, a: int, b: int) -> bool:
+    """Whether flat cells a and b of the 3-D mask (both True) are in one component
+    (26-connectivity): a search from a that stops when it reaches b. A query needs only
+    this answer, and labelling every component of the grid cost ~0.3 ms of each."""
+    nx, ny, nz = mask.shape
+    flat = mask.reshape(-1)
+    seen = np.zeros(flat.shape[0], dtype=np.bool_)
+    stack = np.empty(flat.shape[0], dtype=np.int64)
+    stack[0] = a
+    seen[a] = True
+    n = 1
+    while n > 0:
+        n -= 1
+        c = stack[n]
+        if c == b:
+            return True
+        i, j, k = c // (ny * nz), (c // nz) % ny, c % nz
+        for x in range(max(i - 1, 0), min(i + 2, nx)):
+            for y in range(max(j - 1, 0), min(j + 2, ny)):
+                for z in range(max(k - 1, 0), min(k + 2, nz)):
+                    d = (x * ny + y) * nz + z
+                    if flat[d] and not seen[d]:
+                        seen[d] = True
+                        stack[n] = d
+                        n += 1
+    return False
 
 
 def bbox(mask: Array, margin: int = 0) -> tuple[slice, slice, slice] | None:

@@ -43,7 +43,7 @@ from assistant.roadmap.astar import (
     lazy_astar,
 )
 from assistant.roadmap.graph import JointGraph
-from assistant.roadmap.grid_ops import components26
+from assistant.roadmap.grid_ops import connected26
 from assistant.roadmap.sources import SourceLabels, label_sources, relabel
 from assistant.roadmap.voronoi import ROAD, VoronoiMap, build_voronoi, update_voronoi
 from assistant.robot_model import Robot
@@ -276,10 +276,13 @@ class RoadmapPlanner:
         w = self.world
         q_s = np.asarray(q_start, dtype=float).reshape(-1)
         q_g = np.asarray(q_goal, dtype=float).reshape(-1)
-        pre = self._check_terminals(q_s, q_g)
+        for q, what in ((q_s, "start"), (q_g, "goal")):
+            if q.shape != (self.robot.dof,):
+                raise ValueError(f"{what} must have {self.robot.dof} joint values")
+        sc, gc = (w.tcp_cell(q) if np.isfinite(q).all() else -1 for q in (q_s, q_g))
+        pre = self._check_terminals(q_s, q_g, sc, gc)
         if pre is not None:
             return pre
-        sc, gc = w.tcp_cell(q_s), w.tcp_cell(q_g)
         self._edge.exempt = w.recorded_collisions_at(q_s)
         direct = self._weighted(q_s, q_g)
         if (sc == gc or direct <= self.config.max_edge) and \
@@ -297,9 +300,7 @@ class RoadmapPlanner:
         escape = self._escape_cells(sc) | (self._escape_cells(gc) & cad_leaf)
         free = w.free().reshape(-1) | escape
         free[[sc, gc]] = True
-        comp, _ = components26(free.reshape(w.grid.shape))
-        comp = comp.reshape(-1)
-        if comp[sc] != comp[gc]:
+        if not connected26(free.reshape(w.grid.shape), sc, gc):
             timings["total"] = time.perf_counter() - t0
             return RoadmapPlan(False, "no path: start and goal are in different free regions",
                                PlanFailure.NO_PATH_REGIONS, timings=timings)
@@ -389,18 +390,20 @@ class RoadmapPlanner:
                 out[j] = True
         return out
 
-    def _check_terminals(self, q_s: Array, q_g: Array) -> RoadmapPlan | None:
+    def _check_terminals(self, q_s: Array, q_g: Array, sc: int, gc: int,
+                         ) -> RoadmapPlan | None:
+        """Why start or goal (TCP leaves sc, gc) cannot be planned for, or None."""
         w, robot = self.world, self.robot
-        for q, what in ((q_s, "start"), (q_g, "goal")):
-            if q.shape != (robot.dof,):
-                raise ValueError(f"{what} must have {robot.dof} joint values")
+        if not np.isfinite(q_g).all():
+            return RoadmapPlan(False, "unreachable goal: its joint values are not all finite",
+                               PlanFailure.GOAL_UNREACHABLE)
         if not robot.limits.contains(q_g):
             v = ", ".join(robot.limits.violations(q_g, robot.joint_names))
             return RoadmapPlan(False, f"unreachable goal: {v}", PlanFailure.GOAL_UNREACHABLE)
-        if w.tcp_cell(q_g) < 0:
+        if gc < 0:
             return RoadmapPlan(False, "unreachable goal: its TCP lies outside the world model",
                                PlanFailure.GOAL_UNREACHABLE)
-        if not robot.limits.contains(q_s) or w.tcp_cell(q_s) < 0:
+        if not robot.limits.contains(q_s) or sc < 0:
             return RoadmapPlan(False, "start outside the joint limits or the world model",
                                PlanFailure.START_INVALID)
         if not self.checker.is_valid(q_s):
@@ -409,7 +412,6 @@ class RoadmapPlanner:
         if not self.checker.is_valid(q_g):
             return RoadmapPlan(False, f"goal inside an obstacle{self._why(q_g)}",
                                PlanFailure.GOAL_IN_OBSTACLE)
-        gc = w.tcp_cell(q_g)
         p = float(w.occupancy().reshape(-1)[gc])
         # A leaf a CAD part only partly fills is occupied, yet a taught point on the part's
         # surface lies in it: for CAD leaves the exact check above has the last word.

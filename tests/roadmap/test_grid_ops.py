@@ -1,11 +1,12 @@
-"""Dilation on the bounding box equals the whole-grid filter it replaced."""
+"""Dilation on the bounding box equals the whole-grid filter it replaced; the pair
+connectivity search answers as the component labels."""
 
 from __future__ import annotations
 
 import numpy as np
 from scipy import ndimage
 
-from assistant.roadmap.grid_ops import dilate
+from assistant.roadmap.grid_ops import components26, connected26, dilate
 
 
 def _whole_grid(mask: np.ndarray, radius: int) -> np.ndarray:
@@ -35,3 +36,22 @@ def test_dilate_of_nothing_and_radius_zero():
     mask[1, 2, 3] = True
     out = dilate(mask, 0)
     assert np.array_equal(out, mask) and out is not mask
+
+
+def test_connected_pairs_are_those_of_the_component_labels():
+    """`connected26` (a search between two cells) answers as `components26`' labels."""
+    rng = np.random.default_rng(5)
+    answers = set()
+    for _ in range(30):
+        shape = tuple(int(v) for v in rng.integers(1, 12, 3))
+        mask = rng.random(shape) < rng.uniform(0.15, 0.6)
+        lab, _ = components26(mask)
+        cells = np.flatnonzero(mask)
+        if len(cells) < 2:
+            continue
+        for _ in range(20):
+            a, b = (int(c) for c in rng.choice(cells, 2))
+            same = bool(lab.reshape(-1)[a] == lab.reshape(-1)[b])
+            assert connected26(mask, a, b) == same
+            answers.add(same)
+    assert answers == {True, False}

@@ -88,6 +88,11 @@ def test_goal_inside_an_obstacle_and_unreachable_goal_are_refused(planner, rv2aj
     assert plan.failure == PlanFailure.GOAL_UNREACHABLE and "J2" in plan.reason
     plan = planner.plan(q_in, Q_GOAL)
     assert plan.failure == PlanFailure.START_INVALID
+    # values that are not numbers (a broken script or session file) are named as such
+    plan = planner.plan(Q_START, np.full(len(Q_GOAL), np.nan))
+    assert plan.failure == PlanFailure.GOAL_UNREACHABLE and "finite" in plan.reason
+    assert planner.plan(np.full(len(Q_GOAL), np.inf), Q_GOAL).failure == \
+        PlanFailure.START_INVALID
 
 
 def test_budget_and_cancellation_end_the_search(rv2aj, planner):
