@@ -161,3 +161,35 @@ def test_pinocchio_model_agrees_with_the_closed_form(rv2aj, rng):
     for q in rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper, size=(50, 5)):
         pin.framesForwardKinematics(model, data, q)
         assert np.allclose(data.oMf[fid].homogeneous, rv2aj.fk(q), atol=1e-9)
+
+
+def _numpy_chain_frames(chain, q):
+    """`dh.chain_frames` as numpy operations, before it used the compiled loop."""
+    n = len(chain.rows)
+    out = np.empty((n + 1, 4, 4))
+    out[0] = np.eye(4)
+    cs, sn = np.cos(q), np.sin(q)
+    T = out[0]
+    for i in range(n):
+        Ti = T.copy()
+        Ti[:, 0] = cs[i] * T[:, 0] + sn[i] * T[:, 1]
+        Ti[:, 1] = -sn[i] * T[:, 0] + cs[i] * T[:, 1]
+        out[i + 1] = Ti
+        T = Ti @ chain.fixed_parts[i]
+    return out
+
+
+def test_single_pose_frames_are_the_numpy_chains_to_the_bit(rv2aj, rng):
+    """The single-configuration frames (FK, link poses) come from the compiled batch loop:
+    the batch's bits, and the numpy product chain they replaced (to the bit on our machine;
+    to 1e-15 here, as numpy's 4x4 product may take a BLAS kernel with FMA elsewhere)."""
+    from assistant.dh import chain_frames
+
+    Q = rng.uniform(rv2aj.limits.lower - 0.5, rv2aj.limits.upper + 0.5, (500, 5))
+    batch = rv2aj.batch_link_poses(Q)
+    for q, frames in zip(Q, batch, strict=True):
+        single = chain_frames(rv2aj.chain, q)
+        assert np.allclose(single, _numpy_chain_frames(rv2aj.chain, q), rtol=0, atol=1e-15)
+        assert np.array_equal(single, frames)
+    assert np.allclose(chain_frames(rv2aj.chain, [0, 0, 0, 0, 0]),
+                       _numpy_chain_frames(rv2aj.chain, np.zeros(5)), rtol=0, atol=1e-15)
