@@ -15,6 +15,19 @@ def box(name: str, centre, size) -> Obstacle:
     return Obstacle(name, make_T(p=centre), (CollisionShape(ShapeKind.BOX, tuple(size)),))
 
 
+def _random_motions(checker, rng, lo, hi, count: int, scale: float, label_step: int = 1):
+    """Samples of `count` random motions (start in the limits, a normal step of `scale`)
+    as `check_motion` takes them: (rows, labels per row, the motions' row blocks)."""
+    rows, groups = [], []
+    for g in range(count):
+        q0 = rng.uniform(lo, hi)
+        q1 = q0 + rng.normal(scale=scale, size=5)
+        n = checker.motion_samples(q0, q1)
+        rows.append(q0 + (np.arange(n + 1) / n)[:, None] * (q1 - q0))
+        groups.append(np.full(n + 1, label_step * g))
+    return np.concatenate(rows), np.concatenate(groups), rows
+
+
 @pytest.fixture(scope="module")
 def cell_obstacles() -> list[Obstacle]:
     return [
@@ -257,14 +270,7 @@ def test_certified_motion_samples_answer_like_the_plain_batch(checker, rv2aj):
     fewer rows exactly: the margins of every fourth sample cover the ones around it."""
     rng = np.random.default_rng(23)
     lo, hi = rv2aj.limits.lower, rv2aj.limits.upper
-    rows, groups = [], []
-    for g in range(40):
-        q0 = rng.uniform(lo, hi)
-        q1 = q0 + rng.normal(scale=0.4, size=5)  # some leave the limits
-        n = checker.motion_samples(q0, q1)
-        rows.append(q0 + (np.arange(n + 1) / n)[:, None] * (q1 - q0))
-        groups.append(np.full(n + 1, g))
-    Q, G = np.concatenate(rows), np.concatenate(groups)
+    Q, G, rows = _random_motions(checker, rng, lo, hi, 40, 0.4)  # some leave the limits
     plain = checker.is_valid_batch(Q)
     assert 0.2 < plain.mean() < 0.95  # both answers are well represented
     assert np.array_equal(checker.is_valid_samples(Q, G), plain)
@@ -289,14 +295,8 @@ def test_first_only_samples_give_each_motions_first_invalid_row(checker, rv2aj, 
     refuses) is the plain batch's, rows after it are invalid, and FCL skips those rows."""
     rng = np.random.default_rng(29)
     lo, hi = rv2aj.limits.lower, rv2aj.limits.upper
-    rows, groups = [], []
-    for g in range(60):
-        q0 = rng.uniform(lo, hi)
-        q1 = q0 + rng.normal(scale=0.25, size=5)
-        n = checker.motion_samples(q0, q1)
-        rows.append(q0 + (np.arange(n + 1) / n)[:, None] * (q1 - q0))
-        groups.append(np.full(n + 1, 7 * g))  # any labels, as long as motions are runs
-    Q, G = np.concatenate(rows), np.concatenate(groups)
+    # any labels, as long as motions are runs
+    Q, G, _ = _random_motions(checker, rng, lo, hi, 60, 0.25, label_step=7)
     refused = rng.random(len(Q)) < 0.002  # e.g. recorded collision postures
     plain = checker.is_valid_batch(Q) & ~refused
     import fcl
@@ -351,14 +351,7 @@ def test_compiled_frames_and_limits_are_the_robots_to_the_bit(checker, rv2aj, ce
 
     plain = CollisionChecker(NoHook(), cell_obstacles)
     assert plain._chain_F is None and checker._chain_F is not None
-    rows, groups = [], []
-    for g in range(30):
-        q0 = rng.uniform(lo, hi)
-        q1 = q0 + rng.normal(scale=0.3, size=5)
-        n = checker.motion_samples(q0, q1)
-        rows.append(q0 + (np.arange(n + 1) / n)[:, None] * (q1 - q0))
-        groups.append(np.full(n + 1, g))
-    Q, G = np.concatenate(rows), np.concatenate(groups)
+    Q, G, _ = _random_motions(checker, rng, lo, hi, 30, 0.3)
     for first_only in (False, True):
         a = checker.is_valid_samples(Q, G, first_only=first_only)
         assert np.array_equal(a, plain.is_valid_samples(Q, G, first_only=first_only))

@@ -59,34 +59,26 @@ def _dilate(mask: Array, radius: int, box: tuple[int, int, int, int, int, int]) 
         for j in range(ny):
             for k in range(nz):
                 A[i, j, k] = mask[a0 + i, a1 + j, a2 + k]
-    for i in range(nx):  # along the last axis
+    box_out = out[a0:b0 + 1, a1:b1 + 1, a2:b2 + 1]
+    _max_along_last(A, B, radius)  # along k, then j, then i (transposed views)
+    _max_along_last(B.transpose(0, 2, 1), A.transpose(0, 2, 1), radius)
+    _max_along_last(A.transpose(1, 2, 0), box_out.transpose(1, 2, 0), radius)
+    return out
+
+
+@njit(cache=True)
+def _max_along_last(src: Array, dst: Array, radius: int) -> None:
+    """dst = running maximum (any True) of src over +-radius along the last axis."""
+    nx, ny, nz = src.shape
+    for i in range(nx):
         for j in range(ny):
             for k in range(nz):
                 v = False
                 for c in range(max(0, k - radius), min(nz, k + radius + 1)):
-                    if A[i, j, c]:
+                    if src[i, j, c]:
                         v = True
                         break
-                B[i, j, k] = v
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                v = False
-                for b in range(max(0, j - radius), min(ny, j + radius + 1)):
-                    if B[i, b, k]:
-                        v = True
-                        break
-                A[i, j, k] = v
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                v = False
-                for a in range(max(0, i - radius), min(nx, i + radius + 1)):
-                    if A[a, j, k]:
-                        v = True
-                        break
-                out[a0 + i, a1 + j, a2 + k] = v
-    return out
+                dst[i, j, k] = v
 
 
 @njit(cache=True)
