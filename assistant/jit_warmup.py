@@ -37,6 +37,7 @@ from assistant.roadmap.graph_kernel import (
     expand,
     neighbour_cells,
     neighbour_nodes,
+    successor_costs,
     weighted_distances,
 )
 from assistant.roadmap.grid_ops import connected26
@@ -67,7 +68,7 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            certify_samples, check_moves, apply_moves, _candidates, slerp_kernel, update_rounds,
            motion_marks, chain_frames_inside, rows_before_first_bad, valid_before_first_bad,
            sweep_moves, halve_retries, repin, expand, weighted_distances,
-           connected26)
+           connected26, successor_costs)
 
 
 def warm_up() -> float:

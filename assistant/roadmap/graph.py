@@ -25,7 +25,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from assistant.roadmap.graph_kernel import neighbour_cells, neighbour_nodes, weighted_distances
+from assistant.roadmap.graph_kernel import (
+    neighbour_cells,
+    successor_costs,
+    weighted_distances,
+)
 
 Array = np.ndarray
 
@@ -94,12 +98,10 @@ class JointGraph:
 
     def successors(self, u: int) -> tuple[Array, Array]:
         """(node ids, edge costs u -> v) of u's neighbours."""
-        vs = neighbour_nodes(int(u), int(self.node_cell[u]), *self.shape, self.searchable,
-                             self.squeeze_blocked, self.squeeze_exempt, self.cell_start)
-        d = self.distance(self.node_q[u], self.node_q[vs])
-        ok = d <= self.max_edge
-        vs, d = vs[ok], d[ok]
-        return vs, d + self.penalty[self.node_cell[vs]]
+        return successor_costs(int(u), *self.shape, self.searchable, self.squeeze_blocked,
+                               self.squeeze_exempt, self.cell_start, self.node_q,
+                               self.node_cell, self.weights, float(self.max_edge),
+                               self.penalty)
 
     def cost(self, u: int, v: int) -> float:
         d = float(self.distance(self.node_q[u], self.node_q[v][None])[0])

@@ -108,6 +108,27 @@ def weighted_distances(q: Array, Q: Array, w: Array) -> Array:
 
 
 @njit(cache=True)
+def successor_costs(u: int, nx: int, ny: int, nz: int, searchable: Array,
+                    squeeze_blocked: Array, exempt: Array, cell_start: Array, node_q: Array,
+                    node_cell: Array, weights: Array, max_edge: float, penalty: Array,
+                    ) -> tuple[Array, Array]:
+    """`JointGraph.successors`: u's neighbour nodes within `max_edge` and the edge costs
+    (weighted joint distance + the entered cell's penalty)."""
+    vs = neighbour_nodes(u, node_cell[u], nx, ny, nz, searchable, squeeze_blocked, exempt,
+                         cell_start)
+    out = np.empty(vs.shape[0], dtype=np.int64)
+    cost = np.empty(vs.shape[0])
+    n = 0
+    for v in vs:
+        d = weighted_distance(node_q[u], node_q[v], weights)
+        if d <= max_edge:
+            out[n] = v
+            cost[n] = d + penalty[node_cell[v]]
+            n += 1
+    return out[:n], cost[:n]
+
+
+@njit(cache=True)
 def expand(u: int, gu: float, nx: int, ny: int, nz: int, searchable: Array,
            squeeze_blocked: Array, exempt: Array, cell_start: Array, node_q: Array,
            node_cell: Array, weights: Array, max_edge: float, penalty: Array, closed: Array,
@@ -117,19 +138,16 @@ def expand(u: int, gu: float, nx: int, ny: int, nz: int, searchable: Array,
     or dead that u reaches cheaper get g and parent (in place) and are returned as
     (f, g, node) to queue, in successor order; their heuristic (weight x distance to the
     goal) is computed once per node into h (NaN = not yet)."""
-    vs = neighbour_nodes(u, node_cell[u], nx, ny, nz, searchable, squeeze_blocked, exempt,
-                         cell_start)
+    vs, cost = successor_costs(u, nx, ny, nz, searchable, squeeze_blocked, exempt,
+                               cell_start, node_q, node_cell, weights, max_edge, penalty)
     f = np.empty(vs.shape[0])
     gn = np.empty(vs.shape[0])
     out = np.empty(vs.shape[0], dtype=np.int64)
     n = 0
-    qu = node_q[u]
-    for v in vs:
-        d = weighted_distance(qu, node_q[v], weights)
-        if not d <= max_edge or closed[v] or dead[v]:
-            continue
-        gv = gu + (d + penalty[node_cell[v]])
-        if not gv < g[v] - 1e-12:
+    for i in range(vs.shape[0]):
+        v = vs[i]
+        gv = gu + cost[i]
+        if closed[v] or dead[v] or not gv < g[v] - 1e-12:
             continue
         g[v] = gv
         parent[v] = u

@@ -48,7 +48,6 @@ from assistant.roadmap.sources import SourceLabels, label_sources, relabel
 from assistant.roadmap.voronoi import ROAD, VoronoiMap, build_voronoi, update_voronoi
 from assistant.robot_model import Robot
 from assistant.validity import ValidityChecker
-from assistant.world.cell_positions import CellPositions
 from assistant.world.fusion import Source
 from assistant.world.model import WorldBuildReport, WorldChange, WorldModel
 
@@ -216,7 +215,7 @@ class RoadmapPlanner:
         self.labels = label_sources(w.occupied(), w.object_ids(), w.object_names(),
                                     w.reachable(), w.has_valid())
         self.voronoi = build_voronoi(self.labels.source, w.reachable())
-        self._positions().decode()  # the queries' graph nodes, decoded once here
+        w.decode_positions()  # the queries' graph nodes, decoded once here
         dt = time.perf_counter() - t0
         progress.update(1.0, "roadmap ready", force=True)
         return RoadmapBuildReport(wrep, dt, int(self.voronoi.roads().sum()),
@@ -258,7 +257,7 @@ class RoadmapPlanner:
                               w.reachable(), w.has_valid())
         upd = update_voronoi(vmap, self.labels.source, d_min=self.config.d_min)
         self.voronoi = upd.vmap
-        self._positions().decode()  # the changed selection, before the re-plan's query
+        w.decode_positions()  # the changed selection, before the re-plan's query
         empty = np.zeros(0, dtype=np.int64)
         return CollisionUpdate(change or WorldChange(empty, empty, empty),
                                np.flatnonzero(upd.changed), upd.region_cells, upd.rounds,
@@ -372,11 +371,6 @@ class RoadmapPlanner:
         w = self.world.weights.copy()
         w[self._free_joints()] = 0.0
         return w
-
-    def _positions(self) -> CellPositions:
-        positions = self.world.positions
-        assert positions is not None
-        return positions
 
     def _free_joints(self) -> Array:
         table, positions = self.world.table, self.world.positions
