@@ -117,6 +117,7 @@ def warm_up() -> float:
     graph, _ = JointGraph.build((2, 2, 2), cells, np.arange(9), np.zeros((8, 5)),
                                 np.ones(8, bool), np.zeros(8, bool), np.zeros(8), np.ones(5))
     graph.successors(0)
+    graph.distance(graph.node_q[0], graph.node_q)  # the A*'s repair of a rejected edge
     connected26(source > 0, 0, 63)
     lazy_astar(graph, 0, 7, _AllFree())  # its expansion kernel
     leaf_flags(np.ascontiguousarray(tcp, dtype=float), np.full(3, -1.0), 0.0625, 32,
