@@ -4,12 +4,13 @@ The kernels (`broad_phase`, `segment_box`, `dh`, `rv2aj_fk_batch`, `rv2aj_positi
 `rv2aj_pose_batch`, `kernel_helpers`, `motion_rows`, `trajectory.fit_kernels`,
 `trajectory.net_forces`, `trajectory.net_kernel`, `trajectory.net_sweep`,
 `trajectory.follow_kernel`, `roadmap.brushfire`, `roadmap.voronoi_update`,
-`roadmap.graph_kernel`, `roadmap.grid_ops`, `world.leaf_lookup`) compile on their first call
-and cache the result on disk; only the first run after an install pays, ~50 s for all of
-them on this 2-core machine. `cellteach serve` runs `warm_up` in a background thread at
-start, so that first run does not stall the operator's first world build or plan (a compile
-reports no progress); `cellteach run` and the tests call it before anything else, so no
-compile happens inside a robot link's exchange, where seconds look like a lost link.
+`roadmap.graph_kernel`, `roadmap.astar_kernel`, `roadmap.grid_ops`, `world.leaf_lookup`)
+compile on their first call and cache the result on disk; only the first run after an
+install pays, ~50 s for all of them on this 2-core machine. `cellteach serve` runs `warm_up`
+in a background thread at start, so that first run does not stall the operator's first world
+build or plan (a compile reports no progress); `cellteach run` and the tests call it before
+anything else, so no compile happens inside a robot link's exchange, where seconds look like
+a lost link.
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ from assistant.motion_rows import (
     rows_before_first_bad,
     valid_before_first_bad,
 )
+from assistant.roadmap.astar_kernel import search
 from assistant.roadmap.brushfire import brushfire_region
 from assistant.roadmap.graph_kernel import (
     expand,
@@ -68,7 +70,7 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            certify_samples, check_moves, apply_moves, _candidates, slerp_kernel, update_rounds,
            motion_marks, chain_frames_inside, rows_before_first_bad, valid_before_first_bad,
            sweep_moves, halve_retries, repin, expand, weighted_distances,
-           connected26, successor_costs)
+           connected26, successor_costs, search)
 
 
 def warm_up() -> float:
@@ -77,6 +79,7 @@ def warm_up() -> float:
     from assistant.collision import CollisionChecker, Obstacle
     from assistant.roadmap.astar import lazy_astar
     from assistant.roadmap.graph import JointGraph
+    from assistant.roadmap.path_first import lazy_path_search
     from assistant.roadmap.voronoi import build_voronoi, update_voronoi
     from assistant.robot_model import CollisionShape, ShapeKind, Tool
     from assistant.rv2aj import RV2AJ, RV2AJConfig
@@ -120,6 +123,7 @@ def warm_up() -> float:
     graph.distance(graph.node_q[0], graph.node_q)  # the A*'s repair of a rejected edge
     connected26(source > 0, 0, 63)
     lazy_astar(graph, 0, 7, _AllFree())  # its expansion kernel
+    lazy_path_search(graph, 0, 7, _AllFree())  # the compiled search
     leaf_flags(np.ascontiguousarray(tcp, dtype=float), np.full(3, -1.0), 0.0625, 32,
                np.ones(32 ** 3, dtype=bool))
     # a short net on the RV-2AJ: its compiled move test (`net_kernel`), and the kernel that

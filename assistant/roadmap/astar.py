@@ -34,6 +34,7 @@ REASON_BUDGET = "budget exhausted"
 #: query as answered, e.g. as "no path", since the answer would depend on the machine).
 REASON_SAFETY = "safety limit"
 _UNKNOWN = object()
+_NO_EDGES = np.zeros(0, dtype=np.int64)
 
 
 class EdgeChecker(Protocol):
@@ -65,6 +66,10 @@ class SearchBudget:
     #: per-call overhead when the search pops many nodes, wastes checks when it pops few; on
     #: the thesis cell it was a wash, so the default checks strictly one edge per pop.
     edge_batch: int = 1
+    #: Rounds of the path-first search (`path_first.lazy_path_search`: search with unchecked
+    #: edges assumed valid, check the path's edges) before it hands over to checking at
+    #: every pop; 0 checks at every pop from the start.
+    path_rounds: int = 8
 
 
 @dataclass(frozen=True)
@@ -82,11 +87,14 @@ class SearchResult:
 
 def lazy_astar(graph: JointGraph, start: int, goal: int, checker: EdgeChecker,
                budget: SearchBudget | None = None, progress: Progress | None = None, *,
-               heuristic_weight: float = 1.0) -> SearchResult:
+               heuristic_weight: float = 1.0,
+               known: dict[tuple[int, int], float | None] | None = None) -> SearchResult:
     """Cheapest path start -> goal whose edges all pass `checker` (see module docstring).
 
     `heuristic_weight` > 1 turns it into weighted A*: far fewer expansions (and edge checks),
-    cost at most that factor above the optimum.
+    cost at most that factor above the optimum. `known` holds edges (u, v) already checked
+    (their first invalid fraction, None = valid), e.g. by a path-first search handing over;
+    it is updated with the edges this search checks.
     """
     budget = budget or SearchBudget()
     t0 = time.monotonic()
@@ -98,7 +106,7 @@ def lazy_astar(graph: JointGraph, start: int, goal: int, checker: EdgeChecker,
     dead = np.zeros(n, dtype=bool)  # the posture itself is invalid
     h = np.full(n, np.nan)
     invalid: set[tuple[int, int]] = set()
-    known: dict[tuple[int, int], float | None] = {}
+    known = {} if known is None else known
     g[start] = 0.0
     heap: list[tuple[float, float, int, int]] = [(0.0, 0.0, start, -1)]
     expansions = checks = rejected = 0
@@ -188,7 +196,8 @@ def lazy_astar(graph: JointGraph, start: int, goal: int, checker: EdgeChecker,
         f, gn, vs = expand(u, gu, *graph.shape, graph.searchable, graph.squeeze_blocked,
                            graph.squeeze_exempt, graph.cell_start, graph.node_q,
                            graph.node_cell, graph.weights, float(graph.max_edge), graph.penalty,
-                           closed, dead, g, parent, h, q_goal, float(heuristic_weight))
+                           closed, dead, g, parent, h, q_goal, float(heuristic_weight),
+                           _NO_EDGES)
         for fv, gv, v in zip(f.tolist(), gn.tolist(), vs.tolist(), strict=True):
             heapq.heappush(heap, (fv, gv, v, u))
     return result(False, REASON_NO_PATH)

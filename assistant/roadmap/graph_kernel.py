@@ -133,21 +133,25 @@ def expand(u: int, gu: float, nx: int, ny: int, nz: int, searchable: Array,
            squeeze_blocked: Array, exempt: Array, cell_start: Array, node_q: Array,
            node_cell: Array, weights: Array, max_edge: float, penalty: Array, closed: Array,
            dead: Array, g: Array, parent: Array, h: Array, q_goal: Array,
-           h_weight: float) -> tuple[Array, Array, Array]:
-    """One A* expansion of node u at cost gu (`astar.lazy_astar`): the successors not closed
-    or dead that u reaches cheaper get g and parent (in place) and are returned as
-    (f, g, node) to queue, in successor order; their heuristic (weight x distance to the
-    goal) is computed once per node into h (NaN = not yet)."""
+           h_weight: float, bad: Array) -> tuple[Array, Array, Array]:
+    """One A* expansion of node u at cost gu (`astar.lazy_astar`, `astar_kernel.search`):
+    the successors not closed or dead, and not over an edge of `bad` (sorted keys u * n + v,
+    edges known to be invalid), that u reaches cheaper get g and parent (in place) and are
+    returned as (f, g, node) to queue, in successor order; their heuristic (weight x
+    distance to the goal) is computed once per node into h (NaN = not yet)."""
     vs, cost = successor_costs(u, nx, ny, nz, searchable, squeeze_blocked, exempt,
                                cell_start, node_q, node_cell, weights, max_edge, penalty)
     f = np.empty(vs.shape[0])
     gn = np.empty(vs.shape[0])
     out = np.empty(vs.shape[0], dtype=np.int64)
     n = 0
+    n_nodes = node_q.shape[0]
     for i in range(vs.shape[0]):
         v = vs[i]
         gv = gu + cost[i]
         if closed[v] or dead[v] or not gv < g[v] - 1e-12:
+            continue
+        if bad.shape[0] and _contains(bad, u * n_nodes + v):
             continue
         g[v] = gv
         parent[v] = u

@@ -1,4 +1,4 @@
-"""`RoadmapPlanner`: world model + Voronoi roads + lazy A* behind three calls.
+"""`RoadmapPlanner`: world model + Voronoi roads + lazy search behind three calls.
 
     world = WorldModel(robot, cad_obstacles, WorldConfig())
     planner = RoadmapPlanner(robot, CollisionChecker(robot, cad_obstacles), world)
@@ -18,7 +18,9 @@ goal posture that collides (exact check) or sits in a leaf occupied by non-CAD e
 recorded collision's posture box is refused ("goal inside an obstacle"); start and goal closer
 than one edge with a valid straight motion are joined directly. The search is weighted A*
 (factor 1.5 by default, `RoadmapConfig.heuristic_weight`; 1.0 gives the optimum over the
-graph) with lazy exact edge checks, under a budget of expansions, edge checks and seconds.
+graph) with lazy exact edge checks - the found path's edges are checked, the invalid ones
+dropped and the search repeated (`path_first`) - under a budget of expansions, edge checks
+and seconds.
 
 The joint path is what the elastic net / primitive fitter consumes. Table joints that cannot
 move the geometry (J6 with a straight tool) are interpolated between the start and goal values
@@ -40,10 +42,10 @@ from assistant.roadmap.astar import (
     REASON_SAFETY,
     SearchBudget,
     SearchResult,
-    lazy_astar,
 )
 from assistant.roadmap.graph import JointGraph
 from assistant.roadmap.grid_ops import connected26
+from assistant.roadmap.path_first import lazy_path_search
 from assistant.roadmap.sources import SourceLabels, label_sources, relabel
 from assistant.roadmap.voronoi import ROAD, VoronoiMap, build_voronoi, update_voronoi
 from assistant.robot_model import Robot
@@ -430,7 +432,7 @@ class RoadmapPlanner:
                 progress: Progress | None, timings: dict[str, float],
                 budget: SearchBudget | None = None, exempt_terminals: bool = False,
                 ) -> tuple[SearchResult, JointGraph]:
-        """One lazy A* over the `searchable` cells' positions.
+        """One lazy search over the `searchable` cells' positions.
 
         A terminal the squeeze rule leaves without a single edge (a point taught between
         the table and a part) is exempt from the rule at once - searching on would only
@@ -454,8 +456,8 @@ class RoadmapPlanner:
             graph, (s_id, g_id) = build(cut_off)
         timings["graph"] = timings.get("graph", 0.0) + time.perf_counter() - t0
         t1 = time.perf_counter()
-        res = lazy_astar(graph, s_id, g_id, self._edge, budget or self.config.budget, progress,
-                         heuristic_weight=self.config.heuristic_weight)
+        res = lazy_path_search(graph, s_id, g_id, self._edge, budget or self.config.budget,
+                               progress, heuristic_weight=self.config.heuristic_weight)
         timings["search"] = timings.get("search", 0.0) + time.perf_counter() - t1
         return res, graph
 

@@ -7,6 +7,7 @@ nets trip makes the plan fail with that reason instead of quietly changing it.""
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -75,6 +76,14 @@ def test_a_tripped_safety_net_fails_loudly(planner, scenario, monkeypatch):
     plan = planner.plan_mission(scenario.mission, scenario.cell.T_world_base, np.zeros(5))
     assert not plan.ok and plan.trajectory is None
     assert "safety limit" in plan.reason, plan.reason
-    # a search stopped by the clock is no answer - neither "no path" nor a counted budget
+    # A search stopped by the clock is no answer - neither "no path" nor a counted budget.
+    # The path-first search looks at the clock between rounds (its compiled search runs a
+    # round to the end, within the expansion budget), and this query's first path passes:
+    # it is answered. Checking at every pop looks at the clock at every expansion.
+    first = planner.roadmap.plan(q1, q10)
+    assert first.ok and first.edge_checks == len(first.joint_path) - 1
+    cfg = planner.roadmap.config
+    monkeypatch.setattr(planner.roadmap, "config",
+                        replace(cfg, budget=replace(cfg.budget, path_rounds=0)))
     search = planner.roadmap.plan(q1, q10)
     assert search.failure == PlanFailure.SAFETY_LIMIT and "safety limit" in search.reason

@@ -1,0 +1,164 @@
+"""Path-first lazy search: the compiled search pops like the pop-checking A*, the checked
+path avoids what the checker refuses at the optimal cost, it checks far fewer edges, and it
+hands over to the pop-checking A* (still complete) when rounds run out."""
+
+from __future__ import annotations
+
+import time
+from itertools import pairwise
+
+import networkx as nx
+import numpy as np
+import pytest
+
+from assistant.roadmap.astar import (
+    REASON_BUDGET,
+    REASON_NO_PATH,
+    REASON_SAFETY,
+    SearchBudget,
+    lazy_astar,
+)
+from assistant.roadmap.astar_kernel import FOUND, search
+from assistant.roadmap.path_first import lazy_path_search
+from tests.roadmap.test_roadmap_astar import AlwaysValid, Wall, to_networkx, toy_graph
+
+
+class Batched(Wall):
+    """The wall, with the batched call the planner's edge checker offers; counts calls."""
+
+    def __init__(self, top: float):
+        super().__init__(top)
+        self.calls = 0
+
+    def first_invalid_fractions(self, Q0, Q1):
+        self.calls += 1
+        return [self.first_invalid_fraction(a, b) for a, b in zip(Q0, Q1, strict=True)]
+
+
+class DeadNode(AlwaysValid):
+    """Refuses every motion ending in one posture (fraction 1: the posture itself)."""
+
+    def __init__(self, q):
+        super().__init__()
+        self.q = np.asarray(q)
+
+    def first_invalid_fraction(self, q0, q1):
+        super().first_invalid_fraction(q0, q1)
+        return 1.0 if np.array_equal(q1, self.q) else None
+
+
+def _search(graph, s, g, dead=None, bad=(), weight=1.0, max_expansions=60_000):
+    n = graph.n_nodes
+    return search(s, g, *graph.shape, graph.searchable, graph.squeeze_blocked,
+                  graph.squeeze_exempt, graph.cell_start, graph.node_q, graph.node_cell,
+                  graph.weights, float(graph.max_edge), graph.penalty,
+                  np.zeros(n, bool) if dead is None else dead,
+                  np.array(sorted(bad), dtype=np.int64), np.full(n, np.nan), weight,
+                  max_expansions)
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("weight", [1.0, 1.5])
+def test_compiled_search_closes_nodes_as_the_pop_checking_astar(seed, weight):
+    rng = np.random.default_rng(seed)
+    graph, (s, g) = toy_graph(rng, blocked=rng.choice(40, 6, replace=False).tolist()[2:])
+    ref = lazy_astar(graph, s, g, AlwaysValid(), heuristic_weight=weight)
+    status, path, cost, expansions = _search(graph, s, g, weight=weight)
+    assert status == FOUND and path.tolist() == ref.nodes
+    assert cost == ref.cost and expansions == ref.expansions
+    if weight == 1.0:
+        assert cost == pytest.approx(nx.dijkstra_path_length(to_networkx(graph), s, g))
+
+
+def test_compiled_search_leaves_out_bad_edges_and_dead_nodes():
+    rng = np.random.default_rng(1)
+    graph, (s, g) = toy_graph(rng, shape=(6, 6, 1), per_cell=2, penalty=False)
+    G = to_networkx(graph)
+    n = graph.n_nodes
+    _, path, _, _ = _search(graph, s, g)
+    u, v = path.tolist()[1:3]
+    status, detour, cost, _ = _search(graph, s, g, bad=[u * n + v])
+    G.remove_edge(u, v)
+    assert status == FOUND and (u, v) not in set(pairwise(detour.tolist()))
+    assert cost == pytest.approx(nx.dijkstra_path_length(G, s, g))
+    dead = np.zeros(n, bool)
+    dead[v] = True
+    status, around, cost, _ = _search(graph, s, g, dead=dead)
+    G.remove_node(v)
+    assert status == FOUND and v not in around.tolist()
+    assert cost == pytest.approx(nx.dijkstra_path_length(G, s, g))
+    cut = np.zeros(n, bool)
+    cut[[w for w in G.predecessors(g)] + [w for w in graph.successors(g)[0].tolist()]] = True
+    assert _search(graph, s, g, dead=cut)[0] != FOUND
+    assert _search(graph, s, g, max_expansions=2)[0] != FOUND
+
+
+def test_path_first_checks_only_the_path_in_one_call_when_nothing_is_refused():
+    rng = np.random.default_rng(3)
+    graph, (s, g) = toy_graph(rng, shape=(6, 6, 1), per_cell=2, penalty=False)
+    free = Batched(top=-1.0)  # a wall of no height: refuses nothing
+    res = lazy_path_search(graph, s, g, free)
+    pop = lazy_astar(graph, s, g, AlwaysValid())
+    assert res.found and res.nodes == pop.nodes and res.cost == pop.cost
+    assert free.calls == 1 and res.edge_checks == len(res.nodes) - 1 < pop.edge_checks
+
+
+def test_path_first_finds_the_optimal_detour_past_refused_edges():
+    """A wall across the whole toy graph is Lazy PRM's hard case (each round finds one more
+    edge across it); it still ends at the optimum, checking no edge twice."""
+    rng = np.random.default_rng(3)
+    graph, (s, g) = toy_graph(rng, shape=(6, 6, 1), per_cell=2, penalty=False)
+    want = nx.dijkstra_path_length(to_networkx(graph, reject=Wall(0.7).blocks), s, g)
+    for rounds in (SearchBudget().path_rounds, 1000):
+        wall = Batched(top=0.7)
+        res = lazy_path_search(graph, s, g, wall, SearchBudget(path_rounds=rounds))
+        path = graph.node_q[res.nodes]
+        assert res.found and res.rejected_edges >= 1
+        assert not any(wall.blocks(a, b) for a, b in pairwise(path))
+        assert res.cost == pytest.approx(want)
+        assert res.edge_checks == len(wall.checked) == len(set(wall.checked))
+
+
+def test_path_first_marks_an_invalid_posture_dead():
+    rng = np.random.default_rng(2)
+    graph, (s, g) = toy_graph(rng, shape=(6, 6, 1), per_cell=2, penalty=False)
+    first = lazy_path_search(graph, s, g, AlwaysValid())
+    v = first.nodes[2]
+    res = lazy_path_search(graph, s, g, DeadNode(graph.node_q[v]))
+    assert res.found and v not in res.nodes and res.rejected_edges >= 1
+
+
+def test_path_first_hands_over_to_pop_checking_when_rounds_run_out():
+    rng = np.random.default_rng(3)
+    graph, (s, g) = toy_graph(rng, shape=(6, 6, 1), per_cell=2, penalty=False)
+    want = nx.dijkstra_path_length(to_networkx(graph, reject=Wall(0.7).blocks), s, g)
+    for rounds in (0, 1):
+        wall = Batched(top=0.7)
+        res = lazy_path_search(graph, s, g, wall, SearchBudget(path_rounds=rounds))
+        assert res.found and res.cost == pytest.approx(want)
+        assert res.edge_checks == len(wall.checked)
+    # what the rounds checked is not checked again
+    assert len(set(wall.checked)) == len(wall.checked)
+
+
+def test_path_first_no_path_and_budgets_end_with_a_reason():
+    rng = np.random.default_rng(4)
+    graph, (s, g) = toy_graph(rng, shape=(6, 6, 1), per_cell=2, penalty=False)
+    res = lazy_path_search(graph, s, g, Batched(top=2.0))
+    assert not res.found and res.reason == REASON_NO_PATH and res.rejected_edges > 0
+    tight = lazy_path_search(graph, s, g, AlwaysValid(), SearchBudget(max_expansions=3))
+    assert not tight.found and tight.reason == REASON_BUDGET
+    few = lazy_path_search(graph, s, g, AlwaysValid(), SearchBudget(max_edge_checks=2))
+    assert not few.found and few.reason == REASON_BUDGET and few.edge_checks <= 2
+
+
+def test_path_first_looks_at_the_clock_between_rounds(monkeypatch):
+    """The wall-time safety net: a round that refuses edges is followed by a look at the
+    clock, and a search the machine cannot finish in time fails with that reason."""
+    rng = np.random.default_rng(3)
+    graph, (s, g) = toy_graph(rng, shape=(6, 6, 1), per_cell=2, penalty=False)
+    real = time.monotonic
+    t0 = real()
+    monkeypatch.setattr(time, "monotonic", lambda: t0 + 1e7 * (real() - t0))
+    res = lazy_path_search(graph, s, g, Batched(top=0.7))
+    assert not res.found and res.reason == REASON_SAFETY and res.rejected_edges >= 1
