@@ -270,7 +270,15 @@ class Robot(abc.ABC):
         the continuous collision check. Triangle inequality along the chain: link frames sit
         on their joint axes at fixed distances (true for DH and URDF frames) and each shape
         lies within its bounding sphere; the TCP counts as a point of the last link.
+        Computed once per robot (robots are immutable): every joint interpolation asks.
         """
+        cached = self.__dict__.get("_arm_radii")
+        if cached is None:
+            cached = self._compute_arm_radii()
+            self.__dict__["_arm_radii"] = cached
+        return cached.copy()
+
+    def _compute_arm_radii(self) -> Array:
         frames = self.link_poses(np.zeros(self.dof))
         origins = frames[1 : self.dof + 1, :3, 3]
         T_last_tool = np.linalg.inv(frames[self.dof]) @ self.fk(np.zeros(self.dof))
