@@ -3,14 +3,14 @@
 The kernels (`broad_phase`, `segment_box`, `dh`, `rv2aj_fk_batch`, `rv2aj_position_ik`,
 `rv2aj_pose_batch`, `kernel_helpers`, `motion_rows`, `trajectory.fit_kernels`,
 `trajectory.fit_search`, `trajectory.net_forces`, `trajectory.net_kernel`,
-`trajectory.net_sweep`, `trajectory.follow_kernel`, `roadmap.brushfire`,
-`roadmap.voronoi_update`, `roadmap.graph_kernel`, `roadmap.astar_kernel`,
-`roadmap.grid_ops`, `world.leaf_lookup`) compile on their first call and cache the result on
-disk; only the first run after an install pays, ~50 s for all of them on this 2-core
-machine. `cellteach serve` runs `warm_up` in a background thread at start, so that first run
-does not stall the operator's first world build or plan (a compile reports no progress);
-`cellteach run` and the tests call it before anything else, so no compile happens inside a
-robot link's exchange, where seconds look like a lost link.
+`trajectory.net_sweep`, `trajectory.net_stage`, `trajectory.follow_kernel`,
+`roadmap.brushfire`, `roadmap.voronoi_update`, `roadmap.graph_kernel`,
+`roadmap.astar_kernel`, `roadmap.grid_ops`, `world.leaf_lookup`) compile on their first call
+and cache the result on disk; only the first run after an install pays, ~50 s for all of
+them on this 2-core machine. `cellteach serve` runs `warm_up` in a background thread at
+start, so that first run does not stall the operator's first world build or plan (a compile
+reports no progress); `cellteach run` and the tests call it before anything else, so no
+compile happens inside a robot link's exchange, where seconds look like a lost link.
 """
 
 from __future__ import annotations
@@ -59,6 +59,7 @@ from assistant.trajectory.fit_search import fit_rows
 from assistant.trajectory.follow_kernel import slerp_kernel, walk_nearest
 from assistant.trajectory.net_forces import propose_moves
 from assistant.trajectory.net_kernel import apply_moves, check_moves
+from assistant.trajectory.net_stage import run_sweeps
 from assistant.trajectory.net_sweep import halve_retries, repin, sweep_moves
 from assistant.world.leaf_lookup import leaf_flags
 
@@ -71,7 +72,7 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            certify_samples, check_moves, apply_moves, _candidates, slerp_kernel, update_rounds,
            motion_marks, chain_frames_inside, rows_before_first_bad, valid_before_first_bad,
            sweep_moves, halve_retries, repin, expand, weighted_distances,
-           connected26, successor_costs, search, fit_rows)
+           connected26, successor_costs, search, fit_rows, run_sweeps)
 
 
 def warm_up() -> float:

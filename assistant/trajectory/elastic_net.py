@@ -78,6 +78,7 @@ from assistant.trajectory.net_kernel import (
     apply_moves,
     check_moves,
 )
+from assistant.trajectory.net_stage import RAN, STOPS, run_sweeps
 from assistant.trajectory.net_sweep import halve_retries, repin, sweep_moves
 from assistant.trajectory.particles import (
     Particles,
@@ -281,34 +282,75 @@ class _Net:
             self._gap = self._ref_margin.copy()
         self._kernel = (_kernel_model(robot, allowed, validity)
                         if self._certify and COMPILED_MOVES else None)
+        p = params
+        self._forces = np.array([p.c_error, p.c_equidistance, p.c_rotation, p.c_shrink,
+                                 p.c_line_shrink, p.stage1_shrink, p.r_max, p.r_min,
+                                 p.max_move], dtype=float)
+        self._stops = np.array([p.epsilon, p.settle, p.taut_length], dtype=float)
+        self._ik_par = np.array([p.ik.nullspace_gain, p.ik.max_joint_jump,
+                                 p.ik.tolerance * 10.0], dtype=float)
 
     # ---------------------------------------------------------------- stages
     def run_stage(self, stage: int, budget: int, progress: Progress | None, done: int,
                   total: int) -> StageReport:
         if len(self.P) < 3:
             return StageReport(0, StopReason.NOTHING_TO_DO, 0.0)
-        taut = stage == 1 and self.p.taut_length > 0.0
-        lengths = [polyline_length(self.P)] if taut else []
-        for it in range(1, budget + 1):
+        p = self.p
+        taut = stage == 1 and p.taut_length > 0.0
+        lengths = np.empty(budget + 1)  # the TCP length before the stage and after each sweep
+        n_len = 0
+        if taut:
+            lengths[0] = polyline_length(self.P)
+            n_len = 1
+        it = 1
+        while it <= budget:
             # every fourth sweep: a report and its cancel check cost ~6 us, ~0.3 ms a query
             # if made every sweep
             if progress is not None and it % 4 == 1:
                 progress.update((done + it) / total, f"elastic net stage {stage}, iteration {it}")
+            if self._kernel is not None and COMPILED_SWEEPS:
+                # the sweeps up to the next report in one call (`net_stage`)
+                last = min(budget, it + 3 - (it - 1) % 4)
+                code, it, n_len, self.E = self._run_sweeps(stage, it, last, lengths, n_len,
+                                                           taut)
+                if code < RAN:
+                    return StageReport(it, StopReason(STOPS[code]), float(self.E))
+                if code == RAN:
+                    continue
+                # NEEDS_FCL: sweep `it` runs here, FCL deciding its doubtful moves
             E = self.E
-            lam = self.p.c_error * E / (1.0 + self.p.c_error * E) if np.isfinite(E) else 1.0
+            lam = p.c_error * E / (1.0 + p.c_error * E) if np.isfinite(E) else 1.0
             self.E, accepted, proposed = self.iterate(stage, lam)
             if proposed and not accepted:
                 return StageReport(it, StopReason.BLOCKED, 0.0)
-            if self.E < self.p.epsilon:
+            if self.E < p.epsilon:
                 return StageReport(it, StopReason.CONVERGED, float(self.E))
-            if self.E < self.p.settle:
+            if self.E < p.settle:
                 return StageReport(it, StopReason.SETTLED, float(self.E))
             if taut:
-                lengths.append(polyline_length(self.P))
-                w = self.p.taut_window
-                if len(lengths) > w and lengths[-1 - w] - lengths[-1] < self.p.taut_length:
+                lengths[n_len] = polyline_length(self.P)
+                n_len += 1
+                w = p.taut_window
+                if n_len > w and lengths[n_len - 1 - w] - lengths[n_len - 1] < p.taut_length:
                     return StageReport(it, StopReason.TAUT, float(self.E))
+            it += 1
         return StageReport(budget, StopReason.ITERATION_CAP, float(self.E))
+
+    def _run_sweeps(self, stage: int, first: int, last: int, lengths: Array, n_len: int,
+                    taut: bool) -> tuple[int, int, int, float]:
+        """`net_stage.run_sweeps` on this net's arrays; adds its move counts."""
+        km, p = self._kernel, self.p
+        grid = km.grid if km.grid is not None else _NO_GRID
+        counts = np.zeros(3, dtype=np.int64)
+        out = run_sweeps(
+            self.P, self.Q, self._pinned, self._ref_Q, self._ref_margin, self._gap, counts,
+            lengths, n_len, float(self.E), first, last, taut, stage, self._forces,
+            self._stops, p.taut_window, *grid, km.grid is not None, p.check_edge_midpoints,
+            km.robot, km.checker, km.recorded_q, km.recorded_half, self._ik_par, p.min_gap)
+        self.accepted += int(counts[0])
+        self.rejected += int(counts[1])
+        self.certified_moves += int(counts[2])
+        return out
 
     def iterate(self, stage: int, lam: float) -> tuple[float, int, int]:
         """One sweep: (E, accepted, proposed moves).
@@ -431,6 +473,9 @@ class _Net:
 #: Use the compiled move test (`net_kernel`) where robot, validity and `allowed` provide
 #: its pieces; False forces the numpy path (the tests compare the two).
 COMPILED_MOVES = True
+#: With the compiled move test, run the sweeps between progress reports in one compiled call
+#: (`net_stage`); False runs them one by one through `_Net.iterate` (the tests compare).
+COMPILED_SWEEPS = True
 
 _NO_GRID = (np.zeros(3), 1.0, 0, np.zeros(0, dtype=bool))
 

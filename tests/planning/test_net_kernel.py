@@ -16,6 +16,7 @@ import assistant.trajectory.elastic_net as en
 from assistant.planning.known_world import KnownValidity, WorldAllowed
 from assistant.trajectory.elastic_net import ElasticNetParams
 from assistant.trajectory.net_forces import propose_moves
+from assistant.trajectory.net_stage import NEEDS_FCL
 from assistant.trajectory.particles import resample_joint_path
 
 Z = 0.25
@@ -83,6 +84,15 @@ def test_compiled_moves_give_the_numpy_net_bit_for_bit(scenes, monkeypatch, reco
         return out
 
     monkeypatch.setattr(en, "check_moves", recording)
+    runs = []  # the compiled runs of sweeps (`net_stage`); sweeps needing FCL come back
+    run_sweeps = en.run_sweeps
+
+    def counting_runs(*args):
+        out = run_sweeps(*args)
+        runs.append(out[0])
+        return out
+
+    monkeypatch.setattr(en, "run_sweeps", counting_runs)
     near = planner.world.near_recorded_collision
     refused_by_box = []
 
@@ -94,7 +104,7 @@ def test_compiled_moves_give_the_numpy_net_bit_for_bit(scenes, monkeypatch, reco
     monkeypatch.setattr(planner.world, "near_recorded_collision", counting)
     fast, fast_stages = _run(planner, Q, True, min_gap, grid, monkeypatch, midpoints)
     calls = len(statuses)
-    assert calls, "the compiled move test was not used"
+    assert runs, "the compiled sweeps were not used"
     slow, slow_stages = _run(planner, Q, False, min_gap, grid, monkeypatch, midpoints)
     assert len(statuses) == calls  # the numpy run did not use it
     assert fast_stages == slow_stages
@@ -110,7 +120,8 @@ def test_compiled_moves_give_the_numpy_net_bit_for_bit(scenes, monkeypatch, reco
     assert fast.certified_moves > 0 or min_gap > 0.01  # the margins are 1-2 cm here
     assert (sum(refused_by_box) > 0) == recorded
     if not recorded and min_gap == 0.0:
-        assert (np.concatenate(statuses) == en.ASK_FCL).any()
+        # sweeps the compiled run handed back, and FCL decided moves in them
+        assert NEEDS_FCL in runs and (np.concatenate(statuses) == en.ASK_FCL).any()
 
 
 def _reference_iterate(self, stage, lam):
@@ -147,8 +158,9 @@ def _reference_iterate(self, stage, lam):
 @pytest.mark.parametrize("compiled", [True, False])
 def test_compiled_sweep_bookkeeping_gives_the_numpy_net_bit_for_bit(scenes, monkeypatch,
                                                                     compiled):
-    """The sweep's proposals, pinned halves, retries and re-pinning (`net_sweep`) against
-    the numpy form they replaced, with either move test."""
+    """The sweep's proposals, pinned halves, retries and re-pinning (`net_sweep`), and the
+    runs of sweeps in one compiled call (`net_stage`), against the numpy form they
+    replaced, with either move test."""
     planners, Q = scenes
     planner = planners[True]
     pins = []
@@ -158,13 +170,19 @@ def test_compiled_sweep_bookkeeping_gives_the_numpy_net_bit_for_bit(scenes, monk
         pins.append((int(pin.sum()), len(retry)))
         return repin(ok, pin, retry, ok2, idx, pinned)
 
+    # with compiled moves: the runs of sweeps in one call (`net_stage`), as the planner
+    # runs them, then sweep by sweep (counting pins and retries)
+    runs = [_run(planner, Q, compiled, 0.01, True, monkeypatch)] if compiled else []
+    monkeypatch.setattr(en, "COMPILED_SWEEPS", False)
     monkeypatch.setattr(en, "repin", counting)
-    fast, fast_stages = _run(planner, Q, compiled, 0.01, True, monkeypatch)
+    runs.append(_run(planner, Q, compiled, 0.01, True, monkeypatch))
     monkeypatch.setattr(en._Net, "iterate", _reference_iterate)
     slow, slow_stages = _run(planner, Q, compiled, 0.01, True, monkeypatch)
-    assert fast_stages == slow_stages
-    for name in ("P", "Q", "_ref_Q", "_ref_margin", "_gap", "_pinned"):
-        assert np.array_equal(getattr(fast, name), getattr(slow, name), equal_nan=True), name
-    assert (fast.rejected, fast.accepted) == (slow.rejected, slow.accepted)
+    for fast, fast_stages in runs:
+        assert fast_stages == slow_stages
+        for name in ("P", "Q", "_ref_Q", "_ref_margin", "_gap", "_pinned"):
+            assert np.array_equal(getattr(fast, name), getattr(slow, name),
+                                  equal_nan=True), name
+        assert (fast.rejected, fast.accepted) == (slow.rejected, slow.accepted)
     # pinned particles and retried moves both occurred
     assert sum(a for a, _ in pins) > 0 and sum(b for _, b in pins) > 0
