@@ -1,11 +1,11 @@
 """Where numba caches the compiled kernels: one folder per version of the kernels' sources.
 
 Why: numba invalidates a cached function when its own file changes, but not when a kernel
-it calls changes in another file. After an update the stale machine code then runs against
-the new callee - in the worst case a crash, not an error (a cached kernel that called a
-since-changed one segfaulted while this was written). Keying the folder by a hash of every
-kernel module's source makes any change recompile all kernels once (~75 s on the 2-core
-machine, in `warm_up`), and never mixes versions.
+it calls changes in another file (a documented limit of its cache). After an update the
+stale machine code would keep the old callee's behaviour, or call it with an old layout -
+and compiled code that goes wrong crashes the process rather than raising. Keying the
+folder by a hash of every kernel module's source makes any change recompile all kernels
+once (~75 s on the 2-core machine, in `warm_up`), and never mixes versions.
 
 The folder is `$CELLTEACH_CACHE/numba/<hash>` (default `~/.cache/cellteach`), unless
 `NUMBA_CACHE_DIR` is set, which always wins (the tests use it for an empty cache).
