@@ -39,7 +39,12 @@ from assistant.motion_rows import (
     valid_before_first_bad,
 )
 from assistant.robot_model import CollisionShape, Robot, ShapeKind
-from assistant.segment_box import axis_segment, oriented_bounds, segment_box_bounds
+from assistant.segment_box import (
+    axis_segment,
+    oriented_bounds,
+    scan_tight_bounds,
+    segment_box_bounds,
+)
 
 Array = np.ndarray
 
@@ -705,7 +710,8 @@ class CollisionChecker:
         What `clearance` at each sample would give, with few or no FCL calls: each link
         shape lies inside its covering spheres and each obstacle inside its box, so
         sphere-to-box gaps bound every (sample, shape, obstacle) distance from below. The
-        pairs whose sphere bound is below a first measured answer get a tight bound, the
+        pairs whose sphere bound is below the smallest answer so far (one compiled pass,
+        `segment_box.scan_tight_bounds`) get a tight bound, the
         distance from the shape's axis segment to the obstacle's oriented box
         (`segment_box`), which for a capsule or sphere link and a box obstacle is the exact
         distance itself (FCL's GJK answer there is up to ~0.1 mm high). The rest are
@@ -747,14 +753,11 @@ class CollisionChecker:
         tight_first = self._segment_bounds(frames_all, row)
         best = (float(tight_first[0]) if self._is_exact(row, tight_first)[0]
                 else measure(first))
-        cand = np.flatnonzero(vals < best)
-        cand = cand[cand != first]
-        rows = rows_of(cand)
-        tight = self._segment_bounds(frames_all, rows)
-        exact = self._is_exact(rows, tight)
-        if exact.any():
-            best = min(best, float(tight[exact].min()))
-        cand, bound = cand[~exact], np.maximum(vals[cand], tight)[~exact]
+        # Then every row below it, in one compiled pass (`segment_box.scan_tight_bounds`).
+        best, cand, bound = scan_tight_bounds(
+            np.ascontiguousarray(frames_all, dtype=float), np.ascontiguousarray(lb), movable,
+            first, best, self._shape_link, self._seg_a, self._seg_b, self._seg_r,
+            self._seg_exact, self._env_R, self._env_c, self._env_h, self._env_exact)
         order = np.lexsort((cand, bound))  # by bound, ties in sample order
         for j, b in zip(cand[order].tolist(), bound[order].tolist(), strict=True):
             if b >= best:

@@ -47,7 +47,11 @@ from assistant.roadmap.voronoi_update import update_rounds
 from assistant.rv2aj_fk_batch import tcp_poses
 from assistant.rv2aj_pose_batch import _candidates
 from assistant.rv2aj_position_ik import planar_position_ik
-from assistant.segment_box import _segment_box_distances, segment_box_distance_one
+from assistant.segment_box import (
+    _segment_box_distances,
+    scan_tight_bounds,
+    segment_box_distance_one,
+)
 from assistant.trajectory.fit_kernels import (
     arc_distances,
     circle_through_kernel,
@@ -72,7 +76,7 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            certify_samples, check_moves, apply_moves, _candidates, slerp_kernel, update_rounds,
            motion_marks, chain_frames_inside, rows_before_first_bad, valid_before_first_bad,
            sweep_moves, halve_retries, repin, expand, weighted_distances,
-           connected26, successor_costs, search, fit_rows, run_sweeps)
+           connected26, successor_costs, search, fit_rows, run_sweeps, scan_tight_bounds)
 
 
 def warm_up() -> float:

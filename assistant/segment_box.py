@@ -141,3 +141,60 @@ def segment_box_bounds(A: Array, B: Array, radius: Array, R: Array, centre: Arra
     lb = np.einsum("nji,nj->ni", R, B - centre)
     gap = segment_box_distance(la, lb, half) - radius
     return np.where(gap > 0.0, gap, -np.inf)
+
+
+@njit(cache=True)
+def scan_tight_bounds(frames: Array, lb: Array, movable: Array, first: int, best: float,
+                      shape_link: Array, seg_a: Array, seg_b: Array, seg_r: Array,
+                      seg_exact: Array, box_R: Array, box_c: Array, box_h: Array,
+                      box_exact: Array) -> tuple[float, Array, Array]:
+    """The clearance report's second pass (`CollisionChecker.min_clearance_along`) in one
+    loop: over (sample, movable shape, obstacle) rows in order, those whose sphere bound
+    lb is below the smallest distance found so far get the capsule-to-box bound
+    (`segment_box_bounds`, the same products in the same order). Where that bound is the
+    exact distance (a capsule or sphere clear of a box) it lowers the best; the others are
+    returned (flat row, bound = max(sphere bound, capsule bound)) for FCL. Rows skipped
+    have a sphere bound at or above a distance already found, so neither their exact
+    distance nor an FCL answer for them could be smaller: the result is that of bounding
+    every row below the first answer `best` (row `first`) and then measuring."""
+    n, n_mov, n_env = lb.shape
+    rows = np.empty(n * n_mov * n_env, dtype=np.int64)
+    bounds = np.empty(n * n_mov * n_env)
+    m = 0
+    A = np.empty(3)
+    B = np.empty(3)
+    la = np.empty(3)
+    lbx = np.empty(3)
+    j = -1
+    for k in range(n):
+        for r in range(n_mov):
+            s = movable[r]
+            link = shape_link[s]
+            for e in range(n_env):
+                j += 1
+                v = lb[k, r, e]
+                if j == first or not v < best:
+                    continue
+                for i in range(3):  # frame @ segment ends, as einsum "nij,nj->ni" + t
+                    A[i] = (0.0 + frames[k, link, i, 0] * seg_a[s, 0]
+                            + frames[k, link, i, 1] * seg_a[s, 1]
+                            + frames[k, link, i, 2] * seg_a[s, 2]) + frames[k, link, i, 3]
+                    B[i] = (0.0 + frames[k, link, i, 0] * seg_b[s, 0]
+                            + frames[k, link, i, 1] * seg_b[s, 1]
+                            + frames[k, link, i, 2] * seg_b[s, 2]) + frames[k, link, i, 3]
+                for i in range(3):  # R^T (end - centre), as einsum "nji,nj->ni"
+                    la[i] = (0.0 + box_R[e, 0, i] * (A[0] - box_c[e, 0])
+                             + box_R[e, 1, i] * (A[1] - box_c[e, 1])
+                             + box_R[e, 2, i] * (A[2] - box_c[e, 2]))
+                    lbx[i] = (0.0 + box_R[e, 0, i] * (B[0] - box_c[e, 0])
+                              + box_R[e, 1, i] * (B[1] - box_c[e, 1])
+                              + box_R[e, 2, i] * (B[2] - box_c[e, 2]))
+                gap = segment_box_distance_one(la, lbx, box_h[e]) - seg_r[s]
+                tight = gap if gap > 0.0 else -np.inf
+                if seg_exact[s] and box_exact[e] and np.isfinite(tight):
+                    best = min(best, tight)
+                else:
+                    rows[m] = j
+                    bounds[m] = max(v, tight)
+                    m += 1
+    return best, rows[:m].copy(), bounds[:m].copy()

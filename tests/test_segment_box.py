@@ -8,7 +8,7 @@ import trimesh
 from assistant.collision import CollisionChecker, Obstacle
 from assistant.robot_catalog import installed_robot_urdf
 from assistant.robot_model import CollisionShape, ShapeKind
-from assistant.segment_box import oriented_bounds, segment_box_distance
+from assistant.segment_box import oriented_bounds, scan_tight_bounds, segment_box_distance
 from assistant.transforms import make_T, pose_from_xyz_rpy, rot_z
 from assistant.urdf_robot import URDFRobot
 
@@ -122,3 +122,35 @@ def test_clearance_of_a_robot_with_mesh_and_box_links_is_the_fcl_minimum():
         fast = checker.min_clearance_along(list(path), max_step=0.03)
         ref = min(checker.clearance(q).distance for q in _samples(checker, path, 0.03))
         assert abs(fast - ref) < 1e-12
+
+
+def test_scan_of_tight_bounds_equals_bounding_every_row(rv2aj):
+    """The clearance report's compiled pass (`scan_tight_bounds`) gives the exact rows'
+    minimum and, for the rows it leaves to FCL, the bits of the vectorised capsule-to-box
+    bounds it replaced (turned boxes: their own frames; a mesh: never exact)."""
+    mesh = trimesh.creation.box(extents=[0.08, 0.08, 0.2])
+    checker = CollisionChecker(rv2aj, [
+        _turned_box("B1", [0.30, 0.12, 0.12], [0.06, 0.14, 0.24], 0.6),
+        _turned_box("B2", [0.05, 0.32, 0.08], [0.12, 0.05, 0.16], -0.9),
+        Obstacle("M", make_T(rot_z(0.4), [0.25, -0.25, 0.10]),
+                 (CollisionShape(ShapeKind.MESH, (1.0, 1.0, 1.0), mesh=mesh),))])
+    Q = np.random.default_rng(8).uniform(rv2aj.limits.lower, rv2aj.limits.upper, (400, 5))
+    frames = rv2aj.batch_link_poses(Q)
+    movable = np.array([i for i, rs in enumerate(checker._rshapes) if rs.link > 0])
+    lb = np.ascontiguousarray(checker._clearance_bounds(frames)[:, movable, :])
+    c = checker
+    best, rows, bounds = scan_tight_bounds(  # every row: nothing found yet
+        np.ascontiguousarray(frames), lb, movable, -1, np.inf, c._shape_link, c._seg_a,
+        c._seg_b, c._seg_r, c._seg_exact, c._env_R, c._env_c, c._env_h, c._env_exact)
+    k, r, e = np.unravel_index(np.arange(lb.size), lb.shape)
+    every = np.stack([k, movable[r], e], axis=1)
+    tight = c._segment_bounds(frames, every)
+    exact = c._is_exact(every, tight)
+    assert exact.any() and (~exact).any()
+    assert best == tight[exact].min()
+    # the rows left for FCL: non-exact ones, with the vectorised bound to the bit; every
+    # one whose sphere bound is below the result among them (the rest could not matter)
+    assert not exact[rows].any()
+    assert np.array_equal(bounds, np.maximum(lb.reshape(-1), tight)[rows])
+    must = np.flatnonzero(~exact & (lb.reshape(-1) < best))
+    assert np.isin(must, rows).all() and len(must) > 0
