@@ -26,6 +26,7 @@ from numba import njit
 from assistant.trajectory.fit_kernels import (
     _cross,
     _dot,
+    _max_or_nan,
     _rotate_radius,
     _unit,
     arc_distances,
@@ -93,12 +94,7 @@ def _max_distance(p: Array, pts: Array) -> float:
         d = arc_distances(p[_START:_START + 3].copy(), p[_END:_END + 3].copy(),
                           p[_CENTRE:_CENTRE + 3].copy(), p[_RADIUS],
                           p[_NORMAL:_NORMAL + 3].copy(), p[_SWEEP], pts)
-    m = -np.inf
-    for v in d:
-        if v != v:
-            return np.nan
-        m = max(m, v)
-    return m
+    return _max_or_nan(d)
 
 
 @njit(**_JIT)

@@ -206,7 +206,13 @@ def fit_primitives(nodes: Array, params: FitParams | None = None) -> PrimitiveFi
     par = np.array([params.tolerance, params.r_min, params.r_max, params.max_sweep,
                     params.tangent_slack], dtype=np.float64)
     rows, breaks = fit_rows(nodes, par, int(params.lookahead))
-    prims: list[Primitive] = [_from_row(r) for r in rows]
+    return finished_fit([_from_row(r) for r in rows], nodes, int(breaks))
+
+
+def finished_fit(prims: list[Primitive], nodes: Array, breaks: int) -> PrimitiveFit:
+    """The fit of these primitives (the last one snapped onto the last node): each node's
+    deviation and the tangency error at each joint that must be tangent."""
+    n = len(nodes)
     prims[-1] = _snap_end(prims[-1], nodes[-1])
     # Node k belongs to the primitive covering it: each one covers first_node+1..last_node
     # (its first node is the previous primitive's last); node 0 is the start point.
@@ -221,7 +227,7 @@ def fit_primitives(nodes: Array, params: FitParams | None = None) -> PrimitiveFi
         else:
             c = float(np.clip(a.tangent_end @ b.tangent_start, -1.0, 1.0))
             tangency.append(float(np.arccos(c)))
-    return PrimitiveFit(prims, dev, tangency, int(breaks))
+    return PrimitiveFit(prims, dev, tangency, breaks)
 
 
 def _from_row(r: Array) -> Primitive:

@@ -20,8 +20,8 @@ from assistant.trajectory.primitives import (
     _norm,
     _rotate_radius,
     _rows,
-    _snap_end,
     _vec,
+    finished_fit,
 )
 
 Array = np.ndarray
@@ -50,21 +50,7 @@ def fit_primitives_reference(nodes: Array, params: FitParams | None = None) -> P
             breaks += 1 if prev is not None else 0
         prims.append(best)
         s, O, t_in, prev = best.last_node, best.end, best.tangent_end, best.kind
-    prims[-1] = _snap_end(prims[-1], nodes[-1])
-    # Node k belongs to the primitive covering it: each one covers first_node+1..last_node
-    # (its first node is the previous primitive's last); node 0 is the start point.
-    dev = np.zeros(n)
-    for p in prims:
-        rng = slice(p.first_node + 1, p.last_node + 1)
-        dev[rng] = p.distance(nodes[rng])
-    tangency: list[float | None] = []
-    for a, b in zip(prims[:-1], prims[1:], strict=True):
-        if a.kind == PrimitiveKind.LINE and b.kind == PrimitiveKind.LINE:
-            tangency.append(None)
-        else:
-            c = float(np.clip(a.tangent_end @ b.tangent_start, -1.0, 1.0))
-            tangency.append(float(np.arccos(c)))
-    return PrimitiveFit(prims, dev, tangency, breaks)
+    return finished_fit(prims, nodes, breaks)
 
 
 class _Fitter:
