@@ -11,9 +11,9 @@ fit_reference.py`) and asks for the same primitives to the bit.
 
 A primitive is one row of `N_FIELDS` floats: kind (0 line, 1 arc), start, end, via, centre,
 radius, normal, sweep, first node, last node (lines leave via..sweep at 0). A "reach" of
-None is -1 (remembered per start point and tangent in arrays, `_new_memo`: numba's typed
-dict took ~30 s more to compile); look-ahead scores (reach, a line gets there, end node, is
-a line) compare as tuples through `_score`.
+None is -1 (remembered per start point and tangent in arrays sized for the worst case,
+`_new_memo`); look-ahead scores (reach, a line gets there, end node, is a line) compare as
+tuples through `_score`.
 """
 
 from __future__ import annotations

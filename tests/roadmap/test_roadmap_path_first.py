@@ -10,6 +10,7 @@ from itertools import pairwise
 import networkx as nx
 import numpy as np
 import pytest
+from test_roadmap_astar import AlwaysValid, Wall, to_networkx, toy_graph
 
 from assistant.roadmap.astar import (
     REASON_BUDGET,
@@ -20,7 +21,6 @@ from assistant.roadmap.astar import (
 )
 from assistant.roadmap.astar_kernel import FOUND, search
 from assistant.roadmap.path_first import lazy_path_search
-from tests.roadmap.test_roadmap_astar import AlwaysValid, Wall, to_networkx, toy_graph
 
 
 class Batched(Wall):
