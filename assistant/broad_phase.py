@@ -187,39 +187,6 @@ def _prune_row(frames: Array, k: int, env_c: Array, self_c: Array, shape_link: A
             self_c[k, p] = False
 
 
-@njit(cache=True)
-def sphere_box_bounds(frames: Array, sph_link: Array, sph_local: Array, sph_r: Array,
-                      sph_shape: Array, env_lo: Array, env_hi: Array, n_shapes: int) -> Array:
-    """(N, n_shapes, E) lower bounds of robot-shape-to-obstacle distances (m) for the
-    clearance report: the smallest gap between a shape's covering spheres and the obstacle's
-    box. -inf where no bound is known: the shape has no spheres, or a sphere reaches the box
-    (a penetration depth is not bounded by spheres). Every sphere counts, the base's too.
-
-    A path's clearance report asks this for every centimetre of arm travel (hundreds of
-    configurations x spheres x obstacles); one loop spares numpy's (3, E, N*S) temporaries.
-    """
-    n = frames.shape[0]
-    n_env = env_lo.shape[0]
-    out = np.full((n, n_shapes, n_env), np.inf)
-    has = np.zeros(n_shapes, dtype=np.bool_)
-    for s in range(sph_r.shape[0]):
-        has[sph_shape[s]] = True
-    c = np.empty(3)
-    for k in range(n):
-        for s in range(sph_r.shape[0]):
-            _sphere_centre(frames, k, sph_link[s], sph_local[s], c)
-            owner = sph_shape[s]
-            for e in range(n_env):
-                g = np.sqrt(_box_dist2(c, env_lo[e], env_hi[e])) - sph_r[s]
-                if g < out[k, owner, e]:
-                    out[k, owner, e] = g
-        for r in range(n_shapes):
-            for e in range(n_env):
-                if not has[r] or out[k, r, e] <= 0.0:
-                    out[k, r, e] = -np.inf
-    return out
-
-
 #: `certify_samples` status per row: free by the broad phase, outside the joint limits, for
 #: FCL to decide, free by a checked neighbour's margin
 FREE, OUTSIDE_LIMITS, ASK_FCL, CERTIFIED = 0, 1, 2, 3

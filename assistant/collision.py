@@ -28,9 +28,9 @@ from assistant.broad_phase import (
     OUTSIDE_LIMITS,
     certify_samples,
     prune_round_pairs,
-    sphere_box_bounds,
     sphere_broad_phase,
 )
+from assistant.clearance_scan import pruned_clearance
 from assistant.fcl_shapes import covering_spheres, fcl_geometry, fcl_transform, world_aabb
 from assistant.motion_rows import (
     chain_frames_inside,
@@ -39,12 +39,7 @@ from assistant.motion_rows import (
     valid_before_first_bad,
 )
 from assistant.robot_model import CollisionShape, Robot, ShapeKind
-from assistant.segment_box import (
-    axis_segment,
-    oriented_bounds,
-    scan_tight_bounds,
-    segment_box_bounds,
-)
+from assistant.segment_box import axis_segment, oriented_bounds
 
 Array = np.ndarray
 
@@ -151,6 +146,11 @@ class CollisionChecker:
     #: pays: on the planning benchmark's motion checks a stride of 4 took 17 % less time
     #: than checking every sample, 3 about the same (18 %), 8 only 8 % less.
     CERTIFY_STRIDE = 4
+    #: The clearance report bounds every this-many-th sample of a path with the covering
+    #: spheres and the samples between from those by the arm's travel
+    #: (`clearance_scan.pruned_clearance`); only samples whose bound is below the answer so
+    #: far get frames and bounds of their own.
+    CLEARANCE_STRIDE = 8
     #: Broad-phase pairs whose round shapes' axis segments prove them farther apart than
     #: this (m) never reach FCL (`broad_phase.prune_round_pairs`); nearer ones, and every
     #: pair with a mesh or box robot shape, FCL decides. 0.1 mm stays far above FCL's own
@@ -709,14 +709,15 @@ class CollisionChecker:
 
         What `clearance` at each sample would give, with few or no FCL calls: each link
         shape lies inside its covering spheres and each obstacle inside its box, so
-        sphere-to-box gaps bound every (sample, shape, obstacle) distance from below. The
-        pairs whose sphere bound is below the smallest answer so far (one compiled pass,
-        `segment_box.scan_tight_bounds`) get a tight bound, the
-        distance from the shape's axis segment to the obstacle's oriented box
-        (`segment_box`), which for a capsule or sphere link and a box obstacle is the exact
-        distance itself (FCL's GJK answer there is up to ~0.1 mm high). The rest are
-        measured with FCL in the order of their bounds until the next bound is not below the
-        smallest distance found: no pair left could be closer.
+        sphere-to-box gaps bound every (sample, shape, obstacle) distance from below, and
+        a sample's distances are at least a nearby sample's bound less the arm's travel
+        between them. One compiled pass (`clearance_scan.pruned_clearance`) visits the
+        samples whose bound is below the smallest distance so far and gives their pairs
+        below it a tight bound, the distance from the shape's axis segment to the
+        obstacle's oriented box (`segment_box`), which for a capsule or sphere link and a
+        box obstacle is the exact distance itself (FCL's GJK answer there is up to ~0.1 mm
+        high). The rest are measured with FCL in the order of their bounds until the next
+        bound is not below the smallest distance found: no pair left could be closer.
         """
         best = np.inf
         if not self._env:
@@ -731,63 +732,33 @@ class CollisionChecker:
                            dtype=np.int64)
         if not len(movable):
             return float(best)
-        frames_all = np.concatenate([self.robot.batch_link_poses(Q[i : i + self.chunk])
-                                     for i in range(0, len(Q), self.chunk)])
-        lb = self._clearance_bounds(frames_all)[:, movable, :]  # (n, R', E)
-        vals = lb.reshape(-1)
-
-        def rows_of(j: Array) -> Array:  # flat indices -> (sample, robot shape, obstacle)
-            k, r, e = np.unravel_index(j, lb.shape)
-            return np.stack([k, movable[r], e], axis=1)
-
-        def measure(j: int) -> float:
-            k, si, ei = rows_of(np.array([j]))[0].tolist()
-            rs, es = self._rshapes[si], self._env[ei]
-            rs.obj.setTransform(fcl_transform(frames_all[k][rs.link] @ rs.shape.T_link_shape))
-            return self._pair_distance(rs.obj, es.obj)[0]
-
-        # The pair with the smallest sphere bound (first in sample order) gives a first
-        # answer; only pairs whose sphere bound is below it get the tight bound.
-        first = int(np.argmin(vals))
-        row = rows_of(np.array([first]))
-        tight_first = self._segment_bounds(frames_all, row)
-        best = (float(tight_first[0]) if self._is_exact(row, tight_first)[0]
-                else measure(first))
-        # Then every row below it, in one compiled pass (`segment_box.scan_tight_bounds`).
-        best, cand, bound = scan_tight_bounds(
-            np.ascontiguousarray(frames_all, dtype=float), np.ascontiguousarray(lb), movable,
-            first, best, self._shape_link, self._seg_a, self._seg_b, self._seg_r,
-            self._seg_exact, self._env_R, self._env_c, self._env_h, self._env_exact)
+        Q = np.ascontiguousarray(Q, dtype=float)
+        if self._chain_F is not None:  # the pass poses the samples it visits itself
+            chain = np.ascontiguousarray(self._chain_F, dtype=float)
+            frames = np.empty((len(Q), len(chain) + 1, 4, 4))
+            ready = np.zeros(len(Q), dtype=bool)
+        else:
+            chain = np.zeros((0, 4, 4))
+            frames = np.ascontiguousarray(np.concatenate(
+                [self.robot.batch_link_poses(Q[i : i + self.chunk])
+                 for i in range(0, len(Q), self.chunk)]), dtype=float)
+            ready = np.ones(len(Q), dtype=bool)
+        best, cand, bound = pruned_clearance(
+            Q, frames, ready, chain, self.travel(Q[:-1], Q[1:]), self.CLEARANCE_STRIDE,
+            movable, len(self._rshapes), self._sph_link, self._sph_local, self._sph_r,
+            self._sph_shape, self._env_lo, self._env_hi, self._shape_link, self._seg_a,
+            self._seg_b, self._seg_r, self._seg_exact, self._env_R, self._env_c,
+            self._env_h, self._env_exact)
+        n_mov, n_env = len(movable), len(self._env)
         order = np.lexsort((cand, bound))  # by bound, ties in sample order
         for j, b in zip(cand[order].tolist(), bound[order].tolist(), strict=True):
             if b >= best:
                 break
-            best = min(best, measure(j))
+            k, r, e = j // (n_mov * n_env), (j // n_env) % n_mov, j % n_env
+            rs, es = self._rshapes[int(movable[r])], self._env[e]
+            rs.obj.setTransform(fcl_transform(frames[k][rs.link] @ rs.shape.T_link_shape))
+            best = min(best, self._pair_distance(rs.obj, es.obj)[0])
         return float(best)
-
-    def _is_exact(self, rows: Array, tight: Array) -> Array:
-        """Rows whose tight bound is the distance: a capsule or sphere clear of a box."""
-        return self._seg_exact[rows[:, 1]] & self._env_exact[rows[:, 2]] & np.isfinite(tight)
-
-    def _segment_bounds(self, frames: Array, rows: Array) -> Array:
-        """Capsule-to-oriented-box lower bounds for (sample, robot shape, obstacle) rows;
-        -inf where the shape is not round or may overlap."""
-        if not len(rows):
-            return np.zeros(0)
-        k, si, ei = rows.T
-        F = frames[k, self._shape_link[si]]  # (n, 4, 4)
-        A = np.einsum("nij,nj->ni", F[:, :3, :3], self._seg_a[si]) + F[:, :3, 3]
-        B = np.einsum("nij,nj->ni", F[:, :3, :3], self._seg_b[si]) + F[:, :3, 3]
-        with np.errstate(invalid="ignore"):
-            out = segment_box_bounds(A, B, self._seg_r[si], self._env_R[ei], self._env_c[ei],
-                                     self._env_h[ei])
-        return np.where(np.isnan(out), -np.inf, out)
-
-    def _clearance_bounds(self, frames: Array) -> Array:
-        """(N, R, E) lower bounds of shape-to-obstacle distances (-inf: none known)."""
-        return sphere_box_bounds(np.ascontiguousarray(frames, dtype=float), self._sph_link,
-                                 self._sph_local, self._sph_r, self._sph_shape,
-                                 self._env_lo, self._env_hi, len(self._rshapes))
 
     def _pair_distance(self, a: fcl.CollisionObject, b: fcl.CollisionObject,
                        ) -> tuple[float, fcl.DistanceResult]:

@@ -23,9 +23,9 @@ from assistant.broad_phase import (
     _segment_segment_distance,
     certify_samples,
     prune_round_pairs,
-    sphere_box_bounds,
     sphere_broad_phase,
 )
+from assistant.clearance_scan import pruned_clearance
 from assistant.dh import _chain_frames_kernel
 from assistant.motion_rows import (
     chain_frames_inside,
@@ -47,11 +47,7 @@ from assistant.roadmap.voronoi_update import update_rounds
 from assistant.rv2aj_fk_batch import tcp_poses
 from assistant.rv2aj_pose_batch import _candidates
 from assistant.rv2aj_position_ik import planar_position_ik
-from assistant.segment_box import (
-    _segment_box_distances,
-    scan_tight_bounds,
-    segment_box_distance_one,
-)
+from assistant.segment_box import segment_box_distance_one
 from assistant.trajectory.fit_kernels import (
     arc_distances,
     circle_through_kernel,
@@ -69,14 +65,14 @@ from assistant.world.leaf_lookup import leaf_flags
 
 #: Every compiled entry point (the test checks `warm_up` compiles each of them).
 KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
-           _segment_box_distances, _segment_segment_distance, _chain_frames_kernel, tcp_poses,
+           _segment_segment_distance, _chain_frames_kernel, tcp_poses,
            planar_position_ik, fit_line, fit_arc, line_distances, arc_distances,
            circle_through_kernel, propose_moves, brushfire_region, leaf_flags,
-           sphere_box_bounds, walk_nearest, neighbour_cells, neighbour_nodes,
+           pruned_clearance, walk_nearest, neighbour_cells, neighbour_nodes,
            certify_samples, check_moves, apply_moves, _candidates, slerp_kernel, update_rounds,
            motion_marks, chain_frames_inside, rows_before_first_bad, valid_before_first_bad,
            sweep_moves, halve_retries, repin, expand, weighted_distances,
-           connected26, successor_costs, search, fit_rows, run_sweeps, scan_tight_bounds)
+           connected26, successor_costs, search, fit_rows, run_sweeps)
 
 
 def warm_up() -> float:

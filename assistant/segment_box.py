@@ -1,6 +1,6 @@
-"""Exact distances from line segments to oriented boxes, many at once (compiled, numba).
+"""Exact distances from line segments to oriented boxes (compiled, numba).
 
-The clearance report (`CollisionChecker.min_clearance_along`) asks FCL for the distance of
+The clearance report (`clearance_scan.pruned_clearance`) asks FCL for the distance of
 the pairs that may be nearest, in the order of a lower bound. The covering spheres of the
 broad phase bound a capsule link only loosely (the RV-2AJ's 250 mm upper arm is covered by
 spheres 25 mm larger than the capsule), so hundreds to thousands of pairs along a path used
@@ -69,14 +69,16 @@ def axis_segment(shape: CollisionShape) -> tuple[Array, Array, float] | None:
     return None
 
 
-def segment_box_distance(a: Array, b: Array, half: Array) -> Array:
-    """Distance from each segment a->b (..., 3) to the box [-half, half] (..., 3), all in the
-    box's frame; 0 where they meet (`segment_box_distance_one` per row)."""
-    a, b, half = np.broadcast_arrays(np.asarray(a, float), np.asarray(b, float),
-                                     np.asarray(half, float))
-    shape = a.shape[:-1]
-    rows = [np.ascontiguousarray(v.reshape(-1, 3)) for v in (a, b, half)]
-    return _segment_box_distances(*rows).reshape(shape)
+@njit(cache=True, inline="always")
+def _beyond(a: float, d: float, h: float, mid: float) -> tuple[float, float]:
+    """(offset, direction) of the face plane the coordinate a + t d lies beyond at t = mid,
+    (0, 0) inside the slab -h..h."""
+    x = a + mid * d
+    if x > h:
+        return a - h, d
+    if x < -h:
+        return a + h, d
+    return 0.0, 0.0
 
 
 @njit(cache=True)
@@ -88,113 +90,40 @@ def segment_box_distance_one(a: Array, b: Array, half: Array) -> float:
     convex and quadratic between the parameters where a coordinate crosses a face plane.
     Each such piece is minimised in closed form (its faces are fixed at its middle), and
     the smallest piece minimum is the exact answer. Compiled (numba): the collision broad
-    phase calls it per candidate pair.
+    phase calls it per candidate pair; scalars, not small arrays, hold each piece (an array
+    per piece was an allocation per piece).
     """
-    d = b - a
+    d0, d1, d2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
     t = np.empty(8)
     t[0], t[7] = 0.0, 1.0
     for i in range(3):  # where the segment crosses the face planes (0 if parallel)
-        if d[i] != 0.0:
-            t[1 + 2 * i] = min(max((half[i] - a[i]) / d[i], 0.0), 1.0)
-            t[2 + 2 * i] = min(max((-half[i] - a[i]) / d[i], 0.0), 1.0)
+        di = b[i] - a[i]
+        if di != 0.0:
+            t[1 + 2 * i] = min(max((half[i] - a[i]) / di, 0.0), 1.0)
+            t[2 + 2 * i] = min(max((-half[i] - a[i]) / di, 0.0), 1.0)
         else:
             t[1 + 2 * i] = t[2 + 2 * i] = 0.0
-    t.sort()
+    for i in range(2, 7):  # insertion sort of t[1:7] (t[0], t[7] are the ends already)
+        v = t[i]
+        j = i - 1
+        while j >= 1 and t[j] > v:
+            t[j + 1] = t[j]
+            j -= 1
+        t[j + 1] = v
     best = np.inf
     for p in range(7):
         lo, hi = t[p], t[p + 1]
         mid = 0.5 * (lo + hi)
-        e = np.zeros(3)
-        dd = np.zeros(3)
-        for i in range(3):
-            x = a[i] + mid * d[i]
-            if x > half[i]:
-                e[i], dd[i] = a[i] - half[i], d[i]
-            elif x < -half[i]:
-                e[i], dd[i] = a[i] + half[i], d[i]
-        den = dd[0] * dd[0] + dd[1] * dd[1] + dd[2] * dd[2]
-        ts = -(dd[0] * e[0] + dd[1] * e[1] + dd[2] * e[2]) / den if den > 0.0 else lo
+        # per axis: the face this piece lies beyond (offset e, direction dd), or none
+        e0, dd0 = _beyond(a[0], d0, half[0], mid)
+        e1, dd1 = _beyond(a[1], d1, half[1], mid)
+        e2, dd2 = _beyond(a[2], d2, half[2], mid)
+        den = dd0 * dd0 + dd1 * dd1 + dd2 * dd2
+        ts = -(dd0 * e0 + dd1 * e1 + dd2 * e2) / den if den > 0.0 else lo
         ts = min(max(ts, lo), hi)
-        s = 0.0
-        for i in range(3):
-            r = e[i] + ts * dd[i]
-            s += r * r
+        r0, r1, r2 = e0 + ts * dd0, e1 + ts * dd1, e2 + ts * dd2
+        s = 0.0 + r0 * r0
+        s += r1 * r1
+        s += r2 * r2
         best = min(best, s)
     return np.sqrt(best)
-
-
-
-@njit(cache=True)
-def _segment_box_distances(a: Array, b: Array, half: Array) -> Array:
-    out = np.empty(a.shape[0])
-    for i in range(a.shape[0]):
-        out[i] = segment_box_distance_one(a[i], b[i], half[i])
-    return out
-
-
-def segment_box_bounds(A: Array, B: Array, radius: Array, R: Array, centre: Array,
-                       half: Array) -> Array:
-    """Lower bounds of the distance from the capsules A->B with these radii (rows, base
-    frame) to shapes inside the oriented boxes (R, centre, half) of the same rows; -inf
-    where the capsule may reach into the box (a penetration depth has no such bound)."""
-    la = np.einsum("nji,nj->ni", R, A - centre)  # R^T (A - centre)
-    lb = np.einsum("nji,nj->ni", R, B - centre)
-    gap = segment_box_distance(la, lb, half) - radius
-    return np.where(gap > 0.0, gap, -np.inf)
-
-
-@njit(cache=True)
-def scan_tight_bounds(frames: Array, lb: Array, movable: Array, first: int, best: float,
-                      shape_link: Array, seg_a: Array, seg_b: Array, seg_r: Array,
-                      seg_exact: Array, box_R: Array, box_c: Array, box_h: Array,
-                      box_exact: Array) -> tuple[float, Array, Array]:
-    """The clearance report's second pass (`CollisionChecker.min_clearance_along`) in one
-    loop: over (sample, movable shape, obstacle) rows in order, those whose sphere bound
-    lb is below the smallest distance found so far get the capsule-to-box bound
-    (`segment_box_bounds`, the same products in the same order). Where that bound is the
-    exact distance (a capsule or sphere clear of a box) it lowers the best; the others are
-    returned (flat row, bound = max(sphere bound, capsule bound)) for FCL. Rows skipped
-    have a sphere bound at or above a distance already found, so neither their exact
-    distance nor an FCL answer for them could be smaller: the result is that of bounding
-    every row below the first answer `best` (row `first`) and then measuring."""
-    n, n_mov, n_env = lb.shape
-    rows = np.empty(n * n_mov * n_env, dtype=np.int64)
-    bounds = np.empty(n * n_mov * n_env)
-    m = 0
-    A = np.empty(3)
-    B = np.empty(3)
-    la = np.empty(3)
-    lbx = np.empty(3)
-    j = -1
-    for k in range(n):
-        for r in range(n_mov):
-            s = movable[r]
-            link = shape_link[s]
-            for e in range(n_env):
-                j += 1
-                v = lb[k, r, e]
-                if j == first or not v < best:
-                    continue
-                for i in range(3):  # frame @ segment ends, as einsum "nij,nj->ni" + t
-                    A[i] = (0.0 + frames[k, link, i, 0] * seg_a[s, 0]
-                            + frames[k, link, i, 1] * seg_a[s, 1]
-                            + frames[k, link, i, 2] * seg_a[s, 2]) + frames[k, link, i, 3]
-                    B[i] = (0.0 + frames[k, link, i, 0] * seg_b[s, 0]
-                            + frames[k, link, i, 1] * seg_b[s, 1]
-                            + frames[k, link, i, 2] * seg_b[s, 2]) + frames[k, link, i, 3]
-                for i in range(3):  # R^T (end - centre), as einsum "nji,nj->ni"
-                    la[i] = (0.0 + box_R[e, 0, i] * (A[0] - box_c[e, 0])
-                             + box_R[e, 1, i] * (A[1] - box_c[e, 1])
-                             + box_R[e, 2, i] * (A[2] - box_c[e, 2]))
-                    lbx[i] = (0.0 + box_R[e, 0, i] * (B[0] - box_c[e, 0])
-                              + box_R[e, 1, i] * (B[1] - box_c[e, 1])
-                              + box_R[e, 2, i] * (B[2] - box_c[e, 2]))
-                gap = segment_box_distance_one(la, lbx, box_h[e]) - seg_r[s]
-                tight = gap if gap > 0.0 else -np.inf
-                if seg_exact[s] and box_exact[e] and np.isfinite(tight):
-                    best = min(best, tight)
-                else:
-                    rows[m] = j
-                    bounds[m] = max(v, tight)
-                    m += 1
-    return best, rows[:m].copy(), bounds[:m].copy()

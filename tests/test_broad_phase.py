@@ -15,19 +15,20 @@ import sys
 
 import numpy as np
 import pytest
+from numba import njit
 from scipy.spatial.transform import Rotation
 
 from assistant.broad_phase import (
     _segment_segment_distance,
     prune_round_pairs,
-    sphere_box_bounds,
     sphere_broad_phase,
 )
+from assistant.clearance_scan import _row_sphere_bounds
 from assistant.collision import CollisionChecker, Obstacle
 from assistant.dh import batch_chain_frames, chain_frames, flange_frame
 from assistant.fcl_shapes import fcl_transform
 from assistant.robot_model import CollisionShape, ShapeKind
-from assistant.segment_box import segment_box_distance, segment_box_distance_one
+from assistant.segment_box import segment_box_distance_one
 from assistant.transforms import make_T
 
 
@@ -122,11 +123,31 @@ def _reference_bounds(chk: CollisionChecker, frames: np.ndarray) -> np.ndarray:
     return out
 
 
+@njit(cache=False)
+def _rows_sphere_bounds(frames, mov_of, has, sph_link, sph_local, sph_r, sph_shape, env_lo,
+                        env_hi):
+    out = np.empty((frames.shape[0], has.shape[0], env_lo.shape[0]))
+    c = np.empty(3)
+    for k in range(frames.shape[0]):
+        _row_sphere_bounds(frames, k, mov_of, has, sph_link, sph_local, sph_r, sph_shape,
+                           env_lo, env_hi, out[k], c)
+    return out
+
+
+def _sphere_bounds(chk: CollisionChecker, frames: np.ndarray) -> np.ndarray:
+    """The clearance pass's per-sample sphere bounds (`clearance_scan`) for every shape."""
+    n_shapes = len(chk._rshapes)
+    has = np.isin(np.arange(n_shapes), chk._sph_shape)
+    return _rows_sphere_bounds(np.ascontiguousarray(frames, dtype=float),
+                               np.arange(n_shapes), has, chk._sph_link, chk._sph_local,
+                               chk._sph_r, chk._sph_shape, chk._env_lo, chk._env_hi)
+
+
 def test_clearance_bounds_match_the_numpy_formulation(crowded, rv2aj):
     rng = np.random.default_rng(12)
     Q = rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper, size=(1500, 5))
     frames = rv2aj.batch_link_poses(Q)
-    got = crowded._clearance_bounds(frames)
+    got = _sphere_bounds(crowded, frames)
     ref = _reference_bounds(crowded, frames)
     assert np.array_equal(np.isinf(got), np.isinf(ref))
     np.testing.assert_allclose(got[np.isfinite(ref)], ref[np.isfinite(ref)], rtol=0,
@@ -147,9 +168,10 @@ def test_clearance_bounds_direct_call():
     """One sphere of shape 0 on link 1, shape 1 without spheres: a gap, then an overlap."""
     frames = np.ascontiguousarray(np.broadcast_to(np.eye(4), (2, 2, 4, 4)).copy())
     frames[1, 1, 0, 3] = 0.9  # the second configuration moves the sphere into the box
-    out = sphere_box_bounds(frames, np.array([1]), np.zeros((1, 3)), np.array([0.1]),
-                            np.array([0]), np.array([[0.5, -1.0, -1.0]]),
-                            np.array([[1.0, 1.0, 1.0]]), 2)
+    out = _rows_sphere_bounds(frames, np.array([0, 1]), np.array([True, False]),
+                              np.array([1]), np.zeros((1, 3)), np.array([0.1]),
+                              np.array([0]), np.array([[0.5, -1.0, -1.0]]),
+                              np.array([[1.0, 1.0, 1.0]]))
     assert out.shape == (2, 2, 1)
     assert out[0, 0, 0] == pytest.approx(0.5 - 0.1)
     assert np.isneginf(out[1, 0, 0]) and np.all(np.isneginf(out[:, 1]))
@@ -204,7 +226,6 @@ def test_segment_box_distance_scalar_matches_the_vectorised_one():
     got = np.array([segment_box_distance_one(x, y, h)
                     for x, y, h in zip(a, b, half, strict=True)])
     np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(segment_box_distance(a, b, half), ref, rtol=0, atol=1e-12)
     assert (ref == 0).any() and (ref > 0.05).any()
 
 
