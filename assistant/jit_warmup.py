@@ -39,6 +39,7 @@ from assistant.roadmap.graph_kernel import (
     expand,
     neighbour_cells,
     neighbour_nodes,
+    select_nodes,
     successor_costs,
     weighted_distances,
 )
@@ -72,7 +73,7 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            certify_samples, check_moves, apply_moves, _candidates, slerp_kernel, update_rounds,
            motion_marks, chain_frames_inside, rows_before_first_bad, valid_before_first_bad,
            sweep_moves, halve_retries, repin, expand, weighted_distances,
-           connected26, successor_costs, search, fit_rows, run_sweeps)
+           connected26, successor_costs, search, fit_rows, run_sweeps, select_nodes)
 
 
 def warm_up() -> float:

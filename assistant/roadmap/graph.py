@@ -27,6 +27,7 @@ import numpy as np
 
 from assistant.roadmap.graph_kernel import (
     neighbour_cells,
+    select_nodes,
     successor_costs,
     weighted_distances,
 )
@@ -59,23 +60,14 @@ class JointGraph:
         `squeeze_exempt`. Returns the graph and the node ids of the extras."""
         n_cells = int(np.prod(shape))
         searchable = np.asarray(searchable, bool).reshape(-1).copy()
-        counts = np.diff(offsets)
-        keep_cell = searchable[cells]
-        node_cell = np.repeat(cells, counts)
-        keep = np.repeat(keep_cell, counts)
-        node_cell, node_q = node_cell[keep], np.asarray(Q)[keep]
         extra_cells = np.array([c for c, _ in extra], dtype=np.int64)
-        if len(extra):
-            node_cell = np.r_[node_cell, extra_cells]
-            node_q = np.vstack([node_q, np.array([q for _, q in extra], dtype=float)])
-            searchable[extra_cells] = True
-        order = np.argsort(node_cell, kind="stable")
-        node_cell, node_q = node_cell[order], node_q[order]
-        where = np.empty(len(order), dtype=np.int64)
-        where[order] = np.arange(len(order))
-        extra_ids = [int(where[len(order) - len(extra) + i]) for i in range(len(extra))]
-        cell_start = np.zeros(n_cells + 1, dtype=np.int64)
-        np.cumsum(np.bincount(node_cell, minlength=n_cells), out=cell_start[1:])
+        extra_q = (np.array([q for _, q in extra], dtype=float).reshape(len(extra), -1)
+                   if len(extra) else np.zeros((0, np.shape(Q)[1])))
+        node_q, node_cell, cell_start, ids = select_nodes(
+            np.asarray(cells, dtype=np.int64), np.asarray(offsets, dtype=np.int64),
+            np.ascontiguousarray(Q, dtype=float), searchable, extra_cells, extra_q, n_cells)
+        searchable[extra_cells] = True
+        extra_ids = ids.tolist()
         g = JointGraph(tuple(shape), node_q, node_cell, cell_start, searchable,
                        np.asarray(squeeze_blocked, bool).reshape(-1),
                        np.asarray(penalty, float).reshape(-1), np.asarray(weights, float),

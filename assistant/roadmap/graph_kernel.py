@@ -162,3 +162,43 @@ def expand(u: int, gu: float, nx: int, ny: int, nz: int, searchable: Array,
         out[n] = v
         n += 1
     return f[:n], gn[:n], out[:n]
+
+
+@njit(cache=True)
+def select_nodes(cells: Array, offsets: Array, Q: Array, searchable: Array,
+                 extra_cells: Array, extra_q: Array, n_cells: int,
+                 ) -> tuple[Array, Array, Array, Array]:
+    """(node_q, node_cell, cell_start, extra ids) of `JointGraph.build`: the positions of
+    the searchable cells (positions of cell i: Q[offsets[i]:offsets[i + 1]]) and then the
+    extra nodes, grouped by cell in a counting sort - within a cell the positions in their
+    order, then the extras in theirs, as the stable sort by cell it replaces (~0.3 ms a
+    query as numpy calls)."""
+    count = np.zeros(n_cells, dtype=np.int64)
+    for i in range(cells.shape[0]):
+        if searchable[cells[i]]:
+            count[cells[i]] += offsets[i + 1] - offsets[i]
+    for e in range(extra_cells.shape[0]):
+        count[extra_cells[e]] += 1
+    cell_start = np.zeros(n_cells + 1, dtype=np.int64)
+    for c in range(n_cells):
+        cell_start[c + 1] = cell_start[c] + count[c]
+    n = cell_start[n_cells]
+    node_q = np.empty((n, Q.shape[1]))
+    node_cell = np.empty(n, dtype=np.int64)
+    fill = cell_start[:n_cells].copy()
+    for i in range(cells.shape[0]):
+        c = cells[i]
+        if not searchable[c]:
+            continue
+        for r in range(offsets[i], offsets[i + 1]):
+            node_q[fill[c]] = Q[r]
+            node_cell[fill[c]] = c
+            fill[c] += 1
+    ids = np.empty(extra_cells.shape[0], dtype=np.int64)
+    for e in range(extra_cells.shape[0]):
+        c = extra_cells[e]
+        node_q[fill[c]] = extra_q[e]
+        node_cell[fill[c]] = c
+        ids[e] = fill[c]
+        fill[c] += 1
+    return node_q, node_cell, cell_start, ids

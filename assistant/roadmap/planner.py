@@ -354,15 +354,13 @@ class RoadmapPlanner:
     def _escape_cells(self, cell: int) -> Array:
         """Flat mask: cells near `cell` that offer joint positions (occupied or not)."""
         w = self.world
-        out = np.zeros(w.grid.n_cells, dtype=bool)
         r = self.config.terminal_escape
         if r <= 0:
-            return out
-        c = w.grid.ijk_of_flat([cell])[0]
-        rng = [np.arange(max(0, c[a] - r), min(w.grid.n, c[a] + r + 1)) for a in range(3)]
-        ijk = np.stack(np.meshgrid(*rng, indexing="ij"), axis=-1).reshape(-1, 3)
-        out[w.grid.flat_of_ijk(ijk)] = True
-        return out & w.has_valid().reshape(-1)
+            return np.zeros(w.grid.n_cells, dtype=bool)
+        i, j, k = (int(v) for v in w.grid.ijk_of_flat([cell])[0])
+        out = np.zeros(w.grid.shape, dtype=bool)
+        out[max(0, i - r):i + r + 1, max(0, j - r):j + r + 1, max(0, k - r):k + r + 1] = True
+        return (out & w.has_valid()).reshape(-1)
 
     def _weighted(self, a: Array, b: Array) -> float:
         return float(np.linalg.norm((b - a) * self._weights()))

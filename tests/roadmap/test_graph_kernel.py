@@ -88,3 +88,50 @@ def _all_searchable(g: JointGraph) -> JointGraph:
     """The same graph with the squeeze rule off: every in-grid neighbour."""
     return JointGraph(g.shape, g.node_q, g.node_cell, g.cell_start, g.searchable,
                       np.zeros_like(g.squeeze_blocked), g.penalty, g.weights)
+
+
+def _reference_selection(shape, cells, offsets, Q, searchable, extra):
+    """`JointGraph.build`'s node selection as numpy calls (the code before the kernel):
+    positions of searchable cells, then the extras, stable-sorted by cell."""
+    n_cells = int(np.prod(shape))
+    counts = np.diff(offsets)
+    keep = np.repeat(searchable[cells], counts)
+    node_cell = np.repeat(cells, counts)[keep]
+    node_q = np.asarray(Q)[keep]
+    extra_cells = np.array([c for c, _ in extra], dtype=np.int64)
+    node_cell = np.r_[node_cell, extra_cells]
+    node_q = np.vstack([node_q, np.array([q for _, q in extra], dtype=float)])
+    order = np.argsort(node_cell, kind="stable")
+    where = np.empty(len(order), dtype=np.int64)
+    where[order] = np.arange(len(order))
+    ids = [int(where[len(order) - len(extra) + i]) for i in range(len(extra))]
+    cell_start = np.zeros(n_cells + 1, dtype=np.int64)
+    np.cumsum(np.bincount(node_cell[order], minlength=n_cells), out=cell_start[1:])
+    return node_q[order], node_cell[order], cell_start, ids
+
+
+def test_node_selection_matches_the_stable_sort_it_replaced():
+    """Positions of searchable cells grouped by cell, extras after a cell's own positions
+    (also in an unsearchable cell, and two extras in one cell), ids of the extras."""
+    rng = np.random.default_rng(17)
+    for trial in range(30):
+        shape = (4, 5, 3)
+        n_cells = int(np.prod(shape))
+        cells = rng.choice(n_cells, size=n_cells // 2, replace=False)
+        if trial % 2:
+            cells = np.sort(cells)
+        offsets = np.r_[0, np.cumsum(rng.integers(1, 4, len(cells)))]
+        Q = rng.uniform(-1.0, 1.0, (offsets[-1], 5))
+        searchable = rng.random(n_cells) < 0.6
+        picks = rng.choice(n_cells, size=2, replace=trial % 3 == 0)
+        extra = [(int(c), rng.uniform(-1.0, 1.0, 5)) for c in picks]
+        g, ids = JointGraph.build(shape, cells, offsets, Q, searchable,
+                                  np.zeros(n_cells, bool), np.zeros(n_cells), np.ones(5),
+                                  extra=extra)
+        ref_q, ref_cell, ref_start, ref_ids = _reference_selection(
+            shape, cells, offsets, Q, searchable, extra)
+        assert np.array_equal(g.node_q, ref_q) and np.array_equal(g.node_cell, ref_cell)
+        assert np.array_equal(g.cell_start, ref_start) and ids == ref_ids
+        assert g.searchable[picks].all() and np.array_equal(
+            g.searchable[~np.isin(np.arange(n_cells), picks)],
+            searchable[~np.isin(np.arange(n_cells), picks)])
