@@ -173,25 +173,28 @@ class _EdgeCheck:
         samples = getattr(self.checker, "motion_samples_between", None)
         if samples is None:
             return [self.first_invalid_fraction(a, b) for a, b in zip(Q0, Q1, strict=True)]
-        ns = samples(Q0, Q1).tolist()
-        fr = [np.arange(n + 1) / n for n in ns]
-        Q = np.concatenate([a + f[:, None] * (b - a) for a, b, f in zip(Q0, Q1, fr, strict=True)])
+        Q0, Q1 = np.asarray(Q0, dtype=float), np.asarray(Q1, dtype=float)
+        ns = np.asarray(samples(Q0, Q1), dtype=np.int64)
+        # every edge's samples a + (k / n) (b - a), k = 0..n, all at once (the same
+        # operations on the same numbers as edge by edge)
+        counts = ns + 1
+        edge = np.repeat(np.arange(len(ns)), counts)
+        first = np.cumsum(counts) - counts
+        F = (np.arange(len(edge)) - first[edge]) / ns[edge]
+        Q = Q0[edge] + F[:, None] * (Q1 - Q0)[edge]
         near = (self.world.near_recorded_collision(Q, self.exempt)
                 if self.world.collisions else None)
         along = getattr(self.checker, "is_valid_samples", None)
         if along is not None:  # only each edge's first invalid sample matters
-            groups = None if len(ns) == 1 else np.repeat(np.arange(len(ns)), np.add(ns, 1))
-            ok = along(Q, groups, first_only=True, known_invalid=near)
+            ok = along(Q, None if len(ns) == 1 else edge, first_only=True, known_invalid=near)
         else:
             ok = self.checker.is_valid_batch(Q)
             if near is not None:
                 ok &= ~near
-        out: list[float | None] = []
-        start = 0
-        for f in fr:
-            seg = ok[start:start + len(f)]
-            out.append(None if seg.all() else float(f[int(np.argmin(seg))]))
-            start += len(f)
+        bad = np.flatnonzero(~ok)
+        out: list[float | None] = [None] * len(ns)
+        for i in np.unique(edge[bad]).tolist():  # each failing edge's first invalid sample
+            out[i] = float(F[bad[np.searchsorted(edge[bad], i)]])
         return out
 
 
