@@ -664,17 +664,23 @@ class CollisionChecker:
         return self.check_motion(q0, q1).first_invalid_fraction
 
     def check_path(self, path: Sequence[Array], max_step: float | None = None,
-                   ) -> tuple[int, MotionCheck] | None:
+                   trusted: Array | None = None) -> tuple[int, MotionCheck] | None:
         """First invalid segment (index, check) of a joint path, or None if all of it is valid.
 
         The same samples as `check_motion` on each segment in turn, but checked in batches
         across segments: a dense path of short segments would otherwise pay the per-call
-        cost once per segment.
+        cost once per segment. `trusted` (a flag per segment) names segments this checker
+        already passed, sampled the same way (a caller that checked part of the path
+        before): their samples are not asked again; a sample's answer does not depend on
+        the others it is checked with.
         """
         if len(path) < 2:
             return None
         A = _path_array(path)
         S, F, counts = self._path_samples(A, max_step)
+        if trusted is not None:
+            keep = ~np.asarray(trusted, dtype=bool)[S]
+            S, F = S[keep], F[keep]
         counts = counts.tolist()
         for start in range(0, len(S), self.chunk):
             s, f = S[start : start + self.chunk], F[start : start + self.chunk]

@@ -208,6 +208,43 @@ def test_path_check_finds_the_same_first_contact_as_segment_by_segment(checker, 
     assert outcomes == {True, False}
 
 
+def test_path_check_skips_trusted_segments_and_finds_the_same_first_contact(checker, rv2aj,
+                                                                          monkeypatch):
+    """Segments named `trusted` (already passed, sampled the same way) are not asked again;
+    the first invalid segment found among the rest is the one the full check finds."""
+    rng = np.random.default_rng(12)
+    asked = []
+    full_check = checker.is_valid_samples
+
+    def counting(Q, *args, **kwargs):
+        asked.append(len(Q))
+        return full_check(Q, *args, **kwargs)
+
+    hits = 0
+    checked_some = False
+    for _ in range(10):
+        path = list(rng.uniform(rv2aj.limits.lower * 0.8, rv2aj.limits.upper * 0.8, (5, 5)))
+        ref = checker.check_path(path)
+        ok = [checker.check_motion(a, b).valid for a, b in zip(path[:-1], path[1:],
+                                                                 strict=True)]
+        trusted = np.array(ok) & (np.arange(4) % 2 == 0)  # some of the valid ones
+        monkeypatch.setattr(checker, "is_valid_samples", counting)
+        asked.clear()
+        got = checker.check_path(path, trusted=trusted)
+        n_asked = sum(asked)
+        monkeypatch.undo()
+        assert (got is None) == (ref is None)
+        if ref is not None:
+            hits += 1
+            assert got[0] == ref[0]
+            assert got[1].first_invalid_fraction == ref[1].first_invalid_fraction
+        if trusted.any() and ref is None:  # every untrusted sample asked, no trusted one
+            checked_some = True
+            counts = checker.motion_samples_along(np.array(path)) + 1
+            assert n_asked == int(counts[~trusted].sum())
+    assert hits > 0 and checked_some
+
+
 def test_free_margin_is_a_sound_certificate(checker, rv2aj):
     """Any move whose arm travel stays below a configuration's margin is free (brute-force
     FCL agrees) - including moves to just below the margin towards the obstacles."""

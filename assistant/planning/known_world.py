@@ -136,11 +136,14 @@ class KnownVerifier:
         return MotionCheck(float(f[k]), len(f) - 1, report)
 
     def check_path(self, path: Sequence[Array], max_step: float | None = None,
-                   ) -> tuple[int, MotionCheck] | None:
-        """First invalid segment (index, check) or None; exempts the boxes at path[0]."""
+                   trusted: Array | None = None) -> tuple[int, MotionCheck] | None:
+        """First invalid segment (index, check) or None; exempts the boxes at path[0].
+
+        `trusted` segments skip the checker (`CollisionChecker.check_path`), never the
+        recorded collisions: those depend on where the path starts."""
         if len(path) == 0:
             return None
-        hit = self.checker.check_path(path, max_step)
+        hit = self.checker.check_path(path, max_step, trusted)
         if not self.world.collisions:
             return hit
         exempt = self.world.recorded_collisions_at(np.asarray(path[0], dtype=float))

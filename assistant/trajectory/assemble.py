@@ -51,7 +51,7 @@ class PathVerifier(Protocol):
     """What verification needs; `collision.CollisionChecker` provides it."""
 
     def check_path(self, path: Sequence[Array], max_step: float | None = None,
-                   ) -> tuple[int, MotionCheck] | None: ...
+                   trusted: Array | None = None) -> tuple[int, MotionCheck] | None: ...
 
     def min_clearance_along(self, path: Sequence[Array], max_step: float = 0.01) -> float: ...
 
@@ -141,6 +141,7 @@ def assemble_trajectory(
     q0 = np.asarray(particles.joints[0], dtype=float)
     start = Waypoint(robot.fk(q0), q0, "start")
     motions: list[Motion] = []
+    checked: list[bool] = []  # per motion: the verifier already passed its dense path
     fallbacks: list[str] = []
     current = start
     prims = fit.primitives
@@ -151,8 +152,8 @@ def assemble_trajectory(
         q_ref = np.asarray(particles.joints[prim.last_node], dtype=float)
         R_end = robot.fk(q_ref)[:3, :3]
         vias = np.asarray(particles.joints[prim.first_node + 1 : prim.last_node], dtype=float)
-        made, note = _cartesian_motion(robot, prim, current, R_end, q_ref, params, blend, k,
-                                       vias, verifier)
+        made, passed, note = _cartesian_motion(robot, prim, current, R_end, q_ref, params,
+                                               blend, k, vias, verifier)
         if note:
             fallbacks.append(note)
         if not made:
@@ -161,17 +162,20 @@ def assemble_trajectory(
                              None)
             return AssemblyResult(None, report)
         motions += made
+        checked += passed
         current = made[-1].target
     traj = Trajectory(start, motions)
     return verify(robot, traj, verifier, max_deviation=fit.max_deviation,
-                  fallbacks=tuple(fallbacks), clearance_step=params.clearance_step)
+                  fallbacks=tuple(fallbacks), clearance_step=params.clearance_step,
+                  checked=tuple(checked))
 
 
 def _cartesian_motion(robot: Robot, prim: Primitive, current: Waypoint, R_end: Array,
                       q_ref: Array, params: AssemblyParams, blend: float, k: int,
                       vias: Array, verifier: PathVerifier | None,
-                      ) -> tuple[list[Motion], str]:
-    """The primitive as one LINEAR/CIRCULAR motion, or else as joint moves to its end.
+                      ) -> tuple[list[Motion], list[bool], str]:
+    """The primitive as one LINEAR/CIRCULAR motion, or else as joint moves to its end;
+    with each motion whether the verifier already passed its dense path.
 
     The joint moves keep the particles' arm branch; a straight joint move that the verifier
     refuses is split at the middle one of the net particles it covers (`vias`), recursively,
@@ -192,7 +196,7 @@ def _cartesian_motion(robot: Robot, prim: Primitive, current: Waypoint, R_end: A
             m = len(u) // 2
             via = Waypoint(robot.fk(Q[m]), Q[m])
         return [Motion(kind, target, via=via, joint_path=Q, label=params.label,
-                       speed=params.speed, blend_radius=blend)], ""
+                       speed=params.speed, blend_radius=blend)], [False], ""
     # Fallback: a joint move to the primitive's end, keeping the particle's arm branch.
     T_end = np.eye(4)
     T_end[:3, :3], T_end[:3, 3] = R_end, prim.end
@@ -202,10 +206,10 @@ def _cartesian_motion(robot: Robot, prim: Primitive, current: Waypoint, R_end: A
     if not res.ok:
         res = robot.ik(T_end, q_ref, position_only=True)
     if not res.ok:
-        return [], f"primitive {k + 1}: end unreachable ({res.message})"
+        return [], [], f"primitive {k + 1}: end unreachable ({res.message})"
     q_end = np.asarray(res.best(q_ref), dtype=float)
     chain = np.vstack([np.asarray(current.q, dtype=float)[None], vias, q_end[None]])
-    keep = _joint_splits(robot, chain, 0, len(chain) - 1, verifier, params.step)
+    keep, passed = _joint_splits(robot, chain, 0, len(chain) - 1, verifier, params.step)
     motions = []
     for a, b in zip(keep[:-1], keep[1:], strict=True):
         Q = joint_interpolation(robot, chain[a], chain[b], params.step)
@@ -215,19 +219,22 @@ def _cartesian_motion(robot: Robot, prim: Primitive, current: Waypoint, R_end: A
     what = "a joint move" if len(motions) == 1 else f"{len(motions)} joint moves"
     note = (f"primitive {k + 1} ({prim.kind.value}) became {what}: {follow.message} "
             f"at {100.0 * (follow.fail_index or 0) / max(1, len(u) - 1):.0f}%")
-    return motions, note
+    return motions, passed, note
 
 
 def _joint_splits(robot: Robot, chain: Array, a: int, b: int, verifier: PathVerifier | None,
-                  step: float) -> list[int]:
+                  step: float) -> tuple[list[int], list[bool]]:
     """Indices a..b of `chain` to move through in straight joint moves: a -> b if the verifier
-    accepts it, else split at the middle index and recurse (no split below one step)."""
-    if b - a < 2 or verifier is None or verifier.check_path(
-            joint_interpolation(robot, chain[a], chain[b], step)) is None:
-        return [a, b]
+    accepts it, else split at the middle index and recurse (no split below one step); with
+    each move whether the verifier was asked (and passed it)."""
+    if b - a < 2 or verifier is None:
+        return [a, b], [False]
+    if verifier.check_path(joint_interpolation(robot, chain[a], chain[b], step)) is None:
+        return [a, b], [True]
     m = (a + b) // 2
-    left = _joint_splits(robot, chain, a, m, verifier, step)
-    return left + _joint_splits(robot, chain, m, b, verifier, step)[1:]
+    left, left_passed = _joint_splits(robot, chain, a, m, verifier, step)
+    right, right_passed = _joint_splits(robot, chain, m, b, verifier, step)
+    return left + right[1:], left_passed + right_passed
 
 
 def joint_interpolation(robot: Robot, q0: Array, q1: Array, step: float) -> Array:
@@ -241,8 +248,13 @@ def joint_interpolation(robot: Robot, q0: Array, q1: Array, step: float) -> Arra
 
 def verify(robot: Robot, traj: Trajectory, verifier: PathVerifier | None, *,
            max_deviation: float = 0.0, fallbacks: tuple[str, ...] = (),
-           clearance_step: float = 0.01) -> AssemblyResult:
-    """Joint limits and the exact continuous collision check of the dense path, then figures."""
+           clearance_step: float = 0.01, checked: tuple[bool, ...] = ()) -> AssemblyResult:
+    """Joint limits and the exact continuous collision check of the dense path, then figures.
+
+    `checked` flags motions whose dense path this verifier already passed (the assembly's
+    joint-move fallbacks are checked as they are split): their samples are not asked again
+    (`PathVerifier.check_path`'s `trusted`), the rest of the path is, and the result is the
+    same."""
     paths = [_motion_path(traj, i) for i in range(len(traj.motions))]
     # Joint limits first: a clearer message than a collision report.
     for i, Q in enumerate(paths):
@@ -258,7 +270,10 @@ def verify(robot: Robot, traj: Trajectory, verifier: PathVerifier | None, *,
         # One check of the whole dense path (its segments are the motions' segments in
         # order, each motion's first row being the previous one's last): the first invalid
         # segment is the one a check motion by motion would find, at one call's cost.
-        hit = verifier.check_path(dense)
+        trusted = (np.repeat(np.asarray(checked, dtype=bool), [len(Q) - 1 for Q in paths])
+                   if any(checked) else None)
+        hit = (verifier.check_path(dense) if trusted is None
+               else verifier.check_path(dense, trusted=trusted))
         if hit is not None:
             g, mc = hit
             ends = np.cumsum([len(Q) - 1 for Q in paths])  # segments up to each motion's end

@@ -153,6 +153,33 @@ def test_a_move_that_cannot_be_followed_becomes_a_joint_move_and_says_so(rv2aj):
     assert np.allclose(d, np.outer(f, span), atol=1e-12)
 
 
+def test_a_checked_joint_move_is_not_checked_again_and_the_result_is_the_same(rv2aj,
+                                                                             monkeypatch):
+    """The joint-move fallback was checked while it was split; verification trusts those
+    segments (asks the checker about the other motions only) and reports the same."""
+    pts = np.stack([np.linspace(0.12, -0.12, 13), np.full(13, 0.015), np.full(13, 0.45)], 1)
+    Q = ik_path(rv2aj, pts)
+    P = np.asarray(rv2aj.batch_fk(Q).positions)
+    fit = fit_primitives(P, FitParams(tolerance=0.001))
+    checker = CollisionChecker(rv2aj, [TABLE])
+    calls = []
+    check_path = checker.check_path
+
+    def recording(path, max_step=None, trusted=None):
+        calls.append(None if trusted is None else np.asarray(trusted).copy())
+        return check_path(path, max_step, trusted)
+
+    monkeypatch.setattr(checker, "check_path", recording)
+    res = assemble_trajectory(rv2aj, fit, Particles(P, Q), checker)
+    monkeypatch.undo()
+    assert res.ok and res.trajectory.motions[0].kind == MotionKind.JOINT
+    # the split's check, then verification with that motion's segments trusted
+    assert calls[0] is None and calls[-1] is not None and calls[-1].all()
+    again = verify(rv2aj, res.trajectory, checker, fallbacks=res.report.fallbacks,
+                   max_deviation=fit.max_deviation)
+    assert again.report == res.report
+
+
 def test_whole_pipeline_from_a_searched_path(rv2aj):
     """Searched joint path (a bow around a ball nobody may enter) -> verified trajectory."""
     centre, radius = np.array([0.27, 0.0, 0.25]), 0.08
