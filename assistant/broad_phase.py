@@ -14,6 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from assistant.dh import chain_row
 from assistant.segment_box import segment_box_distance_one
 
 Array = np.ndarray
@@ -192,8 +193,18 @@ def _prune_row(frames: Array, k: int, env_c: Array, self_c: Array, shape_link: A
 FREE, OUTSIDE_LIMITS, ASK_FCL, CERTIFIED = 0, 1, 2, 3
 
 
+@njit(cache=True, inline="always")
+def _pose(frames: Array, ready: Array, Q: Array, F: Array, k: int, T: Array) -> None:
+    """Row k's link frames from the DH chain's fixed parts F (`dh.chain_row`), unless
+    they are there already."""
+    if not ready[k]:
+        chain_row(Q[k], F, frames[k], T)
+        ready[k] = True
+
+
 @njit(cache=True)
-def certify_samples(frames: Array, Q: Array, inside: Array, first: Array, last: Array,
+def certify_samples(frames: Array, ready: Array, F: Array, Q: Array, inside: Array,
+                    first: Array, last: Array,
                     stride: int, radii: Array, sph_link: Array, sph_local: Array,
                     sph_r: Array, sph_shape: Array, env_lo: Array, env_hi: Array, sp_a: Array,
                     sp_b: Array, sp_pair: Array, n_shapes: int, n_pairs: int,
@@ -203,9 +214,12 @@ def certify_samples(frames: Array, Q: Array, inside: Array, first: Array, last: 
     """Everything of `CollisionChecker.is_valid_samples` but FCL, for motions' samples.
 
     Rows of one motion are consecutive (`first`/`last` mark its ends); `inside` says which
-    rows are within the joint limits. Every `stride`-th row of a motion and its last get the
-    broad phase and its gap; a row whose arm travel (sum of radii x |joint change|) from
-    the checked row before or after it in its motion stays below that row's gap is free
+    rows are within the joint limits. frames holds a row's link frames where `ready`; the
+    others are computed here from the DH chain's fixed parts F when the row is checked (a
+    row its neighbour's margin certifies is never posed: most rows of a motion in the
+    open). Every `stride`-th row of a motion and its last get the broad phase and its gap;
+    a row whose arm travel (sum of radii x |joint change|) from the checked row before or
+    after it in its motion stays below that row's gap is free
     (no sphere can have come near anything); the others get the broad phase themselves.
     Pairs the broad phase passes are pruned (`prune_round_pairs`). Returns status (N,)
     (FREE, OUTSIDE_LIMITS, ASK_FCL or CERTIFIED) and for ASK_FCL rows the candidate pairs, env_c
@@ -224,6 +238,7 @@ def certify_samples(frames: Array, Q: Array, inside: Array, first: Array, last: 
     # Of the coarse rows: what their gap certifies. A row the broad phase passes to FCL has
     # a gap <= 0 (a sphere reaches something): it certifies nothing, whatever FCL says.
     margin = np.full(n, -np.inf)
+    T = np.empty((4, 4))
     start = 0
     for k in range(n):
         if first[k]:
@@ -233,6 +248,7 @@ def certify_samples(frames: Array, Q: Array, inside: Array, first: Array, last: 
         if not inside[k]:
             status[k] = OUTSIDE_LIMITS
         elif coarse[k]:
+            _pose(frames, ready, Q, F, k, T)
             margin[k] = _broad_row(frames, k, sph_link, sph_local, sph_r, sph_shape, env_lo,
                                    env_hi, sp_a, sp_b, sp_pair, centre, env_c, self_c)
             status[k] = _prune_and_flag(frames, k, env_c, self_c, shape_link, seg_a, seg_b,
@@ -262,6 +278,7 @@ def certify_samples(frames: Array, Q: Array, inside: Array, first: Array, last: 
         if free:
             status[k] = CERTIFIED
             continue
+        _pose(frames, ready, Q, F, k, T)
         _broad_row(frames, k, sph_link, sph_local, sph_r, sph_shape, env_lo, env_hi, sp_a,
                    sp_b, sp_pair, centre, env_c, self_c)
         status[k] = _prune_and_flag(frames, k, env_c, self_c, shape_link, seg_a, seg_b, seg_r,

@@ -33,9 +33,9 @@ from assistant.broad_phase import (
 from assistant.clearance_scan import pruned_clearance
 from assistant.fcl_shapes import covering_spheres, fcl_geometry, fcl_transform, world_aabb
 from assistant.motion_rows import (
-    chain_frames_inside,
     motion_marks,
     rows_before_first_bad,
+    rows_inside,
     valid_before_first_bad,
 )
 from assistant.robot_model import CollisionShape, Robot, ShapeKind
@@ -473,23 +473,28 @@ class CollisionChecker:
 
     def _certify(self, Q: Array, groups: Array | None,
                  ) -> tuple[Array, Array, Array, Array, Array]:
-        """Link frames of the rows of Q, `broad_phase.certify_samples`' answers for them
-        (the sampling, broad phase, margins and pruning in one compiled pass) and each row's
+        """Link frames of the rows of Q (of the rows checked, for a DH chain: those are
+        posed by the pass itself), `broad_phase.certify_samples`' answers for them (the
+        sampling, broad phase, margins and pruning in one compiled pass) and each row's
         motion number."""
         n = len(Q)
         g = np.zeros(n, dtype=np.int64) if groups is None else np.asarray(groups)
         first, last, motion = motion_marks(g)
         Q = np.ascontiguousarray(Q, dtype=float)
+        lim = self.robot.limits
+        inside = rows_inside(Q, lim.lower, lim.upper)
         if self._chain_F is not None:
-            lim = self.robot.limits
-            frames, inside = chain_frames_inside(Q, self._chain_F, lim.lower, lim.upper)
+            chain = self._chain_F
+            frames = np.empty((n, len(chain) + 1, 4, 4))
+            ready = np.zeros(n, dtype=bool)
         else:
-            inside = self.robot.limits.contains_batch(Q)
+            chain = np.zeros((0, 4, 4))
             frames = np.ascontiguousarray(
                 np.concatenate([self.robot.batch_link_poses(Q[i : i + self.chunk])
                                 for i in range(0, n, self.chunk)]), dtype=float)
+            ready = np.ones(n, dtype=bool)
         status, env_c, self_c = certify_samples(
-            frames, Q, inside, first, last, self.CERTIFY_STRIDE,
+            frames, ready, chain, Q, inside, first, last, self.CERTIFY_STRIDE,
             self._radii, self._sph_link, self._sph_local, self._sph_r, self._sph_shape,
             self._env_lo, self._env_hi, self._sp_a, self._sp_b, self._sp_pair,
             len(self._rshapes), len(self._self_pairs), self._shape_link, self._seg_a,

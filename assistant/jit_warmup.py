@@ -28,9 +28,9 @@ from assistant.broad_phase import (
 from assistant.clearance_scan import pruned_clearance
 from assistant.dh import _chain_frames_kernel
 from assistant.motion_rows import (
-    chain_frames_inside,
     motion_marks,
     rows_before_first_bad,
+    rows_inside,
     valid_before_first_bad,
 )
 from assistant.roadmap.astar_kernel import search
@@ -71,7 +71,7 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            circle_through_kernel, propose_moves, brushfire_region, leaf_flags,
            pruned_clearance, walk_nearest, neighbour_cells, neighbour_nodes,
            certify_samples, check_moves, apply_moves, _candidates, slerp_kernel, update_rounds,
-           motion_marks, chain_frames_inside, rows_before_first_bad, valid_before_first_bad,
+           motion_marks, rows_inside, rows_before_first_bad, valid_before_first_bad,
            sweep_moves, halve_retries, repin, expand, weighted_distances,
            connected26, successor_costs, search, fit_rows, run_sweeps, select_nodes)
 

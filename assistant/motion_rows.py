@@ -12,7 +12,6 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from assistant.dh import chain_row
 from assistant.kernel_helpers import within_limits
 
 Array = np.ndarray
@@ -37,18 +36,12 @@ def motion_marks(groups: Array) -> tuple[Array, Array, Array]:
 
 
 @njit(cache=True)
-def chain_frames_inside(Q: Array, F: Array, lower: Array, upper: Array,
-                        ) -> tuple[Array, Array]:
-    """Link frames of a DH chain (as `dh.batch_chain_frames`) and the joint-limit test of
-    each row of Q."""
-    n, dof = Q.shape
-    frames = np.zeros((n, dof + 1, 4, 4))
-    inside = np.empty(n, dtype=np.bool_)
-    T = np.empty((4, 4))
-    for k in range(n):
-        chain_row(Q[k], F, frames[k], T)
+def rows_inside(Q: Array, lower: Array, upper: Array) -> Array:
+    """The joint-limit test of each row of Q (`JointLimits.contains_batch`)."""
+    inside = np.empty(Q.shape[0], dtype=np.bool_)
+    for k in range(Q.shape[0]):
         inside[k] = within_limits(Q[k], lower, upper)
-    return frames, inside
+    return inside
 
 
 @njit(cache=True)

@@ -366,19 +366,23 @@ def test_first_only_samples_give_each_motions_first_invalid_row(checker, rv2aj, 
 
 
 def test_compiled_frames_and_limits_are_the_robots_to_the_bit(checker, rv2aj, cell_obstacles):
-    """The certification computes the RV-2AJ's link frames and limit test itself
-    (`motion_rows.chain_frames_inside`): the same bits as `batch_link_poses` and
-    `contains_batch`; and a robot without the DH hook (frames from `batch_link_poses`)
-    gets the same answers from `is_valid_samples`."""
-    from assistant.motion_rows import chain_frames_inside
+    """The certification computes the RV-2AJ's link frames itself, only for the rows it
+    checks (`broad_phase.certify_samples`), and the limit test (`motion_rows.rows_inside`):
+    the same bits as `batch_link_poses` and `contains_batch`; and a robot without the DH
+    hook (frames from `batch_link_poses`) gets the same answers from `is_valid_samples`."""
+    from assistant.motion_rows import rows_inside
 
     rng = np.random.default_rng(31)
     lo, hi = rv2aj.limits.lower, rv2aj.limits.upper
     Q = rng.uniform(lo - 0.2, hi + 0.2, (300, 5))
-    frames, inside = chain_frames_inside(Q, rv2aj.dh_fixed_stack(), lo, hi)
-    assert np.array_equal(frames, rv2aj.batch_link_poses(Q))
+    inside = rows_inside(Q, lo, hi)
     assert np.array_equal(inside, rv2aj.limits.contains_batch(Q))
     assert 0.1 < inside.mean() < 0.9
+    Qm, Gm, _ = _random_motions(checker, rng, lo, hi, 30, 0.3)
+    frames, status, _, _, _ = checker._certify(Qm, Gm)
+    posed = (status == FREE) | (status == ASK_FCL)
+    assert np.array_equal(frames[posed], rv2aj.batch_link_poses(Qm[posed]))
+    assert (status == CERTIFIED).mean() > 0.2  # rows never posed: their margin sufficed
 
     class NoHook:  # the RV-2AJ seen through the plain Robot interface only
         def __getattr__(self, name):
