@@ -66,17 +66,19 @@ def circle_through_kernel(a: Array, b: Array, c: Array) -> tuple[bool, Array, fl
 
 @njit(**_JIT)
 def line_distances(start: Array, end: Array, points: Array) -> Array:
-    """Distance of each point (m, 3) to the segment start-end."""
-    d = end - start
-    L2 = _dot(d, d)
+    """Distance of each point (m, 3) to the segment start-end. Scalars, not 3-vectors, per
+    point: the fitter asks this ~80 times a transfer, and an array per intermediate was an
+    allocation each (the same operations in the same order, so the same bits)."""
+    d0, d1, d2 = end[0] - start[0], end[1] - start[1], end[2] - start[2]
+    L2 = d0 * d0 + d1 * d1 + d2 * d2
     out = np.empty(len(points))
     for i in range(len(points)):
-        x = points[i] - start
+        x0, x1, x2 = points[i, 0] - start[0], points[i, 1] - start[1], points[i, 2] - start[2]
         s = 0.0
         if L2 > 0.0:
-            s = min(max(_dot(x, d) / L2, 0.0), 1.0)
-        r = x - s * d
-        out[i] = math.sqrt(_dot(r, r))
+            s = min(max((x0 * d0 + x1 * d1 + x2 * d2) / L2, 0.0), 1.0)
+        r0, r1, r2 = x0 - s * d0, x1 - s * d1, x2 - s * d2
+        out[i] = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
     return out
 
 
@@ -84,23 +86,30 @@ def line_distances(start: Array, end: Array, points: Array) -> Array:
 def arc_distances(start: Array, end: Array, centre: Array, radius: float, normal: Array,
                   sweep: float, points: Array) -> Array:
     """Distance of each point (m, 3) to the arc (not the full circle): to the circle where
-    the point's angle about the normal lies within the sweep, else to the nearer end."""
+    the point's angle about the normal lies within the sweep, else to the nearer end.
+    Scalars per point, as `line_distances`."""
     r0 = start - centre
     y_axis = _cross(normal, r0)
+    n0, n1, n2 = normal[0], normal[1], normal[2]
     out = np.empty(len(points))
     for i in range(len(points)):
-        x = points[i] - centre
-        h = _dot(x, normal)
-        v = x - h * normal
-        rho = math.sqrt(_dot(v, v))
-        phi = math.atan2(_dot(v, y_axis), _dot(v, r0))
+        x0, x1, x2 = (points[i, 0] - centre[0], points[i, 1] - centre[1],
+                      points[i, 2] - centre[2])
+        h = x0 * n0 + x1 * n1 + x2 * n2
+        v0, v1, v2 = x0 - h * n0, x1 - h * n1, x2 - h * n2
+        rho = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+        phi = math.atan2(v0 * y_axis[0] + v1 * y_axis[1] + v2 * y_axis[2],
+                         v0 * r0[0] + v1 * r0[1] + v2 * r0[2])
         if phi < 0.0:
             phi += 2.0 * math.pi
         if phi <= sweep + 1e-12:
             out[i] = math.sqrt(h * h + (rho - radius) ** 2)
         else:
-            ds, de = points[i] - start, points[i] - end
-            out[i] = min(math.sqrt(_dot(ds, ds)), math.sqrt(_dot(de, de)))
+            s0, s1, s2 = (points[i, 0] - start[0], points[i, 1] - start[1],
+                          points[i, 2] - start[2])
+            e0, e1, e2 = points[i, 0] - end[0], points[i, 1] - end[1], points[i, 2] - end[2]
+            out[i] = min(math.sqrt(s0 * s0 + s1 * s1 + s2 * s2),
+                         math.sqrt(e0 * e0 + e1 * e1 + e2 * e2))
     return out
 
 
@@ -274,11 +283,11 @@ def _on_circle(O: Array, C: Array, N: Array, pts: Array, r_min: float, r_max: fl
             continue
         r = math.sqrt(r2)
         good = True
-        for i in range(len(pts)):
-            x = pts[i] - c
-            h = _dot(x, n)
-            w = x - h * n
-            dv = h * h + (math.sqrt(_dot(w, w)) - r) ** 2
+        for i in range(len(pts)):  # scalars per node (as `line_distances`)
+            x0, x1, x2 = pts[i, 0] - c[0], pts[i, 1] - c[1], pts[i, 2] - c[2]
+            h = x0 * n[0] + x1 * n[1] + x2 * n[2]
+            w0, w1, w2 = x0 - h * n[0], x1 - h * n[1], x2 - h * n[2]
+            dv = h * h + (math.sqrt(w0 * w0 + w1 * w1 + w2 * w2) - r) ** 2
             if not dv <= tol2:
                 good = False
                 break
@@ -300,14 +309,21 @@ def _arc_from(O: Array, centre: Array, normal: Array, pts: Array, t0: Array, has
     radius = math.sqrt(_dot(r0, r0))
     V = np.empty((m + 1, 3))
     V[0] = r0
-    for i in range(m):
-        x = pts[i] - centre
-        V[i + 1] = x - _dot(x, normal) * normal
+    n0, n1, n2 = normal[0], normal[1], normal[2]
+    for i in range(m):  # scalars per node (as `line_distances`)
+        x0, x1, x2 = pts[i, 0] - centre[0], pts[i, 1] - centre[1], pts[i, 2] - centre[2]
+        h = x0 * n0 + x1 * n1 + x2 * n2
+        V[i + 1, 0], V[i + 1, 1], V[i + 1, 2] = x0 - h * n0, x1 - h * n1, x2 - h * n2
     # unwrapped angle of each node about the normal: the sum of the signed steps
     phi = np.empty(m)
     acc = 0.0
     for i in range(m):
-        acc += math.atan2(_dot(_cross(V[i], V[i + 1]), normal), _dot(V[i], V[i + 1]))
+        a, b = V[i], V[i + 1]
+        c0 = a[1] * b[2] - a[2] * b[1]  # a x b, as `_cross`
+        c1 = a[2] * b[0] - a[0] * b[2]
+        c2 = a[0] * b[1] - a[1] * b[0]
+        acc += math.atan2(c0 * n0 + c1 * n1 + c2 * n2,
+                          a[0] * b[0] + a[1] * b[1] + a[2] * b[2])
         phi[i] = acc
     if phi[m - 1] < 0.0:
         normal = -normal
