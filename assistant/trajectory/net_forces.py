@@ -21,29 +21,32 @@ _JIT = {"cache": True, "error_model": "numpy"}
 
 
 @njit(**_JIT)
-def _turn(P: Array, j: int, out: Array) -> float:
-    """Turn angle at interior particle j, and its unit curvature direction (the component of
-    P[j-1] + P[j+1] - 2 P[j] across the chord, 0 if none) into `out`; 0 at the ends."""
+def _turn(P: Array, j: int) -> tuple[float, float, float, float]:
+    """Turn angle at interior particle j and its unit curvature direction (the component of
+    P[j-1] + P[j+1] - 2 P[j] across the chord, 0 if none); 0 at the ends."""
     n = len(P)
-    out[:] = 0.0
     if j < 1 or j > n - 2:
-        return 0.0
-    a = P[j] - P[j - 1]
-    b = P[j + 1] - P[j]
-    na = max(math.sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]), 1e-15)
-    nb = max(math.sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]), 1e-15)
-    a, b = a / na, b / nb
-    c = a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+        return 0.0, 0.0, 0.0, 0.0
+    a0, a1, a2 = P[j, 0] - P[j - 1, 0], P[j, 1] - P[j - 1, 1], P[j, 2] - P[j - 1, 2]
+    b0, b1, b2 = P[j + 1, 0] - P[j, 0], P[j + 1, 1] - P[j, 1], P[j + 1, 2] - P[j, 2]
+    na = max(math.sqrt(a0 * a0 + a1 * a1 + a2 * a2), 1e-15)
+    nb = max(math.sqrt(b0 * b0 + b1 * b1 + b2 * b2), 1e-15)
+    a0, a1, a2 = a0 / na, a1 / na, a2 / na
+    b0, b1, b2 = b0 / nb, b1 / nb, b2 / nb
+    c = a0 * b0 + a1 * b1 + a2 * b2
     gam = math.acos(min(max(c, -1.0), 1.0))
-    S = P[j - 1] + P[j + 1] - 2.0 * P[j]
-    ch = P[j + 1] - P[j - 1]
-    nc = max(math.sqrt(ch[0] * ch[0] + ch[1] * ch[1] + ch[2] * ch[2]), 1e-15)
-    ch = ch / nc
-    S = S - (S[0] * ch[0] + S[1] * ch[1] + S[2] * ch[2]) * ch
-    sn = math.sqrt(S[0] * S[0] + S[1] * S[1] + S[2] * S[2])
+    s0 = (P[j - 1, 0] + P[j + 1, 0]) - 2.0 * P[j, 0]
+    s1 = (P[j - 1, 1] + P[j + 1, 1]) - 2.0 * P[j, 1]
+    s2 = (P[j - 1, 2] + P[j + 1, 2]) - 2.0 * P[j, 2]
+    h0, h1, h2 = P[j + 1, 0] - P[j - 1, 0], P[j + 1, 1] - P[j - 1, 1], P[j + 1, 2] - P[j - 1, 2]
+    nc = max(math.sqrt(h0 * h0 + h1 * h1 + h2 * h2), 1e-15)
+    h0, h1, h2 = h0 / nc, h1 / nc, h2 / nc
+    dot = s0 * h0 + s1 * h1 + s2 * h2
+    s0, s1, s2 = s0 - dot * h0, s1 - dot * h1, s2 - dot * h2
+    sn = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
     if sn > 1e-12:
-        out[:] = S / sn
-    return gam
+        return gam, s0 / sn, s1 / sn, s2 / sn
+    return gam, 0.0, 0.0, 0.0
 
 
 @njit(**_JIT)
@@ -71,46 +74,68 @@ def propose_moves(P: Array, stage: int, lam: float, c_eq: float, c_rot: float, c
     idx = np.empty(m, dtype=np.int64)
     D = np.empty((m, 3))
     k = 0
-    kb, kp, kn = np.empty(3), np.empty(3), np.empty(3)
     for colour in range(3):
         first = k
         for i in range(1, n - 1):
             if i % 3 != colour:
                 continue
-            A, B, C = trial[i - 1], trial[i], trial[i + 1]
-            AB, BC, AC = B - A, C - B, C - A
-            lab = math.sqrt(AB[0] * AB[0] + AB[1] * AB[1] + AB[2] * AB[2])
-            lbc = math.sqrt(BC[0] * BC[0] + BC[1] * BC[1] + BC[2] * BC[2])
-            t = AC / max(math.sqrt(AC[0] * AC[0] + AC[1] * AC[1] + AC[2] * AC[2]), 1e-15)
-            F_eq = (lbc - lab) * t
-            S = (A - B) + (C - B)
-            F_sh = S - (S[0] * t[0] + S[1] * t[1] + S[2] * t[2]) * t
+            # scalars per particle, each the numpy formulation's operation in its order
+            # (3-vector temporaries were a dozen allocations per particle and sweep)
+            ab0, ab1, ab2 = (trial[i, 0] - trial[i - 1, 0], trial[i, 1] - trial[i - 1, 1],
+                             trial[i, 2] - trial[i - 1, 2])
+            bc0, bc1, bc2 = (trial[i + 1, 0] - trial[i, 0], trial[i + 1, 1] - trial[i, 1],
+                             trial[i + 1, 2] - trial[i, 2])
+            ac0, ac1, ac2 = (trial[i + 1, 0] - trial[i - 1, 0],
+                             trial[i + 1, 1] - trial[i - 1, 1],
+                             trial[i + 1, 2] - trial[i - 1, 2])
+            lab = math.sqrt(ab0 * ab0 + ab1 * ab1 + ab2 * ab2)
+            lbc = math.sqrt(bc0 * bc0 + bc1 * bc1 + bc2 * bc2)
+            lac = max(math.sqrt(ac0 * ac0 + ac1 * ac1 + ac2 * ac2), 1e-15)
+            t0, t1, t2 = ac0 / lac, ac1 / lac, ac2 / lac
+            e0, e1, e2 = (lbc - lab) * t0, (lbc - lab) * t1, (lbc - lab) * t2  # F_eq
+            s0 = (trial[i - 1, 0] - trial[i, 0]) + (trial[i + 1, 0] - trial[i, 0])
+            s1 = (trial[i - 1, 1] - trial[i, 1]) + (trial[i + 1, 1] - trial[i, 1])
+            s2 = (trial[i - 1, 2] - trial[i, 2]) + (trial[i + 1, 2] - trial[i, 2])
+            st = s0 * t0 + s1 * t1 + s2 * t2
+            f0, f1, f2 = s0 - st * t0, s1 - st * t1, s2 - st * t2  # F_sh
             if stage == 1:
-                d = c_eq * F_eq + stage1_shrink * F_sh
+                d0 = c_eq * e0 + stage1_shrink * f0
+                d1 = c_eq * e1 + stage1_shrink * f1
+                d2 = c_eq * e2 + stage1_shrink * f2
             else:
                 side = 0.5 * (lab + lbc)
-                g_b = _turn(trial, i, kb)
-                g_p = _turn(trial, i - 1, kp)
-                g_n = _turn(trial, i + 1, kn)
-                kb *= g_b
+                g_b, kb0, kb1, kb2 = _turn(trial, i)
+                g_p, kp0, kp1, kp2 = _turn(trial, i - 1)
+                g_n, kn0, kn1, kn2 = _turn(trial, i + 1)
+                kb0, kb1, kb2 = kb0 * g_b, kb1 * g_b, kb2 * g_b
                 cnt = (1.0 if i - 1 >= 1 else 0.0) + (1.0 if i + 1 <= n - 2 else 0.0)
                 if cnt == 0.0:  # three particles: no interior neighbour to compare with
-                    kmean = kb.copy()
+                    m0, m1, m2 = kb0, kb1, kb2
                 else:
-                    kmean = (g_p * kp + g_n * kn) / cnt
-                kmean = kmean - (kmean[0] * t[0] + kmean[1] * t[1] + kmean[2] * t[2]) * t
-                target = kmean / max(math.cos(g_b), 0.5)
-                F_rot = 0.25 * side * (kb - target) / 3.0
+                    m0 = (g_p * kp0 + g_n * kn0) / cnt
+                    m1 = (g_p * kp1 + g_n * kn1) / cnt
+                    m2 = (g_p * kp2 + g_n * kn2) / cnt
+                mt = m0 * t0 + m1 * t1 + m2 * t2
+                m0, m1, m2 = m0 - mt * t0, m1 - mt * t1, m2 - mt * t2
+                cb = max(math.cos(g_b), 0.5)
+                q = 0.25 * side
+                r0 = q * (kb0 - m0 / cb) / 3.0  # F_rot
+                r1 = q * (kb1 - m1 / cb) / 3.0
+                r2 = q * (kb2 - m2 / cb) / 3.0
                 g_min = _polygon_turn(side, r_max)
                 g_max = _polygon_turn(side, r_min) if r_min > 0.0 else np.inf
                 if (g_p < g_min and g_b < g_min and g_n < g_min) or g_b > g_max:
-                    d = c_eq * F_eq + c_line * F_sh
+                    d0, d1, d2 = c_eq * e0 + c_line * f0, c_eq * e1 + c_line * f1, \
+                        c_eq * e2 + c_line * f2
                 else:
-                    d = c_eq * F_eq + (1.0 - lam) * c_rot * F_rot + lam * c_sh * F_sh
-            dn = math.sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2])
-            d = d / max(1.0, dn / max_move)
+                    w_rot, w_sh = (1.0 - lam) * c_rot, lam * c_sh
+                    d0 = c_eq * e0 + w_rot * r0 + w_sh * f0
+                    d1 = c_eq * e1 + w_rot * r1 + w_sh * f1
+                    d2 = c_eq * e2 + w_rot * r2 + w_sh * f2
+            dn = math.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+            sc = max(1.0, dn / max_move)
             idx[k] = i
-            D[k] = d
+            D[k, 0], D[k, 1], D[k, 2] = d0 / sc, d1 / sc, d2 / sc
             k += 1
         for j in range(first, k):  # the class moves together, after all of it is evaluated
             trial[idx[j]] += D[j]
