@@ -100,19 +100,24 @@ def _box_dist2(c: Array, lo: Array, hi: Array) -> float:
 def _segment_segment_distance(p1: Array, q1: Array, p2: Array, q2: Array) -> float:
     """Distance between the segments p1->q1 and p2->q2 (closest points by clamped
     parameters; exact for parallel and degenerate segments too)."""
-    d1, d2, r = q1 - p1, q2 - p2, p1 - p2
-    a, e, f = np.dot(d1, d1), np.dot(d2, d2), np.dot(d2, r)
+    # scalars, not 3-vector temporaries: the pruning asks this for most self pairs
+    d10, d11, d12 = q1[0] - p1[0], q1[1] - p1[1], q1[2] - p1[2]
+    d20, d21, d22 = q2[0] - p2[0], q2[1] - p2[1], q2[2] - p2[2]
+    r0, r1, r2 = p1[0] - p2[0], p1[1] - p2[1], p1[2] - p2[2]
+    a = d10 * d10 + d11 * d11 + d12 * d12
+    e = d20 * d20 + d21 * d21 + d22 * d22
+    f = d20 * r0 + d21 * r1 + d22 * r2
     s = t = 0.0
     if a <= 1e-18 and e <= 1e-18:
         pass
     elif a <= 1e-18:
         t = min(max(f / e, 0.0), 1.0)
     else:
-        c = np.dot(d1, r)
+        c = d10 * r0 + d11 * r1 + d12 * r2
         if e <= 1e-18:
             s = min(max(-c / a, 0.0), 1.0)
         else:
-            b = np.dot(d1, d2)
+            b = d10 * d20 + d11 * d21 + d12 * d22
             den = a * e - b * b
             s = min(max((b * f - c * e) / den, 0.0), 1.0) if den > 0.0 else 0.0
             t = (b * s + f) / e
@@ -122,8 +127,10 @@ def _segment_segment_distance(p1: Array, q1: Array, p2: Array, q2: Array) -> flo
             elif t > 1.0:
                 t = 1.0
                 s = min(max((b - c) / a, 0.0), 1.0)
-    g = p1 + s * d1 - (p2 + t * d2)
-    return np.sqrt(np.dot(g, g))
+    g0 = (p1[0] + s * d10) - (p2[0] + t * d20)
+    g1 = (p1[1] + s * d11) - (p2[1] + t * d21)
+    g2 = (p1[2] + s * d12) - (p2[2] + t * d22)
+    return np.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
 
 
 @njit(cache=True)
