@@ -23,6 +23,14 @@ def mm3(A: Array, B: Array) -> Array:
     return out
 
 
+@njit(cache=True, inline="always")
+def mm3_into(A: Array, B: Array, out: Array) -> None:
+    """`mm3` into out (3, k): the same products and sums, no new array."""
+    for r in range(3):
+        for c in range(B.shape[1]):
+            out[r, c] = A[r, 0] * B[0, c] + A[r, 1] * B[1, c] + A[r, 2] * B[2, c]
+
+
 @njit(cache=True)
 def axis_angle3(axis: Array, norm: float, angle: float) -> Array:
     """`transforms.axis_angle_batch` of one axis (not necessarily unit) given its norm:

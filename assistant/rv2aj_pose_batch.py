@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from assistant.kernel_helpers import axis_angle3, mm3, within_limits
+from assistant.kernel_helpers import axis_angle3, mm3, mm3_into, within_limits
 from assistant.robot_model import JointLimits
 
 Array = np.ndarray
@@ -97,20 +97,25 @@ def _candidates(T: Array, R_ft: Array, T_tf: Array, lower: Array, upper: Array, 
     angle = np.zeros(m)
     exact = np.zeros(m, dtype=np.bool_)
     R_tf = T_tf[:3, :3]
+    # scratch, filled per pose (new small arrays per pose were ~20 allocations each)
+    Rf, R_tool, R = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
+    Rz, Ry, RzRy, A = np.zeros((3, 3)), np.zeros((3, 3)), np.empty((3, 3)), np.empty((3, 3))
+    q = np.empty(5)
     for i in range(m):
         Rt = T[i, :3, :3]
         px, py, pz = T[i, 0, 3], T[i, 1, 3], T[i, 2, 3]
         rxy = np.hypot(px, py)
         ex = rxy >= 1e-9
         # Orientation into the vertical plane through J1 and the TCP (one minimal rotation).
-        Rf = mm3(Rt, R_tf)
-        R_tool = Rt.copy()
+        mm3_into(Rt, R_tf, Rf)
+        R_tool[:] = Rt
         if ex:
-            n = np.array([-py / rxy, px / rxy, 0.0])
-            a = Rf[:, 2].copy()
-            off = a[0] * n[0] + a[1] * n[1] + a[2] * n[2]
+            n0, n1 = -py / rxy, px / rxy
+            off = Rf[0, 2] * n0 + Rf[1, 2] * n1 + Rf[2, 2] * 0.0
             if abs(off) > tol:
                 projected[i] = True
+                n = np.array([n0, n1, 0.0])
+                a = Rf[:, 2].copy()
                 a_proj = a - off * n
                 na = np.sqrt(a_proj[0] ** 2 + a_proj[1] ** 2 + a_proj[2] ** 2)
                 if na < 1e-9:
@@ -121,7 +126,7 @@ def _candidates(T: Array, R_ft: Array, T_tf: Array, lower: Array, upper: Array, 
                 axis = np.cross(a, a_proj)
                 s = np.sqrt(axis[0] ** 2 + axis[1] ** 2 + axis[2] ** 2)
                 R_fix = axis_angle3(axis, s, np.arcsin(min(max(s, -1.0), 1.0)))
-                R_tool = mm3(mm3(R_fix, Rf), R_ft)
+                R_tool[:] = mm3(mm3(R_fix, Rf), R_ft)
                 # The scalar version checks the plane again and would turn once more.
                 a_new = mm3(R_tool, R_tf)[:, 2]
                 if not abs(a_new[0] * n[0] + a_new[1] * n[1] + a_new[2] * n[2]) <= tol:
@@ -132,33 +137,39 @@ def _candidates(T: Array, R_ft: Array, T_tf: Array, lower: Array, upper: Array, 
                         tr += R_tool[r, c] * Rt[r, c]
                 angle[i] = np.arccos(min(max((tr - 1.0) / 2.0, -1.0), 1.0))
         # Flange pose and the branches of `RV2AJ._ik_flange_all`.
-        p = np.array([px, py, pz]) + mm3(R_tool, T_tf[:3, 3:4])[:, 0]
-        R = mm3(R_tool, R_tf)
-        a = R[:, 2].copy()
-        exact[i] = ex and np.hypot(p[0], p[1]) >= 1e-9
-        base = np.arctan2(p[1], p[0])
-        w = p - L6 * a
+        p0 = px + (R_tool[0, 0] * T_tf[0, 3] + R_tool[0, 1] * T_tf[1, 3]
+                   + R_tool[0, 2] * T_tf[2, 3])
+        p1 = py + (R_tool[1, 0] * T_tf[0, 3] + R_tool[1, 1] * T_tf[1, 3]
+                   + R_tool[1, 2] * T_tf[2, 3])
+        p2 = pz + (R_tool[2, 0] * T_tf[0, 3] + R_tool[2, 1] * T_tf[1, 3]
+                   + R_tool[2, 2] * T_tf[2, 3])
+        mm3_into(R_tool, R_tf, R)
+        a0, a1, a2 = R[0, 2], R[1, 2], R[2, 2]
+        exact[i] = ex and np.hypot(p0, p1) >= 1e-9
+        base = np.arctan2(p1, p0)
+        w0, w1, w2 = p0 - L6 * a0, p1 - L6 * a1, p2 - L6 * a2
         b = 0
         for q1 in (base, base + np.pi):
             c1, s1 = np.cos(q1), np.sin(q1)
-            s_pitch = np.arctan2(a[0] * c1 + a[1] * s1, a[2])
-            rw = w[0] * c1 + w[1] * s1
-            zw = w[2] - L1
+            s_pitch = np.arctan2(a0 * c1 + a1 * s1, a2)
+            rw = w0 * c1 + w1 * s1
+            zw = w2 - L1
             D = (rw * rw + zw * zw - L2 * L2 - L3 * L3) / (2.0 * L2 * L3)
             ok = D <= 1.0 + 1e-12 and D >= -1.0 - 1e-12
             D = min(max(D, -1.0), 1.0)
             # q6 from A = Rz(q1) Ry(s) R0 and A^T R (A's columns 0 and 1 against R's 0).
             cs, ss = np.cos(s_pitch), np.sin(s_pitch)
-            Rz = np.array([[c1, -s1, 0.0], [s1, c1, 0.0], [0.0, 0.0, 1.0]])
-            Ry = np.array([[cs, 0.0, ss], [0.0, 1.0, 0.0], [-ss, 0.0, cs]])
-            A = mm3(mm3(Rz, Ry), R0)
+            Rz[0, 0], Rz[0, 1], Rz[1, 0], Rz[1, 1], Rz[2, 2] = c1, -s1, s1, c1, 1.0
+            Ry[0, 0], Ry[0, 2], Ry[1, 1], Ry[2, 0], Ry[2, 2] = cs, ss, 1.0, -ss, cs
+            mm3_into(Rz, Ry, RzRy)
+            mm3_into(RzRy, R0, A)
             q6 = np.arctan2(A[0, 1] * R[0, 0] + A[1, 1] * R[1, 0] + A[2, 1] * R[2, 0],
                             A[0, 0] * R[0, 0] + A[1, 0] * R[1, 0] + A[2, 0] * R[2, 0])
             for sign in (1.0, -1.0):
                 q3 = sign * np.arccos(D)
                 q2 = np.arctan2(rw, zw) - np.arctan2(L3 * np.sin(q3), L2 + L3 * np.cos(q3))
                 q5 = s_pitch - q2 - q3
-                q = np.array([q1, q2, q3, q5, q6])
+                q[0], q[1], q[2], q[3], q[4] = q1, q2, q3, q5, q6
                 for j in range(5):
                     q[j] = (q[j] + np.pi) % (2 * np.pi) - np.pi
                 for v in range(V):
