@@ -25,8 +25,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from assistant.broad_phase import _box_dist2, _sphere_centre
-from assistant.dh import chain_row
+from assistant.broad_phase import _box_dist2, _pose, _sphere_centre
 from assistant.segment_box import segment_box_distance_one
 
 Array = np.ndarray
@@ -42,8 +41,8 @@ def capsule_box_gap(frames: Array, k: int, s: int, e: int, shape_link: Array, se
                     A: Array, B: Array, la: Array, lb: Array) -> float:
     """Distance bound of robot shape s to obstacle box e in configuration k: the shape's
     axis segment to the oriented box, less its radius (-inf where they may overlap).
-    Products in the order of the vectorised form (`CollisionChecker._segment_bounds`'
-    einsums), so both give the same bits; A, B, la, lb are scratch (3,)."""
+    Products in the order of the vectorised einsum form it replaced (kept in
+    tests/test_segment_box.py, which compares the bits); A, B, la, lb are scratch (3,)."""
     link = shape_link[s]
     for i in range(3):  # frame @ segment ends, as einsum "nij,nj->ni" + t
         A[i] = (0.0 + frames[k, link, i, 0] * seg_a[s, 0]
@@ -144,9 +143,7 @@ def pruned_clearance(Q: Array, frames: Array, ready: Array, F: Array, travel: Ar
         m += 1
     for i in range(m):
         k = anchors[i]
-        if not ready[k]:
-            chain_row(Q[k], F, frames[k], T)
-            ready[k] = True
+        _pose(frames, ready, Q, F, k, T)
         low[k] = _row_sphere_bounds(frames, k, mov_of, has, sph_link, sph_local, sph_r,
                                     sph_shape, env_lo, env_hi, lbs[k], c)
         seen[k] = True
@@ -167,9 +164,7 @@ def pruned_clearance(Q: Array, frames: Array, ready: Array, F: Array, travel: Ar
         if _repeats_previous(Q, k):  # a path's inner vertices end one segment, start the next
             continue
         if not seen[k]:
-            if not ready[k]:
-                chain_row(Q[k], F, frames[k], T)
-                ready[k] = True
+            _pose(frames, ready, Q, F, k, T)
             _row_sphere_bounds(frames, k, mov_of, has, sph_link, sph_local, sph_r,
                                sph_shape, env_lo, env_hi, lbs[k], c)
             seen[k] = True

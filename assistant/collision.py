@@ -483,16 +483,7 @@ class CollisionChecker:
         Q = np.ascontiguousarray(Q, dtype=float)
         lim = self.robot.limits
         inside = rows_inside(Q, lim.lower, lim.upper)
-        if self._chain_F is not None:
-            chain = self._chain_F
-            frames = np.empty((n, len(chain) + 1, 4, 4))
-            ready = np.zeros(n, dtype=bool)
-        else:
-            chain = np.zeros((0, 4, 4))
-            frames = np.ascontiguousarray(
-                np.concatenate([self.robot.batch_link_poses(Q[i : i + self.chunk])
-                                for i in range(0, n, self.chunk)]), dtype=float)
-            ready = np.ones(n, dtype=bool)
+        frames, ready, chain = self._frames_to_fill(Q)
         status, env_c, self_c = certify_samples(
             frames, ready, chain, Q, inside, first, last, self.CERTIFY_STRIDE,
             self._radii, self._sph_link, self._sph_local, self._sph_r, self._sph_shape,
@@ -501,6 +492,19 @@ class CollisionChecker:
             self._seg_b, self._seg_r, self._env_R, self._env_c, self._env_h, self._pair_a,
             self._pair_b, self.PRUNE_APART)
         return frames, status, env_c, self_c, motion
+
+    def _frames_to_fill(self, Q: Array) -> tuple[Array, Array, Array]:
+        """(frames, ready, DH fixed parts) for a compiled pass over the rows of Q that poses
+        only the rows it needs (`dh.chain_row`): for a DH chain nothing is posed yet; a
+        robot without one gets every row's frames from `batch_link_poses` now (ready)."""
+        n = len(Q)
+        if self._chain_F is not None:
+            chain = np.ascontiguousarray(self._chain_F, dtype=float)
+            return np.empty((n, len(chain) + 1, 4, 4)), np.zeros(n, dtype=bool), chain
+        frames = np.ascontiguousarray(
+            np.concatenate([self.robot.batch_link_poses(Q[i : i + self.chunk])
+                            for i in range(0, n, self.chunk)]), dtype=float)
+        return frames, np.ones(n, dtype=bool), np.zeros((0, 4, 4))
 
     def net_kernel_checker(self) -> tuple | None:
         """The broad phase's and the pruning's arrays in `trajectory.net_kernel`'s order,
@@ -744,16 +748,7 @@ class CollisionChecker:
         if not len(movable):
             return float(best)
         Q = np.ascontiguousarray(Q, dtype=float)
-        if self._chain_F is not None:  # the pass poses the samples it visits itself
-            chain = np.ascontiguousarray(self._chain_F, dtype=float)
-            frames = np.empty((len(Q), len(chain) + 1, 4, 4))
-            ready = np.zeros(len(Q), dtype=bool)
-        else:
-            chain = np.zeros((0, 4, 4))
-            frames = np.ascontiguousarray(np.concatenate(
-                [self.robot.batch_link_poses(Q[i : i + self.chunk])
-                 for i in range(0, len(Q), self.chunk)]), dtype=float)
-            ready = np.ones(len(Q), dtype=bool)
+        frames, ready, chain = self._frames_to_fill(Q)  # the pass poses what it visits
         best, cand, bound = pruned_clearance(
             Q, frames, ready, chain, self.travel(Q[:-1], Q[1:]), self.CLEARANCE_STRIDE,
             movable, len(self._rshapes), self._sph_link, self._sph_local, self._sph_r,

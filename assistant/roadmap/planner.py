@@ -192,9 +192,10 @@ class _EdgeCheck:
             if near is not None:
                 ok &= ~near
         bad = np.flatnonzero(~ok)
+        _, first_bad = np.unique(edge[bad], return_index=True)  # each failing edge's first
         out: list[float | None] = [None] * len(ns)
-        for i in np.unique(edge[bad]).tolist():  # each failing edge's first invalid sample
-            out[i] = float(F[bad[np.searchsorted(edge[bad], i)]])
+        for r in bad[first_bad].tolist():
+            out[int(edge[r])] = float(F[r])
         return out
 
 

@@ -272,8 +272,7 @@ def verify(robot: Robot, traj: Trajectory, verifier: PathVerifier | None, *,
         # segment is the one a check motion by motion would find, at one call's cost.
         trusted = (np.repeat(np.asarray(checked, dtype=bool), [len(Q) - 1 for Q in paths])
                    if any(checked) else None)
-        hit = (verifier.check_path(dense) if trusted is None
-               else verifier.check_path(dense, trusted=trusted))
+        hit = verifier.check_path(dense, trusted=trusted)
         if hit is not None:
             g, mc = hit
             ends = np.cumsum([len(Q) - 1 for Q in paths])  # segments up to each motion's end
