@@ -181,6 +181,19 @@ class RV2AJ(Robot):
         return BatchPoses(pos, rot)
 
     @functools.cached_property
+    def _tcp_on_flange_axis(self) -> bool:
+        """With the TCP on the flange axis (the usual tool) the TCP lies in the arm plane
+        too, so the plane through the TCP is fixed and one minimal rotation is exact."""
+        return bool(np.allclose(self.T_flange_tool[:2, 3], 0.0))
+
+    @functools.cached_property
+    def _limit_bounds(self) -> tuple[list[float], list[float]]:
+        """`JointLimits.contains`' bounds (limit -+ its 1e-9 tolerance) as floats: the
+        scalar IK tests a handful of branches per call, where numpy's per-call cost was a
+        third of its time."""
+        return ((self.limits.lower - 1e-9).tolist(), (self.limits.upper + 1e-9).tolist())
+
+    @functools.cached_property
     def _batch_consts(self) -> tuple[Array, Array, Array, Array | None]:
         R_ft = self.T_flange_tool[:3, :3]
         p_ft = self.T_flange_tool[:3, 3]
@@ -223,7 +236,7 @@ class RV2AJ(Robot):
                 f"target at {np.linalg.norm(T_base_tool[:3, 3]) * 1000:.0f} mm from the base "
                 "is out of the arm's reach for this orientation",
             )
-        inside = [q for q in raw if self.limits.contains(q)]
+        inside = [q for q in raw if self._inside(q)]
         if not inside:
             detail = "; ".join(
                 ", ".join(self.limits.violations(q, self.joint_names)) for q in raw[:2]
@@ -248,9 +261,7 @@ class RV2AJ(Robot):
         passes settle it.
         """
         T = np.asarray(T_base_tool, dtype=float).copy()
-        # With the TCP on the flange axis (the usual tool) the TCP lies in the arm plane too,
-        # so the plane through the TCP is fixed and one minimal rotation is exact.
-        on_axis = bool(np.allclose(self.T_flange_tool[:2, 3], 0.0))
+        on_axis = self._tcp_on_flange_axis
         for _ in range(20):
             Tf = T @ self._T_tool_flange
             p = T[:3, 3] if on_axis else Tf[:3, 3]
@@ -300,14 +311,20 @@ class RV2AJ(Robot):
                 continue
             reach_ok = True
             D = float(np.clip(D, -1.0, 1.0))
+            # J6 does not depend on the elbow branch: one rotation per J1 side.
+            A = rot_z(q1) @ rot_y(s_pitch) @ _R0
+            Mz = A.T @ R
+            q6 = np.arctan2(Mz[1, 0], Mz[0, 0])
             for q3 in {float(np.arccos(D)), float(-np.arccos(D))}:
                 q2 = np.arctan2(rw, zw) - np.arctan2(L3 * np.sin(q3), L2 + L3 * np.cos(q3))
                 q5 = s_pitch - q2 - q3
-                A = rot_z(q1) @ rot_y(s_pitch) @ _R0
-                Mz = A.T @ R
-                q6 = np.arctan2(Mz[1, 0], Mz[0, 0])
-                sols += _angle_variants(np.array([q1, q2, q3, q5, q6]), self.limits)
+                sols += _angle_variants(np.array([q1, q2, q3, q5, q6]), self._limit_bounds)
         return sols, reach_ok
+
+    def _inside(self, q: Array) -> bool:
+        """`self.limits.contains(q)` (default tolerance) on floats."""
+        lo, hi = self._limit_bounds
+        return all(a <= v <= b for v, a, b in zip(q.tolist(), lo, hi, strict=True))
 
     def batch_position_ik(self, targets: Array, seeds: Array, reference: Array | None = None,
                           *, gain: float = 0.5, max_jump: float = 0.25,
@@ -398,7 +415,7 @@ class RV2AJ(Robot):
                 raw, ok = self._ik_flange_all(T)
                 any_reach |= ok
                 for q in raw:
-                    if (self.limits.contains(q)
+                    if (self._inside(q)
                             and np.linalg.norm(self.fk(q)[:3, 3] - p_target) < 1e-7):
                         found.append(q)
             if len(found) > before:
@@ -438,18 +455,20 @@ class RV2AJ(Robot):
         return hashlib.sha256(payload.encode()).hexdigest()[:16]
 
 
-def _angle_variants(q: Array, limits: JointLimits) -> list[Array]:
+def _angle_variants(q: Array, bounds: tuple[list[float], list[float]]) -> list[Array]:
     """Each joint wrapped into (-pi, pi] plus the +-2pi copies its range allows (J6 is +-200).
 
     If a joint has no copy inside its range the wrapped value is kept, so the caller can say
-    which limit failed.
+    which limit failed. `bounds`: each joint's limits widened by 1e-9 (`RV2AJ._limit_bounds`).
     """
     q = (q + np.pi) % (2 * np.pi) - np.pi
+    lo, hi = bounds
     per_joint = []
-    for i, v in enumerate(q):
-        c = [v + k for k in (0.0, -2 * np.pi, 2 * np.pi)
-             if limits.lower[i] - 1e-9 <= v + k <= limits.upper[i] + 1e-9]
+    for v, a, b in zip(q.tolist(), lo, hi, strict=True):
+        c = [v + k for k in (0.0, -2 * np.pi, 2 * np.pi) if a <= v + k <= b]
         per_joint.append(c or [v])
+    if all(len(c) == 1 for c in per_joint):  # the usual case: one copy of every joint
+        return [np.array([c[0] for c in per_joint])]
     return [np.array(c) for c in itertools.product(*per_joint)]
 
 
