@@ -16,7 +16,7 @@ what touched what.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -96,14 +96,31 @@ class TrajectoryReport:
     ok: bool
     reason: str
     failure: VerificationFailure | None
-    #: Smallest arm-obstacle distance along the dense path (m); None without a verifier.
-    min_clearance: float | None
+    #: Smallest arm-obstacle distance along the dense path (m; None without a verifier or
+    #: without obstacles) or the measurement that gives it: read it as `min_clearance`.
+    clearance: float | None | Callable[[], float | None] = field(compare=False)
     tcp_length: float  # m, of the executed (dense) TCP path
     joint_length: float  # rad, sum of joint-space step norms
     primitive_counts: dict[str, int]
     max_deviation: float  # m, nodes to primitives (0 if not from a fit)
     fallbacks: tuple[str, ...] = ()
     dense_configurations: int = 0
+
+    @property
+    def min_clearance(self) -> float | None:
+        """The clearance, measured when first read.
+
+        Why on demand: it is a figure for the operator, not part of the decision (the
+        path is verified before this report exists), and a distance query along the whole
+        dense path is ~5 % of a transfer's planning. Most transfers are never shown alone: a
+        mission measures its joined trajectory again, and a re-plan during execution is
+        driven at once. The planning benchmark measures OMPL's path the same way, after
+        its timed query."""
+        value = self.clearance
+        if callable(value):
+            value = value()
+            object.__setattr__(self, "clearance", value)  # once: the path does not change
+        return value
 
     def describe(self) -> str:
         counts = ", ".join(f"{v} {k}" for k, v in self.primitive_counts.items() if v)
@@ -284,13 +301,21 @@ def verify(robot: Robot, traj: Trajectory, verifier: PathVerifier | None, *,
             what = mc.report.describe() if mc.report is not None else "invalid"
             return _rejected(robot, traj, _failure(robot, traj, i, frac, q, what),
                              max_deviation, fallbacks)
-    clearance = (verifier.min_clearance_along(dense, max_step=clearance_step)
+    clearance = (_clearance_of(verifier, dense, clearance_step)
                  if verifier is not None else None)
-    if clearance is not None and not np.isfinite(clearance):
-        clearance = None  # no obstacles known
     report = _report(robot, traj, None, fallbacks, True, "", None, clearance,
                      max_deviation=max_deviation)
     return AssemblyResult(traj, report, traj)
+
+
+def _clearance_of(verifier: PathVerifier, dense: Array, step: float,
+                  ) -> Callable[[], float | None]:
+    """The report's clearance measurement (`TrajectoryReport.min_clearance`)."""
+    def measure() -> float | None:
+        c = verifier.min_clearance_along(dense, max_step=step)
+        return float(c) if np.isfinite(c) else None  # infinite: no obstacles known
+
+    return measure
 
 
 def _motion_path(traj: Trajectory, i: int) -> Array:
@@ -316,7 +341,8 @@ def _rejected(robot: Robot, traj: Trajectory, fail: VerificationFailure, max_dev
 
 def _report(robot: Robot, traj: Trajectory | None, fit: PrimitiveFit | None,
             fallbacks: Sequence[str], ok: bool, reason: str,
-            failure: VerificationFailure | None, clearance: float | None, *,
+            failure: VerificationFailure | None,
+            clearance: float | None | Callable[[], float | None], *,
             max_deviation: float | None = None) -> TrajectoryReport:
     if traj is not None:
         dense = traj.dense_joint_path()

@@ -77,6 +77,32 @@ def test_known_trajectory_is_assembled_and_verified(rv2aj, corner):
     assert r.fallbacks == ()
 
 
+def test_clearance_is_measured_once_when_first_read(rv2aj, corner):
+    """The report carries the measurement, not the figure, until someone reads it; then
+    the figure is the checker's own for the dense path and is not measured again."""
+    particles, fit = corner
+    checker = CollisionChecker(rv2aj, [TABLE, box(*FAR_BOX)])
+    asked: list[int] = []
+
+    class Counting:
+        def check_path(self, path, max_step=None, trusted=None):
+            return checker.check_path(path, max_step, trusted)
+
+        def min_clearance_along(self, path, max_step=0.01):
+            asked.append(len(path))
+            return checker.min_clearance_along(path, max_step)
+
+    res = assemble_trajectory(rv2aj, fit, particles, Counting())
+    assert res.ok and asked == [] and callable(res.report.clearance)
+    dense = res.trajectory.dense_joint_path()
+    expected = checker.min_clearance_along(list(dense), 0.01)
+    assert res.report.min_clearance == expected > 0.0
+    assert res.report.min_clearance == expected and asked == [len(dense)]
+    assert f"min clearance {expected * 1000:.1f} mm" in res.report.describe()
+    no_obstacles = assemble_trajectory(rv2aj, fit, particles, CollisionChecker(rv2aj, []))
+    assert no_obstacles.ok and no_obstacles.report.min_clearance is None
+
+
 def test_trajectory_through_a_box_is_refused(rv2aj, corner):
     """A post the planner did not know stands in the arc (tall enough to reach the tool's
     body, which ends short of the TCP): the exact check refuses the result."""
