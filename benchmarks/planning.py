@@ -15,7 +15,9 @@ not joined by a straight joint motion (so there is something to plan).
 Per planner: success rate, median query time, TCP path length, primitives, min clearance.
 Ours: query = roadmap search + elastic net + line/arc fit + exact verification, i.e. the
 final smoothed trajectory (the roadmap-only time is reported too); the one-time world and
-roadmap build is reported separately. OMPL: query = RRTConnect solve + `simplifySolution()`;
+roadmap build is reported separately. Both planners' min clearance is measured after their
+timed query (ours: the report's on-demand figure, `TrajectoryReport.min_clearance`; OMPL's:
+the same checker call on its path). OMPL: query = RRTConnect solve + `simplifySolution()`;
 its path is a joint-space polyline, so primitives = waypoints - 1 joint moves. TCP lengths are
 measured on the dense joint paths (ours: the executed trajectory; OMPL: the simplified polyline
 interpolated in joint space, as a controller's joint moves would run it).

@@ -10,7 +10,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from assistant.trajectory.fit_kernels import arc_distances, fit_arc, fit_line, line_distances
+from assistant.trajectory.fit_kernels import (
+    _gram,
+    arc_distances,
+    fit_arc,
+    fit_line,
+    line_distances,
+    sym2_major,
+    sym3_eigvec,
+)
 from assistant.trajectory.primitives import FitParams
 
 TOL = FitParams().tolerance
@@ -256,3 +264,42 @@ def test_distances_equal_numpy_reference() -> None:
         assert np.allclose(arc_distances(start, end, centre, radius, normal, sweep, P),
                            _ref_arc_dist(start, end, centre, radius, normal, sweep, P),
                            atol=1e-12)
+
+
+def test_gram_eigenvectors_equal_the_singular_vectors() -> None:
+    """The fits' principal direction, plane normal and 2-D major axis come from the Gram
+    matrix (Jacobi, closed form) instead of an SVD of the nodes: the same directions (up to
+    sign) on node sets like the fitter's, straight, bent and scattered."""
+    rng = np.random.default_rng(11)
+    for t in range(600):
+        m = int(rng.integers(3, 25))
+        u = np.arange(1, m + 1) * 0.04
+        if t % 3 == 0:  # a noisy straight run
+            X = np.outer(u, _unit(rng.normal(size=3)))
+        elif t % 3 == 1:  # an arc of radius 3-60 cm
+            r = rng.uniform(0.03, 0.6)
+            e1 = _unit(rng.normal(size=3))
+            n = _unit(np.cross(e1, rng.normal(size=3)))
+            a = u / r
+            X = r * (np.cos(a)[:, None] - 1.0) * e1 + r * np.sin(a)[:, None] * np.cross(n, e1)
+        else:
+            X = rng.normal(size=(m, 3))
+        X = X + rng.normal(scale=rng.choice([0.0, 1e-4, 2e-3]), size=X.shape)
+        s, Vt = np.linalg.svd(X, full_matrices=False)[1:]
+        M = _gram(X)
+        assert np.allclose(M, X.T @ X, rtol=1e-12, atol=1e-15)
+        if s[0] - s[1] > 1e-6 * s[0]:
+            v = sym3_eigvec(M, True)
+            assert min(np.linalg.norm(v - Vt[0]), np.linalg.norm(v + Vt[0])) < 1e-9
+        if s[1] - s[2] > 1e-3 * s[0]:
+            v = sym3_eigvec(M, False)
+            assert min(np.linalg.norm(v - Vt[2]), np.linalg.norm(v + Vt[2])) < 1e-9
+        Y = X[:, :2]
+        sy, Vy = np.linalg.svd(Y, full_matrices=False)[1:]
+        if sy[0] - sy[1] > 1e-6 * sy[0]:
+            v = np.array(sym2_major(Y[:, 0] @ Y[:, 0], Y[:, 0] @ Y[:, 1], Y[:, 1] @ Y[:, 1]))
+            assert min(np.linalg.norm(v - Vy[0]), np.linalg.norm(v + Vy[0])) < 1e-9
+    # exact cases: a diagonal matrix, and repeated eigenvalues with a unique extreme one
+    assert np.allclose(np.abs(sym3_eigvec(np.diag([1.0, 3.0, 2.0]), True)), [0, 1, 0])
+    assert np.allclose(np.abs(sym3_eigvec(np.diag([1.0, 3.0, 2.0]), False)), [1, 0, 0])
+    assert np.allclose(np.abs(sym3_eigvec(np.diag([5.0, 1.0, 1.0]), True)), [1, 0, 0])
