@@ -228,7 +228,7 @@ class RV2AJ(Robot):
                 f"orientation is {np.degrees(angle):.1f} deg away",
                 nearest,
             )
-        raw, reach_ok = self._ik_flange_all(T_flange)
+        raw, reach_ok, configs = self._ik_flange_all(T_flange)
         if not reach_ok:
             return IKResult(
                 [],
@@ -237,9 +237,9 @@ class RV2AJ(Robot):
                 "is out of the arm's reach for this orientation",
             )
         inside = [q for q in raw if self._inside(q)]
-        if not inside:
+        if not inside:  # the limits each of the first two arm configurations breaks
             detail = "; ".join(
-                ", ".join(self.limits.violations(q, self.joint_names)) for q in raw[:2]
+                ", ".join(self.limits.violations(q, self.joint_names)) for q in configs[:2]
             )
             return IKResult([], IKFailure.JOINT_LIMIT,
                             "every arm configuration for this pose breaks a joint limit "
@@ -287,8 +287,10 @@ class RV2AJ(Robot):
             T = T_new
         return T
 
-    def _ik_flange_all(self, T_flange: Array) -> tuple[list[Array], bool]:
-        """All analytic branches (not yet limit-filtered) for a flange pose in the arm plane."""
+    def _ik_flange_all(self, T_flange: Array) -> tuple[list[Array], bool, list[Array]]:
+        """All analytic branches (not yet limit-filtered) for a flange pose in the arm plane,
+        whether the wrist is in reach, and each arm configuration (J1 side, then elbow
+        +-acos) once, its joints wrapped (`rv2aj_pose_batch` keeps the same order)."""
         p = T_flange[:3, 3]
         R = T_flange[:3, :3]
         a = R[:, 2]
@@ -299,6 +301,7 @@ class RV2AJ(Robot):
         else:
             base = np.arctan2(p[1], p[0])
         sols: list[Array] = []
+        configs: list[Array] = []
         reach_ok = False
         for q1 in (base, base + np.pi):
             u = np.array([np.cos(q1), np.sin(q1), 0.0])
@@ -315,11 +318,14 @@ class RV2AJ(Robot):
             A = rot_z(q1) @ rot_y(s_pitch) @ _R0
             Mz = A.T @ R
             q6 = np.arctan2(Mz[1, 0], Mz[0, 0])
-            for q3 in {float(np.arccos(D)), float(-np.arccos(D))}:
+            elbow = float(np.arccos(D))
+            for q3 in (elbow, -elbow) if elbow != 0.0 else (elbow,):
                 q2 = np.arctan2(rw, zw) - np.arctan2(L3 * np.sin(q3), L2 + L3 * np.cos(q3))
                 q5 = s_pitch - q2 - q3
-                sols += _angle_variants(np.array([q1, q2, q3, q5, q6]), self._limit_bounds)
-        return sols, reach_ok
+                variants = _angle_variants(np.array([q1, q2, q3, q5, q6]), self._limit_bounds)
+                sols += variants
+                configs.append(variants[0])
+        return sols, reach_ok, configs
 
     def _inside(self, q: Array) -> bool:
         """`self.limits.contains(q)` (default tolerance) on floats."""
@@ -412,7 +418,7 @@ class RV2AJ(Robot):
                 T = np.eye(4)
                 T[:3, :3] = rot_z(q1) @ rot_y(sp) @ _R0 @ rot_z(q6)
                 T[:3, 3] = p_target - T[:3, :3] @ self.T_flange_tool[:3, 3]
-                raw, ok = self._ik_flange_all(T)
+                raw, ok, _ = self._ik_flange_all(T)
                 any_reach |= ok
                 for q in raw:
                     if (self._inside(q)

@@ -36,12 +36,29 @@ class PoseCandidates:
     angle: Array  # (M,)
     #: False where the batch cannot stand in for `ik` (use the scalar IK for that pose).
     exact: Array  # (M,)
+    #: Per arm configuration (J1 side x elbow, 4 per pose): the wrist centre is in reach.
+    reach: Array  # (M, 4)
 
     def answers(self, i: int, project_orientation: bool = True) -> bool:
         """Whether pose i has a solution here that `ik` would give (turned into the arm
         plane first only if allowed); otherwise ask `ik`, also for its reason."""
         return bool(self.exact[i] and self.valid[i].any()
                     and (project_orientation or not self.projected[i]))
+
+    def reason(self, i: int, T_base_tool: Array, limits: JointLimits,
+               names: list[str]) -> str:
+        """Why pose i (exact, no valid solution) has no IK solution, in `ik`'s words
+        (its reach failure, or each arm configuration's broken limits for the first two):
+        the scalar IK would only repeat the batch's arithmetic to say it."""
+        if not self.reach[i].any():
+            return (f"target at {np.linalg.norm(T_base_tool[:3, 3]) * 1000:.0f} mm from the "
+                    "base is out of the arm's reach for this orientation")
+        per = self.joints.shape[1] // 4  # the 2 pi copies of each configuration
+        # `RV2AJ._ik_flange_all`'s configurations in its order, a straight elbow once
+        configs = [self.joints[i, b * per] for b in range(4) if self.reach[i, b]
+                   and not (b % 2 and self.joints[i, b * per, 2] == 0.0)][:2]
+        detail = "; ".join(", ".join(limits.violations(q, names)) for q in configs)
+        return f"every arm configuration for this pose breaks a joint limit ({detail})"
 
     def nearest(self, i: int, q: Array) -> Array:
         """The solution of pose i nearest q (as `IKResult.best`)."""
@@ -74,20 +91,20 @@ def pose_candidates(T_base_tool: Array, T_flange_tool: Array, T_tool_flange: Arr
     combos = list(itertools.product((0.0, -2 * np.pi, 2 * np.pi), repeat=len(multi)))
     S = np.zeros((len(combos), 5))  # (V, 5)
     S[:, multi] = combos
-    joints, valid, projected, angle, exact = _candidates(
+    joints, valid, projected, angle, exact, reach = _candidates(
         T, np.ascontiguousarray(T_flange_tool[:3, :3], dtype=float),
         np.ascontiguousarray(T_tool_flange, dtype=float), limits.lower, limits.upper,
         float(plane_tolerance), np.array(lengths, dtype=float),
         np.ascontiguousarray(R0, dtype=float), S)
-    return PoseCandidates(joints, valid, projected, angle, exact)
+    return PoseCandidates(joints, valid, projected, angle, exact, reach)
 
 
 @njit(cache=True)
 def _candidates(T: Array, R_ft: Array, T_tf: Array, lower: Array, upper: Array, tol: float,
                 lengths: Array, R0: Array, S: Array) -> tuple:
     """`pose_candidates` pose by pose, one compiled loop: (joints (M, 4 V, 5), valid,
-    projected, angle, exact). As numpy the ~60 array expressions cost ~0.4 ms per LINEAR
-    or CIRCULAR move whatever its length; the arithmetic is a few microseconds."""
+    projected, angle, exact, reach (M, 4)). As numpy the ~60 array expressions cost ~0.4 ms
+    per LINEAR or CIRCULAR move whatever its length; the arithmetic is a few microseconds."""
     L1, L2, L3, L6 = lengths[0], lengths[1], lengths[2], lengths[3]
     m = T.shape[0]
     V = S.shape[0]
@@ -96,6 +113,7 @@ def _candidates(T: Array, R_ft: Array, T_tf: Array, lower: Array, upper: Array, 
     projected = np.zeros(m, dtype=np.bool_)
     angle = np.zeros(m)
     exact = np.zeros(m, dtype=np.bool_)
+    reach = np.zeros((m, 4), dtype=np.bool_)
     R_tf = T_tf[:3, :3]
     # scratch, filled per pose (new small arrays per pose were ~20 allocations each)
     Rf, R_tool, R = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
@@ -170,6 +188,7 @@ def _candidates(T: Array, R_ft: Array, T_tf: Array, lower: Array, upper: Array, 
                 q2 = np.arctan2(rw, zw) - np.arctan2(L3 * np.sin(q3), L2 + L3 * np.cos(q3))
                 q5 = s_pitch - q2 - q3
                 q[0], q[1], q[2], q[3], q[4] = q1, q2, q3, q5, q6
+                reach[i, b] = ok
                 for j in range(5):
                     q[j] = (q[j] + np.pi) % (2 * np.pi) - np.pi
                 for v in range(V):
@@ -178,4 +197,4 @@ def _candidates(T: Array, R_ft: Array, T_tf: Array, lower: Array, upper: Array, 
                         joints[i, k, j] = q[j] + S[v, j]
                     valid[i, k] = ok and within_limits(joints[i, k], lower, upper)
                 b += 1
-    return joints, valid, projected, angle, exact
+    return joints, valid, projected, angle, exact, reach

@@ -60,6 +60,23 @@ def test_candidates_are_the_scalar_ik_solutions(rv2aj, rng):
     assert (c.valid.sum(axis=1) > 2).any()
 
 
+def test_candidates_give_the_scalar_ik_reason_for_no_solution(rv2aj, rng):
+    """Where the batch finds no solution, its reason is `ik`'s message word for word (out
+    of reach, or the limits the first two arm configurations break), for the pose `ik`
+    answers last (turned into the arm plane if needed)."""
+    T = _poses(rv2aj, rng, 400)
+    c = rv2aj.ik_candidates_batch(T)
+    kinds = set()
+    for i in np.flatnonzero(~c.valid.any(axis=1)):
+        res = rv2aj.ik(T[i])
+        if res.nearest_T_base_tool is not None:
+            res = rv2aj.ik(res.nearest_T_base_tool)
+        assert not res.ok
+        assert c.reason(i, T[i], rv2aj.limits, rv2aj.joint_names) == res.message
+        kinds.add(res.failure)
+    assert len(kinds) == 2  # both reasons were compared
+
+
 def test_off_axis_tool_and_j1_axis_poses_are_left_to_the_scalar_ik():
     skew = RV2AJ().with_tool(pose_from_xyz_rpy([0.01, 0.0, 0.1], [0.0, 0.0, 0.0]))
     assert skew.ik_candidates_batch(np.eye(4)[None]) is None

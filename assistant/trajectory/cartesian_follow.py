@@ -71,6 +71,14 @@ def follow_poses(robot: Robot, poses: Array, q_start: Array, *, max_joint_step: 
                 return _jump(robot, out, stop, joint, out[stop] - q_prev, worst)
             i = stop
             continue
+        if (cands is not None and cands.exact[i] and not cands.valid[i].any()
+                and (project_orientation or not cands.projected[i])):
+            # The batch stands in for `ik` here and has no solution: its reason, without
+            # asking `ik` (twice when the orientation was turned) only to hear it again.
+            worst = max(worst, float(cands.angle[i]))
+            return FollowResult(out[:i].copy(), False, i,
+                                cands.reason(i, poses[i], robot.limits, robot.joint_names),
+                                worst)
         T = poses[i]
         res = robot.ik(T, q_prev)
         if (not res.ok and project_orientation and res.failure == IKFailure.ORIENTATION
