@@ -30,7 +30,12 @@ from assistant.robot_model import (
     Tool,
 )
 from assistant.rv2aj_fk_batch import tcp_poses
-from assistant.rv2aj_pose_batch import PoseCandidates, pose_candidates
+from assistant.rv2aj_pose_batch import (
+    PoseCandidates,
+    joint_limit_message,
+    out_of_reach_message,
+    pose_candidates,
+)
 from assistant.rv2aj_position_ik import planar_position_ik
 from assistant.transforms import axis_angle, inv_T, rot_y, rot_z, rotation_angle
 from assistant.urdf_writer import urdf_from_chain
@@ -230,20 +235,11 @@ class RV2AJ(Robot):
             )
         raw, reach_ok, configs = self._ik_flange_all(T_flange)
         if not reach_ok:
-            return IKResult(
-                [],
-                IKFailure.REACH,
-                f"target at {np.linalg.norm(T_base_tool[:3, 3]) * 1000:.0f} mm from the base "
-                "is out of the arm's reach for this orientation",
-            )
+            return IKResult([], IKFailure.REACH, out_of_reach_message(T_base_tool))
         inside = [q for q in raw if self._inside(q)]
-        if not inside:  # the limits each of the first two arm configurations breaks
-            detail = "; ".join(
-                ", ".join(self.limits.violations(q, self.joint_names)) for q in configs[:2]
-            )
+        if not inside:
             return IKResult([], IKFailure.JOINT_LIMIT,
-                            "every arm configuration for this pose breaks a joint limit "
-                            f"({detail})")
+                            joint_limit_message(configs, self.limits, self.joint_names))
         inside = _sort_by_seed(inside, seed)
         return IKResult(inside)
 

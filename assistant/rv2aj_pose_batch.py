@@ -51,19 +51,30 @@ class PoseCandidates:
         (its reach failure, or each arm configuration's broken limits for the first two):
         the scalar IK would only repeat the batch's arithmetic to say it."""
         if not self.reach[i].any():
-            return (f"target at {np.linalg.norm(T_base_tool[:3, 3]) * 1000:.0f} mm from the "
-                    "base is out of the arm's reach for this orientation")
+            return out_of_reach_message(T_base_tool)
         per = self.joints.shape[1] // 4  # the 2 pi copies of each configuration
         # `RV2AJ._ik_flange_all`'s configurations in its order, a straight elbow once
         configs = [self.joints[i, b * per] for b in range(4) if self.reach[i, b]
-                   and not (b % 2 and self.joints[i, b * per, 2] == 0.0)][:2]
-        detail = "; ".join(", ".join(limits.violations(q, names)) for q in configs)
-        return f"every arm configuration for this pose breaks a joint limit ({detail})"
+                   and not (b % 2 and self.joints[i, b * per, 2] == 0.0)]
+        return joint_limit_message(configs, limits, names)
 
     def nearest(self, i: int, q: Array) -> Array:
         """The solution of pose i nearest q (as `IKResult.best`)."""
         C = self.joints[i][self.valid[i]]
         return C[int(np.argmin(np.linalg.norm(C - q, axis=1)))]
+
+
+def out_of_reach_message(T_base_tool: Array) -> str:
+    """`RV2AJ.ik`'s reason when the wrist cannot reach the pose (the batch gives the same)."""
+    return (f"target at {np.linalg.norm(T_base_tool[:3, 3]) * 1000:.0f} mm from the base "
+            "is out of the arm's reach for this orientation")
+
+
+def joint_limit_message(configs: list[Array], limits: JointLimits, names: list[str]) -> str:
+    """`RV2AJ.ik`'s reason when every arm configuration (`configs`, in its order) breaks a
+    limit: the limits the first two break."""
+    detail = "; ".join(", ".join(limits.violations(q, names)) for q in configs[:2])
+    return f"every arm configuration for this pose breaks a joint limit ({detail})"
 
 
 def pose_candidates(T_base_tool: Array, T_flange_tool: Array, T_tool_flange: Array,
