@@ -118,6 +118,10 @@ class ElasticNetParams:
     spacing: float = 0.02
     #: Largest move of one particle in one iteration (m): keeps IK local and moves checkable.
     max_move: float = 0.005
+    #: The same in stage 1 (None: `max_move`). Stage 1 pulls the searched path taut, and
+    #: its over-relaxed shrink asks moves of centimetres that a 5 mm cap spreads over many
+    #: sweeps; stage 2 forms the arcs, where small steps keep the net smooth for the fit.
+    stage1_max_move: float | None = None
     epsilon: float = 1e-10
     #: Mean movement per iteration (m) below which a stage counts as settled. The thesis'
     #: epsilon sits below the noise floor that IK back-projection leaves (~1e-7 m), so
@@ -285,7 +289,7 @@ class _Net:
         p = params
         self._forces = np.array([p.c_error, p.c_equidistance, p.c_rotation, p.c_shrink,
                                  p.c_line_shrink, p.stage1_shrink, p.r_max, p.r_min,
-                                 p.max_move], dtype=float)
+                                 p.max_move], dtype=float)  # [8]: per stage (`_cap`)
         self._stops = np.array([p.epsilon, p.settle, p.taut_length], dtype=float)
         self._ik_par = np.array([p.ik.nullspace_gain, p.ik.max_joint_jump,
                                  p.ik.tolerance * 10.0], dtype=float)
@@ -296,6 +300,7 @@ class _Net:
         if len(self.P) < 3:
             return StageReport(0, StopReason.NOTHING_TO_DO, 0.0)
         p = self.p
+        self._forces[8] = self._cap(stage)
         taut = stage == 1 and p.taut_length > 0.0
         lengths = np.empty(budget + 1)  # the TCP length before the stage and after each sweep
         n_len = 0
@@ -336,6 +341,11 @@ class _Net:
             it += 1
         return StageReport(budget, StopReason.ITERATION_CAP, float(self.E))
 
+    def _cap(self, stage: int) -> float:
+        """The largest particle move of a sweep of this stage (m)."""
+        p = self.p
+        return p.stage1_max_move if stage == 1 and p.stage1_max_move is not None else p.max_move
+
     def _run_sweeps(self, stage: int, first: int, last: int, lengths: Array, n_len: int,
                     taut: bool) -> tuple[int, int, int, float]:
         """`net_stage.run_sweeps` on this net's arrays; adds its move counts."""
@@ -364,7 +374,8 @@ class _Net:
         p = self.p
         idx, D, trial, pin = sweep_moves(self.P, self._pinned, stage, lam, p.c_equidistance,
                                          p.c_rotation, p.c_shrink, p.c_line_shrink,
-                                         p.stage1_shrink, p.r_max, p.r_min, p.max_move)
+                                         p.stage1_shrink, p.r_max, p.r_min,
+                                         float(self._forces[8]))
         if not len(idx):
             return 0.0, 0, 0
         # A particle refused at both lengths last sweep is pinned against a constraint (the

@@ -293,3 +293,30 @@ def test_pinned_particles_are_not_retried(rv2aj, monkeypatch):
     # it, 137: the rest are particles refused for the first time.
     assert len(calls) < 1.6 * res.iterations
     assert all(np.all(d <= 0.005 + 1e-12) for d in lengths)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_each_stage_moves_particles_at_most_its_cap(rv2aj, free_checker, monkeypatch,
+                                                    compiled):
+    """Stage 1 may move a particle up to `stage1_max_move` a sweep, stage 2 `max_move`: a
+    zigzag's first sweep takes moves beyond the stage-2 cap, never beyond its own, and the
+    compiled and the numpy sweeps agree to the bit."""
+    import assistant.trajectory.elastic_net as en
+
+    Q = ik_path(rv2aj, _zigzag(np.random.default_rng(7)))
+    caps = dict(max_move=0.004, stage1_max_move=0.012)
+
+    def first_sweep(stage1: int, stage2: int, comp: bool) -> tuple[np.ndarray, np.ndarray]:
+        monkeypatch.setattr(en, "COMPILED_MOVES", comp)
+        res = run_elastic_net(rv2aj, Q, validity=free_checker, params=ElasticNetParams.final(
+            stage1_iterations=stage1, stage2_iterations=stage2, taut_length=0.0, **caps))
+        return res.initial.points, res.particles.points
+
+    P0, P1 = first_sweep(1, 0, compiled)
+    step = np.linalg.norm(P1 - P0, axis=1)
+    assert 0.006 < step.max() <= 0.012 + 1e-9
+    # stage 2 alone (stage 1 given no sweep) keeps the small cap
+    P0, P2 = first_sweep(0, 1, compiled)
+    assert 0.0 < np.linalg.norm(P2 - P0, axis=1).max() <= 0.004 + 1e-9
+    other = first_sweep(1, 0, not compiled)[1]
+    assert np.array_equal(P1, other)
