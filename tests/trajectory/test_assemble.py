@@ -12,6 +12,7 @@ from assistant.collision import CollisionChecker
 from assistant.motion import MotionKind
 from assistant.trajectory.assemble import (
     AssemblyParams,
+    _end_joints,
     assemble_trajectory,
     trajectory_from_joint_path,
     verify,
@@ -19,6 +20,7 @@ from assistant.trajectory.assemble import (
 from assistant.trajectory.elastic_net import ElasticNetParams
 from assistant.trajectory.particles import Particles
 from assistant.trajectory.primitives import FitParams, fit_primitives
+from assistant.transforms import axis_angle
 
 Z = 0.20
 FAR_BOX = ("far", [-0.30, -0.30, 0.15], [0.10, 0.10, 0.10])
@@ -227,3 +229,35 @@ def test_whole_pipeline_from_a_searched_path(rv2aj):
     assert out.report.min_clearance > 0.0
     assert out.report.tcp_length < out.net.initial.tcp_length()
     assert all(m.speed == 0.2 for m in out.trajectory.motions)
+
+
+def test_a_fallbacks_end_joints_are_those_of_the_scalar_ik(rv2aj):
+    """The batch answers a joint-move fallback's end pose as `ik` would: the pose, else its
+    orientation turned into the arm plane, the solution nearest the reference; poses it
+    cannot answer go through `ik` (position only last)."""
+    rng = np.random.default_rng(11)
+    Q = rv2aj.limits.lower + rng.uniform(0.05, 0.95, (300, 5)) * (
+        rv2aj.limits.upper - rv2aj.limits.lower)
+    turned = 0
+    for q in Q:
+        T = rv2aj.fk(q)
+        # tilt the orientation a little out of the arm plane half of the time
+        if rng.uniform() < 0.5:
+            a = rng.normal(size=3)
+            a *= rng.uniform(0.02, 0.3) / np.linalg.norm(a)
+            T[:3, :3] = axis_angle(a / np.linalg.norm(a), np.linalg.norm(a)) @ T[:3, :3]
+        T[:3, 3] += rng.uniform(-0.01, 0.01, 3)
+        q_ref = q + rng.normal(scale=0.05, size=5)
+        res = rv2aj.ik(T, q_ref)
+        if not res.ok and res.nearest_T_base_tool is not None:
+            turned += 1
+            res = rv2aj.ik(res.nearest_T_base_tool, q_ref)
+        if not res.ok:
+            res = rv2aj.ik(T, q_ref, position_only=True)
+        got, why = _end_joints(rv2aj, T, q_ref)
+        if res.ok:
+            assert why == ""
+            assert np.allclose(got, res.best(q_ref), atol=1e-12)
+        else:
+            assert got is None and why == res.message
+    assert turned > 50
