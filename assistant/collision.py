@@ -647,11 +647,16 @@ class CollisionChecker:
         return np.maximum(1, np.ceil(travel / step).astype(np.int64))
 
     def _path_samples(self, P: Array, max_step: float | None) -> tuple[Array, Array, Array]:
-        """Segment index, fraction and step count of every sample `check_motion` takes on
-        each segment of the path P (M, dof), concatenated."""
+        """Segment index, fraction and step count of the samples `check_motion` takes on
+        each segment of the path P (M, dof), concatenated, each vertex once: a segment's
+        samples but its end (the next segment's start, the path's vertex itself), the last
+        segment's end too. A dense path's segments hold two or three samples each, so
+        sampling every segment whole asked a third of the samples twice."""
         counts = self.motion_samples_along(P, max_step)
-        seg = np.repeat(np.arange(len(counts)), counts + 1)
-        first = np.cumsum(counts + 1) - (counts + 1)
+        per = counts.copy()
+        per[-1] += 1
+        seg = np.repeat(np.arange(len(counts)), per)
+        first = np.cumsum(per) - per
         k = np.arange(len(seg)) - first[seg]
         return seg, k / counts[seg], counts
 
@@ -676,7 +681,8 @@ class CollisionChecker:
                    trusted: Array | None = None) -> tuple[int, MotionCheck] | None:
         """First invalid segment (index, check) of a joint path, or None if all of it is valid.
 
-        The same samples as `check_motion` on each segment in turn, but checked in batches
+        The samples of `check_motion` on each segment in turn, each vertex once (an invalid
+        vertex is reported at the start of the segment it begins), checked in batches
         across segments: a dense path of short segments would otherwise pay the per-call
         cost once per segment. `trusted` (a flag per segment) names segments this checker
         already passed, sampled the same way (a caller that checked part of the path

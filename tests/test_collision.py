@@ -240,9 +240,32 @@ def test_path_check_skips_trusted_segments_and_finds_the_same_first_contact(chec
             assert got[1].first_invalid_fraction == ref[1].first_invalid_fraction
         if trusted.any() and ref is None:  # every untrusted sample asked, no trusted one
             checked_some = True
-            counts = checker.motion_samples_along(np.array(path)) + 1
-            assert n_asked == int(counts[~trusted].sum())
+            # a segment's samples but its end (the next one's start), the path's end once
+            counts = checker.motion_samples_along(np.array(path))
+            assert n_asked == int(counts[~trusted].sum()) + int(not trusted[-1])
     assert hits > 0 and checked_some
+
+
+def test_path_check_asks_each_vertex_once(checker, rv2aj, monkeypatch):
+    """A path's samples are those of its segments' motion checks with each shared vertex
+    once (the vertex itself, not its copy interpolated from the segment before)."""
+    rng = np.random.default_rng(5)
+    path = rng.uniform(rv2aj.limits.lower * 0.3, rv2aj.limits.upper * 0.3, (6, 5)) * 0.2
+    asked = []
+    full_check = checker.is_valid_samples
+
+    def recording(Q, *args, **kwargs):
+        asked.append(np.array(Q))
+        return full_check(Q, *args, **kwargs)
+
+    monkeypatch.setattr(checker, "is_valid_samples", recording)
+    assert checker.check_path(list(path)) is None
+    Q = np.concatenate(asked)
+    counts = checker.motion_samples_along(path)
+    assert len(Q) == int(counts.sum()) + 1
+    assert len(np.unique(Q.round(12), axis=0)) == len(Q)
+    firsts = np.r_[0, np.cumsum(counts)]  # each vertex, exactly as given
+    assert np.array_equal(Q[firsts], path)
 
 
 def test_free_margin_is_a_sound_certificate(checker, rv2aj):
