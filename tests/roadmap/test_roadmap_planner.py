@@ -106,8 +106,10 @@ def test_budget_and_cancellation_end_the_search(rv2aj, planner):
         planner.plan(Q_START, Q_GOAL, prog)
 
 
-def test_goal_walled_in_by_observations_is_in_another_free_region(rv2aj):
-    planner = make_planner(rv2aj)
+@pytest.mark.parametrize("fallback", [True, False])
+def test_goal_walled_in_by_observations_is_in_another_free_region(rv2aj, fallback):
+    """Said once the roads hold no path (with or without the free-cell searches after)."""
+    planner = make_planner(rv2aj, RoadmapConfig(fallback_to_free_cells=fallback))
     w = planner.world
     gc = w.tcp_cell(Q_GOAL)
     ijk = w.grid.ijk_of_flat([gc])[0]
