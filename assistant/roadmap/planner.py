@@ -463,7 +463,7 @@ class RoadmapPlanner:
         """
         w = self.world
         t0 = time.perf_counter()
-        cells, offsets, Q = w.cell_positions()
+        cells, offsets, Q = w.cell_positions_shared()  # read only (`JointGraph.build`)
         occ = w.occupancy().reshape(-1)
         squeeze = (w.occupied() | (w.reachable() & ~w.has_valid())).reshape(-1)
 

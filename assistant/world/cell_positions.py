@@ -67,6 +67,8 @@ class CellPositions:
         # `selected_joints` of the current selection (every query asks; it only changes
         # when the selection does): dropped wherever `selected` is written.
         self._csr: tuple[Array, Array, Array] | None = None
+        # `has_valid`'s grid of the current selection, dropped with `_csr`.
+        self._has_valid: Array | None = None
 
     # ---------------------------------------------------------------- filling
     def fill(self, slots: Array, progress: Progress | None = None) -> FillReport:
@@ -119,7 +121,7 @@ class CellPositions:
         rank = csum - before[owner] - 1
         keep = ok & (rank < self.config.per_cell)
         # The old selection lies inside the examined prefix (it only grows): clear, then set.
-        self._csr = None
+        self._csr = self._has_valid = None
         self.selected[p] = False
         self.selected[p[keep]] = True
         self.n_selected[slots] = np.bincount(owner[keep], minlength=len(slots))
@@ -132,7 +134,7 @@ class CellPositions:
         if not len(pi):
             return pi
         self.state[pi] = INVALID_INDICATED
-        self._csr = None
+        self._csr = self._has_valid = None
         self.selected[pi] = False  # consistent at once, even if the refill is cancelled
         slots = self.slots_of(pi)
         self._reselect(slots)
@@ -145,10 +147,14 @@ class CellPositions:
 
     # ---------------------------------------------------------------- views
     def has_valid(self) -> Array:
-        """Dense bool grid: the leaf offers at least one valid joint position."""
-        m = np.zeros(self.table.grid.n_cells, dtype=bool)
-        m[self.table.leaves[self.n_selected > 0]] = True
-        return m.reshape(self.table.grid.shape)
+        """Dense bool grid: the leaf offers at least one valid joint position (a copy of
+        the grid remembered until the selection changes: a planning query asks four times,
+        and building it cost more than copying)."""
+        if self._has_valid is None:
+            m = np.zeros(self.table.grid.n_cells, dtype=bool)
+            m[self.table.leaves[self.n_selected > 0]] = True
+            self._has_valid = m.reshape(self.table.grid.shape)
+        return self._has_valid.copy()
 
     def selected_csr(self) -> tuple[Array, Array, Array]:
         """(cells, offsets, joint-grid ids): the selected positions of every leaf that has some,

@@ -221,6 +221,11 @@ class WorldModel:
         """(cells, offsets, Q): selected valid joint positions (rad) grouped by flat leaf id."""
         return self._need()[1].selected_joints()
 
+    def cell_positions_shared(self) -> tuple[Array, Array, Array]:
+        """`cell_positions` without the copies, for callers that only read them (the
+        roadmap's search graph; the copies cost ~0.07 ms a query). Do not write to them."""
+        return self._need()[1].decode()
+
     def decode_positions(self) -> None:
         """Decode the selected positions' joint values now (`cell_positions` remembers them
         until the selection changes): the roadmap does it when it builds or updates, so the

@@ -56,6 +56,37 @@ def test_indication_occupies_the_arm_cells_and_invalidates_nearby_postures(world
     assert len(again.occupancy_flipped) == 0
 
 
+def test_remembered_position_views_follow_every_selection_change(world):
+    """`has_valid` and the shared `cell_positions` are remembered between queries: each
+    change of the selection (an indication's invalidation and refill) must show at once, and
+    a caller writing to the grid it got must not change the next one."""
+    pos = world.positions
+
+    def fresh() -> np.ndarray:
+        m = np.zeros(world.grid.n_cells, dtype=bool)
+        m[world.table.leaves[pos.n_selected > 0]] = True
+        return m.reshape(world.grid.shape)
+
+    first = world.has_valid()
+    assert np.array_equal(first, fresh())
+    first[:] = False
+    assert np.array_equal(world.has_valid(), fresh()) and world.has_valid().any()
+    shared = world.cell_positions_shared()
+    assert all(np.array_equal(a, b) for a, b in zip(shared, world.cell_positions(),
+                                                    strict=True))
+    before = fresh()
+    world.indicate_collision(np.radians([20.0, 40.0, 60.0, 30.0, 0.0]))  # refills leaves
+    assert np.array_equal(world.has_valid(), fresh())
+    slot = int(np.flatnonzero(pos.n_selected > 0)[0])  # a leaf loses every position
+    pos.invalidate(np.arange(world.table.offsets[slot], world.table.offsets[slot + 1]))
+    assert not np.array_equal(fresh(), before)
+    assert np.array_equal(world.has_valid(), fresh())
+    cells, offsets, Q = world.cell_positions_shared()
+    assert all(np.array_equal(a, b) for a, b in zip((cells, offsets, Q),
+                                                    world.cell_positions(), strict=True))
+    assert len(cells) == int((pos.n_selected > 0).sum())
+
+
 def test_sensor_observations_go_through_fusion_and_free_cells_refill(world):
     p = np.array([[0.30, 0.10, 0.35]])
     cell = world.grid.flat_of_points(p)[0]
