@@ -99,9 +99,10 @@ def update_rounds(D0: Array, T0: Array, L0: Array, S: Array, reach: Array, chang
     for rnd in range(1, max_rounds + 1):
         grown = _dilate(region, 1, box)  # region and its ring
         gbox = _grow(box, 1, shape)
-        D[:], T[:], L[:] = D0, T0, L0
-        diff[:] = False
-        ring_diff[:] = False
+        if rnd > 1:  # the first round starts from the fresh copies
+            D[:], T[:], L[:] = D0, T0, L0
+            diff[:] = False
+            ring_diff[:] = False
         a0, a1, a2, b0, b1, b2 = _grow(gbox, 1, shape)
         Db = np.ascontiguousarray(D[a0:b0 + 1, a1:b1 + 1, a2:b2 + 1])
         Tb = np.ascontiguousarray(T[a0:b0 + 1, a1:b1 + 1, a2:b2 + 1])
