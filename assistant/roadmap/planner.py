@@ -326,8 +326,6 @@ class RoadmapPlanner:
             if res is not None:
                 if res.found or res.reason in (REASON_BUDGET, REASON_SAFETY):
                     break
-                if i == 1 and not connected26(free.reshape(w.grid.shape), sc, gc):
-                    return self._regions_apart(res, timings, t0)
                 budget = replace(budget,
                                  max_expansions=max(1, budget.max_expansions - res.expansions),
                                  max_edge_checks=max(1, budget.max_edge_checks - res.edge_checks),
@@ -339,9 +337,9 @@ class RoadmapPlanner:
                 nxt.found, nxt.reason, nxt.nodes, nxt.cost, res.expansions + nxt.expansions,
                 res.edge_checks + nxt.edge_checks, res.rejected_edges + nxt.rejected_edges,
                 res.seconds + nxt.seconds, nxt.budget_detail)
-        if (len(tries) == 1 and not res.found and res.reason == REASON_NO_PATH
-                and not connected26(free.reshape(w.grid.shape), sc, gc)):
-            return self._regions_apart(res, timings, t0)
+            if (i == 0 and not res.found and res.reason == REASON_NO_PATH
+                    and not connected26(free.reshape(w.grid.shape), sc, gc)):
+                return self._regions_apart(res, timings, t0)
         timings["total"] = time.perf_counter() - t0
         if not res.found:
             if res.reason == REASON_SAFETY:

@@ -375,7 +375,7 @@ class _Net:
         idx, D, trial, pin = sweep_moves(self.P, self._pinned, stage, lam, p.c_equidistance,
                                          p.c_rotation, p.c_shrink, p.c_line_shrink,
                                          p.stage1_shrink, p.r_max, p.r_min,
-                                         float(self._forces[8]))
+                                         self._cap(stage))
         if not len(idx):
             return 0.0, 0, 0
         # A particle refused at both lengths last sweep is pinned against a constraint (the

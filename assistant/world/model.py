@@ -223,7 +223,7 @@ class WorldModel:
 
     def cell_positions_shared(self) -> tuple[Array, Array, Array]:
         """`cell_positions` without the copies, for callers that only read them (the
-        roadmap's search graph; the copies cost ~0.07 ms a query). Do not write to them."""
+        roadmap's search graph; the copies cost ~0.03 ms a query). Do not write to them."""
         return self._need()[1].decode()
 
     def decode_positions(self) -> None:
