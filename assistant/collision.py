@@ -40,6 +40,7 @@ from assistant.motion_rows import (
 )
 from assistant.robot_model import CollisionShape, Robot, ShapeKind
 from assistant.segment_box import axis_segment, oriented_bounds
+from assistant.shape_poses import shape_poses
 
 Array = np.ndarray
 
@@ -576,10 +577,9 @@ class CollisionChecker:
         p_at = np.searchsorted(pk, np.arange(n + 1)).tolist()
         es_l, ee_l = es.tolist(), ee.tolist()
         pairs = [self._self_pairs[p] for p in pp.tolist()]
-        # Every robot shape's pose in every row: one batched product instead of one per call.
-        T = np.einsum("nrij,rjk->nrik", frames[:, self._shape_link], self._shape_T)
-        R = np.ascontiguousarray(T[..., :3, :3])
-        t = np.ascontiguousarray(T[..., :3, 3])
+        # Every robot shape's pose in every row, in one compiled pass (`shape_poses`).
+        R, t = shape_poses(np.ascontiguousarray(frames, dtype=float), self._shape_link,
+                           self._shape_T)
         objs = [rs.obj for rs in self._rshapes]
         env = [es.obj for es in self._env]
         posed_in = [-1] * len(objs)  # the row each shape is posed for now

@@ -5,7 +5,7 @@ The kernels (`broad_phase`, `segment_box`, `dh`, `rv2aj_fk_batch`, `rv2aj_positi
 `trajectory.fit_search`, `trajectory.net_forces`, `trajectory.net_kernel`,
 `trajectory.net_sweep`, `trajectory.net_stage`, `trajectory.follow_kernel`,
 `roadmap.brushfire`, `roadmap.voronoi_update`, `roadmap.graph_kernel`,
-`roadmap.astar_kernel`, `roadmap.grid_ops`, `world.leaf_lookup`) compile on their first call
+`roadmap.astar_kernel`, `roadmap.grid_ops`, `world.leaf_lookup`, `shape_poses`) compile on their first call
 and cache the result on disk; only the first run after an install pays, ~50 s for all of
 them on this 2-core machine. `cellteach serve` runs `warm_up` in a background thread at
 start, so that first run does not stall the operator's first world build or plan (a compile
@@ -49,6 +49,7 @@ from assistant.rv2aj_fk_batch import tcp_poses
 from assistant.rv2aj_pose_batch import _candidates
 from assistant.rv2aj_position_ik import planar_position_ik
 from assistant.segment_box import segment_box_distance_one
+from assistant.shape_poses import shape_poses
 from assistant.trajectory.fit_kernels import (
     arc_distances,
     circle_through_kernel,
@@ -73,7 +74,8 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            certify_samples, check_moves, apply_moves, _candidates, slerp_kernel, update_rounds,
            motion_marks, rows_inside, rows_before_first_bad, valid_before_first_bad,
            sweep_moves, halve_retries, repin, expand, weighted_distances,
-           connected26, successor_costs, search, fit_rows, run_sweeps, select_nodes)
+           connected26, successor_costs, search, fit_rows, run_sweeps, select_nodes,
+           shape_poses)
 
 
 def warm_up() -> float:

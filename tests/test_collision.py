@@ -420,3 +420,18 @@ def test_compiled_frames_and_limits_are_the_robots_to_the_bit(checker, rv2aj, ce
         a = checker.is_valid_samples(Q, G, first_only=first_only)
         assert np.array_equal(a, plain.is_valid_samples(Q, G, first_only=first_only))
         assert 0.2 < a.mean() < 0.95
+
+
+def test_exact_phase_poses_are_einsums_to_the_bit(checker, rv2aj):
+    """`shape_poses` (the exact phase's compiled posing) gives the batched product it
+    replaced, bit for bit: FCL sees the same transforms, so it gives the same answers."""
+    from assistant.shape_poses import shape_poses
+
+    rng = np.random.default_rng(5)
+    Q = rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper, (60, 5))
+    frames = rv2aj.batch_link_poses(Q)
+    R, t = shape_poses(frames, checker._shape_link, checker._shape_T)
+    T = np.einsum("nrij,rjk->nrik", frames[:, checker._shape_link], checker._shape_T)
+    assert len(checker._shape_link) >= 5
+    assert np.array_equal(R, T[..., :3, :3]) and np.array_equal(t, T[..., :3, 3])
+    assert R.flags.c_contiguous and t.flags.c_contiguous
