@@ -5,12 +5,13 @@ The kernels (`broad_phase`, `segment_box`, `dh`, `rv2aj_fk_batch`, `rv2aj_positi
 `trajectory.fit_search`, `trajectory.net_forces`, `trajectory.net_kernel`,
 `trajectory.net_sweep`, `trajectory.net_stage`, `trajectory.follow_kernel`,
 `roadmap.brushfire`, `roadmap.voronoi_update`, `roadmap.graph_kernel`,
-`roadmap.astar_kernel`, `roadmap.grid_ops`, `world.leaf_lookup`, `shape_poses`) compile on their first call
-and cache the result on disk; only the first run after an install pays, ~50 s for all of
-them on this 2-core machine. `cellteach serve` runs `warm_up` in a background thread at
-start, so that first run does not stall the operator's first world build or plan (a compile
-reports no progress); `cellteach run` and the tests call it before anything else, so no
-compile happens inside a robot link's exchange, where seconds look like a lost link.
+`roadmap.astar_kernel`, `roadmap.grid_ops`, `world.leaf_lookup`, `shape_poses`) compile on
+their first call and cache the result on disk; only the first run after an install pays,
+~50 s for all of them on this 2-core machine. `cellteach serve` runs `warm_up` in a
+background thread at start, so that first run does not stall the operator's first world
+build or plan (a compile reports no progress); `cellteach run` and the tests call it before
+anything else, so no compile happens inside a robot link's exchange, where seconds look like
+a lost link.
 """
 
 from __future__ import annotations
