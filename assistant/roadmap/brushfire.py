@@ -29,7 +29,14 @@ def brushfire_region(D: Array, T: Array, L: Array, S: Array, reach: Array, R: Ar
     The box is copied into flat arrays padded by one cell (a pad cell is never on a layer
     and carries no label), so a neighbour is a fixed offset and needs no bounds test; each
     layer grows from the cells of the layer below only (the fixed cells bucketed by their
-    distance once, the region's new cells of a layer are the next front)."""
+    distance once, the region's new cells of a layer are the next front).
+
+    A layer is found from whichever side is smaller: the layer below offering itself to its
+    unreached neighbours, or each unreached cell looking for a neighbour on the layer
+    below (the same cells either way; the steps after do not depend on their order). In
+    the planner's grids nine cells in ten are sources: a terminal update's box holds ~6000
+    of them on layer 0 against ~400 cells to reach, so the first layer is found from the
+    unreached side at a tenth of the reads."""
     nx, ny, nz = D.shape
     py, pz = ny + 2, nz + 2
     size = (nx + 2) * py * pz
@@ -47,6 +54,7 @@ def brushfire_region(D: Array, T: Array, L: Array, S: Array, reach: Array, R: Ar
                     n_off += 1
     cap = nx * ny * nz
     front = np.empty(cap, dtype=np.int64)  # padded ids of the layer below (region part)
+    todo_list = np.empty(cap, dtype=np.int64)  # padded ids of the cells still unreached
     n_front = 0
     n_todo = 0
     max_fixed = -1
@@ -62,6 +70,7 @@ def brushfire_region(D: Array, T: Array, L: Array, S: Array, reach: Array, R: Ar
                     else:
                         Dp[p], Tp[p], Lp[p] = INF, UNREACHED, UNREACHED
                         todo[p] = True
+                        todo_list[n_todo] = p
                         n_todo += 1
                 else:
                     Dp[p], Tp[p], Lp[p] = D[i, j, k], T[i, j, k], L[i, j, k]
@@ -96,14 +105,23 @@ def brushfire_region(D: Array, T: Array, L: Array, S: Array, reach: Array, R: Ar
         if n_prev == 0 and d - 1 > max_fixed:
             break  # no front left that could reach the remaining cells
         n_has = 0
-        for f in range(n_prev):
-            p = front[f] if f < n_front else fixed[lo_f + f - n_front]
-            for o in range(26):
-                q = p + off[o]
-                if todo[q] and stamp[q] != d:
-                    stamp[q] = d
-                    has[n_has] = q
-                    n_has += 1
+        if n_todo < n_prev:  # fewer cells left than cells below: each asks its neighbours
+            for t in range(n_todo):
+                p = todo_list[t]
+                for o in range(26):
+                    if Dp[p + off[o]] == d - 1:
+                        has[n_has] = p
+                        n_has += 1
+                        break
+        else:  # the layer below offers itself to its unreached neighbours
+            for f in range(n_prev):
+                p = front[f] if f < n_front else fixed[lo_f + f - n_front]
+                for o in range(26):
+                    q = p + off[o]
+                    if todo[q] and stamp[q] != d:
+                        stamp[q] = d
+                        has[n_has] = q
+                        n_has += 1
         # tentative label: the one label the layer below carries here, else ROAD
         for h in range(n_has):
             p = has[h]
@@ -136,7 +154,12 @@ def brushfire_region(D: Array, T: Array, L: Array, S: Array, reach: Array, R: Ar
             todo[has[h]] = False
             front[h] = has[h]
         n_front = n_has
-        n_todo -= n_has
+        kept = 0
+        for t in range(n_todo):
+            if todo[todo_list[t]]:
+                todo_list[kept] = todo_list[t]
+                kept += 1
+        n_todo = kept
         d += 1
     for i in range(nx):
         for j in range(ny):

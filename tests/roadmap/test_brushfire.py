@@ -47,19 +47,22 @@ def _reference(D, T, L, S, reach, R):
         d += 1
 
 
-def _grid(rng):
+def _grid(rng, density: tuple[float, float] = (0.01, 0.2)):
     shape = tuple(int(v) for v in rng.integers(1, 14, 3))
     n_labels = int(rng.integers(1, 6))
-    src = np.where(rng.random(shape) < rng.uniform(0.01, 0.2),
+    src = np.where(rng.random(shape) < rng.uniform(*density),
                    rng.integers(1, n_labels + 1, shape), 0).astype(np.int32)
     reach = rng.random(shape) < rng.uniform(0.5, 1.0)
     return src, reach
 
 
-@pytest.mark.parametrize("seed", range(40))
+@pytest.mark.parametrize("seed", range(60))
 def test_brushfire_equals_numpy_reference(seed: int) -> None:
+    """Sparse sources (seeds < 40: the first layers are found from the layer below) and
+    dense ones like the planner's, nine cells in ten (the first layer is found from the
+    few cells left to reach)."""
     rng = np.random.default_rng(seed)
-    src, reach = _grid(rng)
+    src, reach = _grid(rng, (0.01, 0.2) if seed < 40 else (0.6, 0.95))
     # the values outside the region come from the map of other sources (an update)
     other = np.where(rng.random(src.shape) < 0.1, rng.integers(1, 4, src.shape), src)
     base = build_voronoi(other.astype(np.int32), reach)
