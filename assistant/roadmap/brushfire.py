@@ -21,6 +21,34 @@ INF = 2**30
 _BIG = 2**30
 
 
+#: Fixed cells are counted per distance up to this one (farther ones together).
+_HIST = 64
+
+
+@njit(cache=True)
+def _fixed_by_distance(D: Array, R: Array, max_fixed: int, py: int, pz: int,
+                       start: Array) -> Array:
+    """The padded ids of the cells outside R with a finite distance, sorted by it
+    (counting sort): bucket d is out[start[d]:start[d + 1]] (start filled here)."""
+    nx, ny, nz = D.shape
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                if not R[i, j, k] and D[i, j, k] < INF:
+                    start[D[i, j, k] + 1] += 1
+    for d in range(max_fixed + 1):
+        start[d + 1] += start[d]
+    out = np.empty(start[max_fixed + 1], dtype=np.int64)
+    fill = start[:max_fixed + 1].copy()
+    for i in range(nx):
+        for j in range(ny):
+            for k in range(nz):
+                if not R[i, j, k] and D[i, j, k] < INF:
+                    out[fill[D[i, j, k]]] = ((i + 1) * py + j + 1) * pz + k + 1
+                    fill[D[i, j, k]] += 1
+    return out
+
+
 @njit(cache=True)
 def brushfire_region(D: Array, T: Array, L: Array, S: Array, reach: Array, R: Array) -> None:
     """Recompute dist D, tentative label T and label L (int32, in place) inside region R
@@ -28,8 +56,9 @@ def brushfire_region(D: Array, T: Array, L: Array, S: Array, reach: Array, R: Ar
 
     The box is copied into flat arrays padded by one cell (a pad cell is never on a layer
     and carries no label), so a neighbour is a fixed offset and needs no bounds test; each
-    layer grows from the cells of the layer below only (the fixed cells bucketed by their
-    distance once, the region's new cells of a layer are the next front).
+    layer grows from the cells of the layer below only (the fixed cells counted, and once a
+    layer needs them bucketed, by their distance; the region's new cells of a layer are the
+    next front).
 
     A layer is found from whichever side is smaller: the layer below offering itself to its
     unreached neighbours, or each unreached cell looking for a neighbour on the layer
@@ -58,6 +87,7 @@ def brushfire_region(D: Array, T: Array, L: Array, S: Array, reach: Array, R: Ar
     n_front = 0
     n_todo = 0
     max_fixed = -1
+    n_fixed_at = np.zeros(_HIST + 1, dtype=np.int64)  # fixed cells per distance (capped)
     for i in range(nx):
         for j in range(ny):
             for k in range(nz):
@@ -76,36 +106,31 @@ def brushfire_region(D: Array, T: Array, L: Array, S: Array, reach: Array, R: Ar
                     Dp[p], Tp[p], Lp[p] = D[i, j, k], T[i, j, k], L[i, j, k]
                     if D[i, j, k] < INF:
                         max_fixed = max(max_fixed, D[i, j, k])
-    # the fixed cells by distance (counting sort): bucket d is fixed[start[d]:start[d + 1]]
+                        n_fixed_at[min(D[i, j, k], _HIST)] += 1
+    # the fixed cells by distance, for layers found from below (bucket d is
+    # fixed[start[d]:start[d + 1]]): sorted the first time such a layer comes
     start = np.zeros(max_fixed + 2, dtype=np.int64)
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                if not R[i, j, k] and D[i, j, k] < INF:
-                    start[D[i, j, k] + 1] += 1
-    for d in range(max_fixed + 1):
-        start[d + 1] += start[d]
-    fixed = np.empty(start[max_fixed + 1], dtype=np.int64)
-    fill = start[:max_fixed + 1].copy()
-    for i in range(nx):
-        for j in range(ny):
-            for k in range(nz):
-                if not R[i, j, k] and D[i, j, k] < INF:
-                    fixed[fill[D[i, j, k]]] = ((i + 1) * py + j + 1) * pz + k + 1
-                    fill[D[i, j, k]] += 1
+    fixed = np.empty(0, dtype=np.int64)
+    bucketed = False
     stamp = np.zeros(size, dtype=np.int32)  # the layer a cell was last put on the front
     has = np.empty(cap, dtype=np.int64)
     buf = np.empty(cap, dtype=np.int32)
     d = 1
     while n_todo > 0:
         # cells of the layer below with an unreached neighbour: the new layer
-        lo_f = start[d - 1] if d - 1 <= max_fixed else 0
-        hi_f = start[d] if d - 1 <= max_fixed else 0
-        n_prev = n_front + hi_f - lo_f
-        if n_prev == 0 and d - 1 > max_fixed:
+        if n_front == 0 and d - 1 > max_fixed:
             break  # no front left that could reach the remaining cells
+        if d - 1 > max_fixed:
+            n_below = 0
+        elif d - 1 < _HIST:
+            n_below = n_fixed_at[d - 1]
+        else:  # not counted that far: the buckets tell
+            if not bucketed:
+                fixed = _fixed_by_distance(D, R, max_fixed, py, pz, start)
+                bucketed = True
+            n_below = start[d] - start[d - 1]
         n_has = 0
-        if n_todo < n_prev:  # fewer cells left than cells below: each asks its neighbours
+        if n_todo < n_front + n_below:  # fewer cells left than below: each asks its neighbours
             for t in range(n_todo):
                 p = todo_list[t]
                 for o in range(26):
@@ -114,7 +139,12 @@ def brushfire_region(D: Array, T: Array, L: Array, S: Array, reach: Array, R: Ar
                         n_has += 1
                         break
         else:  # the layer below offers itself to its unreached neighbours
-            for f in range(n_prev):
+            if not bucketed:
+                fixed = _fixed_by_distance(D, R, max_fixed, py, pz, start)
+                bucketed = True
+            lo_f = start[d - 1] if d - 1 <= max_fixed else 0
+            hi_f = start[d] if d - 1 <= max_fixed else 0
+            for f in range(n_front + hi_f - lo_f):
                 p = front[f] if f < n_front else fixed[lo_f + f - n_front]
                 for o in range(26):
                     q = p + off[o]

@@ -84,3 +84,22 @@ def test_even_gap_and_unreachable_roads_are_exercised() -> None:
         L = build_voronoi(src, reach).label
         kinds |= {int(v) for v in np.unique(L)} & {ROAD, ROAD_UNREACHABLE, UNREACHED}
     assert kinds == {ROAD, ROAD_UNREACHABLE, UNREACHED}
+
+
+def test_distances_past_the_counted_range_equal_the_reference() -> None:
+    """Layers beyond the per-distance counts (64) are found through the distance buckets:
+    a long corridor with a source at each end, recomputed whole and in its far part."""
+    shape = (150, 2, 1)
+    src = np.zeros(shape, np.int32)
+    src[0], src[-1, 0] = 1, 2
+    reach = np.ones(shape, bool)
+    base = build_voronoi(np.where(np.arange(150)[:, None, None] < 140, src, 0).astype(np.int32),
+                         reach)
+    assert base.dist.max() > 70
+    for region in (np.ones(shape, bool), np.arange(150)[:, None, None] > np.full(shape, 90)):
+        ref = [base.dist.copy(), base.tent.copy(), base.label.copy()]
+        out = [base.dist.copy(), base.tent.copy(), base.label.copy()]
+        _reference(*ref, src, reach, region)
+        brushfire_region(*out, src, reach, region)
+        for a, b in zip(out, ref, strict=True):
+            assert np.array_equal(a, b)
