@@ -45,7 +45,7 @@ from assistant.roadmap.graph_kernel import (
     weighted_distances,
 )
 from assistant.roadmap.grid_ops import connected26
-from assistant.roadmap.voronoi_update import update_rounds
+from assistant.roadmap.voronoi_update import terminal_round, update_rounds
 from assistant.rv2aj_fk_batch import tcp_poses
 from assistant.rv2aj_pose_batch import _candidates
 from assistant.rv2aj_position_ik import planar_position_ik
@@ -76,7 +76,7 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            motion_marks, rows_inside, rows_before_first_bad, valid_before_first_bad,
            sweep_moves, halve_retries, repin, expand, weighted_distances,
            connected26, successor_costs, search, fit_rows, run_sweeps, select_nodes,
-           shape_poses)
+           shape_poses, terminal_round)
 
 
 def warm_up() -> float:
@@ -86,7 +86,7 @@ def warm_up() -> float:
     from assistant.roadmap.astar import lazy_astar
     from assistant.roadmap.graph import JointGraph
     from assistant.roadmap.path_first import lazy_path_search
-    from assistant.roadmap.voronoi import build_voronoi, update_voronoi
+    from assistant.roadmap.voronoi import build_voronoi, terminal_labels, update_voronoi
     from assistant.robot_model import CollisionShape, ShapeKind, Tool
     from assistant.rv2aj import RV2AJ, RV2AJConfig
     from assistant.trajectory.cartesian_follow import follow_poses, slerp_rotations
@@ -122,6 +122,7 @@ def warm_up() -> float:
     vmap = build_voronoi(source)
     source[0, 3, 0] = 3  # a query's terminal: the incremental update
     update_voronoi(vmap, source)
+    terminal_labels(vmap, np.array([21, 42]), np.array([4, 5]))  # a query's start and goal
     cells = np.arange(8, dtype=np.int64)
     graph, _ = JointGraph.build((2, 2, 2), cells, np.arange(9), np.zeros((8, 5)),
                                 np.ones(8, bool), np.zeros(8, bool), np.zeros(8), np.ones(5))

@@ -48,7 +48,13 @@ from assistant.roadmap.graph import JointGraph
 from assistant.roadmap.grid_ops import connected26
 from assistant.roadmap.path_first import lazy_path_search
 from assistant.roadmap.sources import SourceLabels, label_sources, relabel
-from assistant.roadmap.voronoi import ROAD, VoronoiMap, build_voronoi, update_voronoi
+from assistant.roadmap.voronoi import (
+    ROAD,
+    VoronoiMap,
+    build_voronoi,
+    terminal_labels,
+    update_voronoi,
+)
 from assistant.robot_model import Robot
 from assistant.validity import ValidityChecker
 from assistant.world.fusion import Source
@@ -303,8 +309,9 @@ class RoadmapPlanner:
             return self._plan_from([q_s, q_g], None, "direct", timings, direct)
         # Roads around start and goal: incremental update of the base map.
         t1 = time.perf_counter()
-        src, s_lab, g_lab = labels.with_terminals(sc, gc)
-        vmap = update_voronoi(base, src, d_min=self.config.terminal_reset).vmap
+        cells, labs = labels.terminals(sc, gc)
+        s_lab, g_lab = labels.next_label, labels.next_label + 1
+        lab = terminal_labels(base, cells, labs, d_min=self.config.terminal_reset).reshape(-1)
         timings["roadmap_update"] = time.perf_counter() - t1
         # around the goal only CAD leaves (partly filled; FCL checked their positions), around
         # the start any leaf (the robot is there)
@@ -312,7 +319,6 @@ class RoadmapPlanner:
         escape = self._escape_cells(sc) | (self._escape_cells(gc) & cad_leaf)
         free = w.free().reshape(-1) | escape
         free[[sc, gc]] = True
-        lab = vmap.label.reshape(-1)
         on_roads = (lab == ROAD) | (lab == s_lab) | (lab == g_lab)
         # The roads first; then any free cell; then also squeezing out of the start's or into
         # the goal's cell (a point taught next to a part may have no other way out; one the

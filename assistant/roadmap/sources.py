@@ -42,19 +42,25 @@ class SourceLabels:
     def next_label(self) -> int:
         return max(self.names, default=0) + 1
 
+    def terminals(self, start_cell: int, goal_cell: int) -> tuple[Array, Array]:
+        """The flat cells of the start and goal leaves and their labels (the next two); one
+        cell, the start's, when both lie in the same leaf."""
+        s_lab = self.next_label
+        if goal_cell == start_cell:
+            return np.array([start_cell], dtype=np.int64), np.array([s_lab], dtype=np.int32)
+        return (np.array([start_cell, goal_cell], dtype=np.int64),
+                np.array([s_lab, s_lab + 1], dtype=np.int32))
+
     def with_terminals(self, start_cell: int, goal_cell: int) -> tuple[Array, int, int]:
         """The source grid with the start and goal leaves as sources of their own labels.
 
         They override whatever the leaf was (the robot stands in its start cell even if an
         indication marked it). Returns (grid, start label, goal label).
         """
+        cells, labels = self.terminals(start_cell, goal_cell)
         src = self.source.copy()
-        s_lab, g_lab = self.next_label, self.next_label + 1
-        flat = src.reshape(-1)
-        flat[start_cell] = s_lab
-        if goal_cell != start_cell:
-            flat[goal_cell] = g_lab
-        return src, s_lab, g_lab
+        src.reshape(-1)[cells] = labels
+        return src, self.next_label, self.next_label + 1
 
 
 def _border(shape: tuple[int, ...]) -> Array:

@@ -32,12 +32,12 @@ import numpy as np
 from assistant.roadmap import brushfire
 from assistant.roadmap.brushfire import ROAD, ROAD_UNREACHABLE, UNREACHED, brushfire_region
 from assistant.roadmap.grid_ops import bbox
-from assistant.roadmap.voronoi_update import update_rounds
+from assistant.roadmap.voronoi_update import terminal_round, update_rounds
 
 Array = np.ndarray
 
 __all__ = ["INF", "ROAD", "ROAD_UNREACHABLE", "UNREACHED", "VoronoiMap", "VoronoiUpdate",
-           "build_voronoi", "update_voronoi"]
+           "build_voronoi", "terminal_labels", "update_voronoi"]
 
 #: Distance of cells no front reaches.
 INF = np.int32(brushfire.INF)
@@ -143,6 +143,24 @@ def update_voronoi(vmap: VoronoiMap, source: Array, *, d_min: int = 3,
                              False)
     full = build_voronoi(source, vmap.reachable)
     return VoronoiUpdate(full, _differs(full, vmap), int(np.prod(vmap.shape)), max_rounds, True)
+
+
+def terminal_labels(vmap: VoronoiMap, cells: Array, labels: Array, *, d_min: int = 3,
+                    max_rounds: int = 12) -> Array:
+    """`update_voronoi(vmap, source).vmap.label` for the source grid with `labels` put on
+    the flat `cells` (a query's start and goal), without building the updated map: the
+    compiled first round on its own box (`voronoi_update.terminal_round`), and the whole
+    update only when that round's ring changed."""
+    cells = np.ascontiguousarray(cells, dtype=np.int64)
+    labels = np.ascontiguousarray(labels, dtype=np.int32)
+    label, done = terminal_round(vmap.dist, vmap.tent, vmap.label, vmap.source,
+                                 np.ascontiguousarray(vmap.reachable), cells, labels,
+                                 int(d_min))
+    if done:
+        return label
+    source = vmap.source.copy()
+    source.reshape(-1)[cells] = labels
+    return update_voronoi(vmap, source, d_min=d_min, max_rounds=max_rounds).vmap.label
 
 
 def _differs(a: VoronoiMap, b: VoronoiMap) -> Array:

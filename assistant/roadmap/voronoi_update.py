@@ -142,3 +142,74 @@ def update_rounds(D0: Array, T0: Array, L0: Array, S: Array, reach: Array, chang
                     region[i, j, k] = grown[i, j, k] or more[i, j, k]
         box = (c0, c1, c2, e0, e1, e2)
     return D, T, L, diff, 0, max_rounds, False
+
+
+@njit(cache=True)
+def terminal_round(D0: Array, T0: Array, L0: Array, S0: Array, reach: Array, cells: Array,
+                   labels: Array, d_min: int) -> tuple[Array, bool]:
+    """The label grid of the map (D0, T0, L0) with sources `labels` put on the flat `cells`
+    (a query's start and goal), by the first round of `update_rounds` alone, on the bounding
+    box of its region only; False if that round's ring changed (the caller then runs the
+    whole update).
+
+    Why: the query needs only the labels, and only one round in twenty grows. Without the
+    general update's whole-grid steps (scanning the changed flags for their box, full-grid
+    masks, copies of the distance and tentative grids) the same round costs ~0.1 ms less.
+    The region is `update_rounds`': the cells within `d_min` (Chebyshev) of a cell whose
+    source changes, and its one-cell ring."""
+    nx, ny, nz = D0.shape
+    n = cells.shape[0]
+    ci = np.empty((n, 3), dtype=np.int64)
+    m = 0
+    lo0, lo1, lo2, hi0, hi1, hi2 = nx, ny, nz, -1, -1, -1
+    for c in range(n):
+        i, j, k = cells[c] // (ny * nz), (cells[c] // nz) % ny, cells[c] % nz
+        if S0[i, j, k] == labels[c]:
+            continue
+        ci[m, 0], ci[m, 1], ci[m, 2] = i, j, k
+        m += 1
+        lo0, lo1, lo2 = min(lo0, i), min(lo1, j), min(lo2, k)
+        hi0, hi1, hi2 = max(hi0, i), max(hi1, j), max(hi2, k)
+    L = L0.copy()
+    if m == 0:
+        return L, True
+    # the brushfire's box: the region's, grown by the ring and by one more cell (the ring's
+    # neighbours are read, held fixed)
+    a0, a1, a2 = max(0, lo0 - d_min - 2), max(0, lo1 - d_min - 2), max(0, lo2 - d_min - 2)
+    b0 = min(nx - 1, hi0 + d_min + 2)
+    b1 = min(ny - 1, hi1 + d_min + 2)
+    b2 = min(nz - 1, hi2 + d_min + 2)
+    sx, sy, sz = b0 - a0 + 1, b1 - a1 + 1, b2 - a2 + 1
+    Db = np.empty((sx, sy, sz), dtype=D0.dtype)
+    Tb = np.empty((sx, sy, sz), dtype=T0.dtype)
+    Lb = np.empty((sx, sy, sz), dtype=L0.dtype)
+    Sb = np.empty((sx, sy, sz), dtype=S0.dtype)
+    Rb = np.empty((sx, sy, sz), dtype=np.bool_)
+    ring = np.zeros((sx, sy, sz), dtype=np.bool_)
+    grown = np.zeros((sx, sy, sz), dtype=np.bool_)
+    for x in range(sx):
+        for y in range(sy):
+            for z in range(sz):
+                i, j, k = a0 + x, a1 + y, a2 + z
+                Db[x, y, z], Tb[x, y, z], Lb[x, y, z] = D0[i, j, k], T0[i, j, k], L0[i, j, k]
+                Sb[x, y, z], Rb[x, y, z] = S0[i, j, k], reach[i, j, k]
+                near = nx + ny + nz  # Chebyshev distance to the nearest changed cell
+                for c in range(m):
+                    near = min(near, max(abs(i - ci[c, 0]), abs(j - ci[c, 1]),
+                                         abs(k - ci[c, 2])))
+                grown[x, y, z] = near <= d_min + 1
+                ring[x, y, z] = near == d_min + 1
+    for c in range(m):
+        Sb[ci[c, 0] - a0, ci[c, 1] - a1, ci[c, 2] - a2] = labels[c]
+    brushfire_region(Db, Tb, Lb, Sb, Rb, grown)
+    for x in range(sx):
+        for y in range(sy):
+            for z in range(sz):
+                if not grown[x, y, z]:
+                    continue
+                i, j, k = a0 + x, a1 + y, a2 + z
+                if ring[x, y, z] and (Db[x, y, z] != D0[i, j, k] or Tb[x, y, z] != T0[i, j, k]
+                                      or Lb[x, y, z] != L0[i, j, k]):
+                    return L, False
+                L[i, j, k] = Lb[x, y, z]
+    return L, True

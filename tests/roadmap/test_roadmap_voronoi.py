@@ -11,6 +11,7 @@ from assistant.roadmap.voronoi import (
     ROAD,
     ROAD_UNREACHABLE,
     build_voronoi,
+    terminal_labels,
     update_voronoi,
 )
 
@@ -167,6 +168,46 @@ def test_incremental_update_equals_full_rebuild(seed):
         assert np.array_equal(upd.changed, (full.dist != v.dist) | (full.tent != v.tent)
                               | (full.label != v.label))
         v = upd.vmap
+
+
+def _terminal_case(seed: int) -> int:
+    """Four queries' terminals on one random map; how many needed more than one round."""
+    from assistant.roadmap.sources import SourceLabels
+
+    rng = np.random.default_rng(seed)
+    src, reach, n_labels = _random_case(rng)
+    if seed % 2:  # nine cells in ten sources, as in the planner's grids
+        dense = rng.random(src.shape) < 0.9
+        src[dense & (src == 0)] = rng.integers(1, n_labels + 1, int((dense & (src == 0)).sum()))
+    base = build_voronoi(src, reach)
+    labels = SourceLabels(src, {k: f"r{k}" for k in range(1, n_labels + 1)})
+    grown = 0
+    for _ in range(4):
+        sc = int(rng.integers(0, src.size))
+        gc = sc if rng.random() < 0.2 else int(rng.integers(0, src.size))
+        cells, labs = labels.terminals(sc, gc)
+        d_min = int(rng.integers(0, 7))
+        new, _, _ = labels.with_terminals(sc, gc)
+        upd = update_voronoi(base, new, d_min=d_min)
+        got = terminal_labels(base, cells, labs, d_min=d_min)
+        assert np.array_equal(got, upd.vmap.label)
+        assert np.array_equal(got, build_voronoi(new, reach).label)
+        grown += upd.rounds > 1
+    return grown
+
+
+@pytest.mark.parametrize("seed", range(60))
+def test_terminal_labels_are_the_updated_maps(seed):
+    """A query's start and goal put on the map (`terminal_labels`: the first update round
+    on its own box, the whole update when that round's ring changes) give the labels of
+    the full update and of a rebuild; sparse and dense (the planner's) sources, start and
+    goal in one cell or on a source cell, every reset radius the planner might use."""
+    _terminal_case(seed)
+
+
+def test_terminal_labels_cover_rounds_that_grow():
+    """The cases above include first rounds whose ring changed (the fallback's path)."""
+    assert sum(_terminal_case(s) for s in range(60)) > 0
 
 
 def test_update_is_local_for_a_new_obstacle_cell():
