@@ -24,12 +24,16 @@ def _wrap(a: float) -> float:
     return (a + _PI) % _TWO_PI - _PI
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _planar(tx: float, ty: float, tz: float, seed: Array, pitch: float, q6: float,
             arm: Array, tool_length: float, max_jump: float, lower: Array, upper: Array,
             out: Array) -> bool:
     """Joints for one TCP point and one tool pitch into `out`; True if reachable, inside
     the limits and within `max_jump` of the seed in every joint (angles nearest the seed's).
+
+    Inlined (numba IR) into `solve_row`, which calls it up to 1 + 2 `n_steps` times per
+    move of the elastic net: as a call, its five array arguments were counted in and out
+    of use (atomic reference counts) each time - 17 % of the net's reference counting.
     """
     L1, L2, L3, L6 = arm[0], arm[1], arm[2], arm[3]
     face = np.arctan2(ty, tx)

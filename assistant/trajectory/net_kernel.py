@@ -12,7 +12,7 @@ broad phase leaves candidate pairs go back to Python for FCL (`ASK_FCL`, rare in
 It needs compiled pieces of the robot (position IK, TCP FK, link frames), of the checker
 (covering spheres, pruning) and of the world (leaf flags); `elastic_net` uses it when all
 three provide them (`NetKernelModel`) and the numpy path otherwise. Both give the same
-particles bit for bit (tests/trajectory/test_net_kernel.py runs both).
+particles bit for bit (tests/planning/test_net_kernel.py runs both).
 """
 
 from __future__ import annotations
