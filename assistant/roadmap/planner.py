@@ -316,7 +316,8 @@ class RoadmapPlanner:
         # around the goal only CAD leaves (partly filled; FCL checked their positions), around
         # the start any leaf (the robot is there)
         cad_leaf = w.object_ids().reshape(-1) > 0
-        escape = self._escape_cells(sc) | (self._escape_cells(gc) & cad_leaf)
+        offers = w.has_valid()
+        escape = self._escape_cells(sc, offers) | (self._escape_cells(gc, offers) & cad_leaf)
         free = w.free().reshape(-1) | escape
         free[[sc, gc]] = True
         on_roads = (lab == ROAD) | (lab == s_lab) | (lab == g_lab)
@@ -380,16 +381,18 @@ class RoadmapPlanner:
                            edge_checks=res.edge_checks, rejected_edges=res.rejected_edges,
                            timings=timings)
 
-    def _escape_cells(self, cell: int) -> Array:
-        """Flat mask: cells near `cell` that offer joint positions (occupied or not)."""
+    def _escape_cells(self, cell: int, offers: Array) -> Array:
+        """Flat mask: cells near `cell` that offer joint positions (occupied or not;
+        `offers` is the world's `has_valid` grid)."""
         w = self.world
         r = self.config.terminal_escape
         if r <= 0:
             return np.zeros(w.grid.n_cells, dtype=bool)
-        i, j, k = (int(v) for v in w.grid.ijk_of_flat([cell])[0])
+        _, ny, nz = w.grid.shape
+        i, j, k = cell // (ny * nz), (cell // nz) % ny, cell % nz  # `ijk_of_flat`, as ints
         out = np.zeros(w.grid.shape, dtype=bool)
         out[max(0, i - r):i + r + 1, max(0, j - r):j + r + 1, max(0, k - r):k + r + 1] = True
-        return (out & w.has_valid()).reshape(-1)
+        return (out & offers).reshape(-1)
 
     def _weighted(self, a: Array, b: Array) -> float:
         return float(np.linalg.norm((b - a) * self._weights()))
@@ -429,10 +432,11 @@ class RoadmapPlanner:
         if not robot.limits.contains(q_s) or sc < 0:
             return RoadmapPlan(False, "start outside the joint limits or the world model",
                                PlanFailure.START_INVALID)
-        if not self.checker.is_valid(q_s):
+        start_ok, goal_ok = self.checker.is_valid_batch(np.stack([q_s, q_g]))  # one call
+        if not start_ok:
             return RoadmapPlan(False, f"start posture is in collision{self._why(q_s)}",
                                PlanFailure.START_INVALID)
-        if not self.checker.is_valid(q_g):
+        if not goal_ok:
             return RoadmapPlan(False, f"goal inside an obstacle{self._why(q_g)}",
                                PlanFailure.GOAL_IN_OBSTACLE)
         p = float(w.occupancy().reshape(-1)[gc])
