@@ -509,7 +509,7 @@ class RoadmapPlanner:
             return path
         P = np.array(path)
         seg = np.linalg.norm(np.diff(P[:, ~free] * self.world.weights[~free], axis=0), axis=1)
-        s = np.r_[0.0, np.cumsum(seg)]
+        s = np.concatenate(([0.0], np.cumsum(seg)))  # np.r_ cost ~20 us a call
         s = s / s[-1] if s[-1] > 0 else np.linspace(0.0, 1.0, len(P))
         P[:, free] = P[0, free] + s[:, None] * (P[-1, free] - P[0, free])
         return [p for p in P]
