@@ -99,7 +99,9 @@ class TrajectoryReport:
     #: Smallest arm-obstacle distance along the dense path (m; None without a verifier or
     #: without obstacles) or the measurement that gives it: read it as `min_clearance`.
     clearance: float | None | Callable[[], float | None] = field(compare=False)
-    tcp_length: float  # m, of the executed (dense) TCP path
+    #: Length of the executed (dense) TCP path (m) or the measurement that gives it: read
+    #: it as `tcp_length`.
+    tcp_measure: float | Callable[[], float] = field(compare=False)
     joint_length: float  # rad, sum of joint-space step norms
     primitive_counts: dict[str, int]
     max_deviation: float  # m, nodes to primitives (0 if not from a fit)
@@ -120,6 +122,19 @@ class TrajectoryReport:
         if callable(value):
             value = value()
             object.__setattr__(self, "clearance", value)  # once: the path does not change
+        return value
+
+    @property
+    def tcp_length(self) -> float:
+        """The TCP path length, measured when first read.
+
+        Why on demand, like the clearance: FK of every dense sample (~600 a transfer) is
+        ~1.5 % of a transfer's planning, and no decision reads it - the operator's report
+        and the session file do; a mission reports its joined trajectory's length."""
+        value = self.tcp_measure
+        if callable(value):
+            value = float(value())
+            object.__setattr__(self, "tcp_measure", value)  # once: the path does not change
         return value
 
     def describe(self) -> str:
@@ -324,6 +339,15 @@ def verify(robot: Robot, traj: Trajectory, verifier: PathVerifier | None, *,
     return AssemblyResult(traj, report, traj)
 
 
+def _tcp_length_of(robot: Robot, dense: Array) -> Callable[[], float]:
+    """The report's TCP length measurement (`TrajectoryReport.tcp_length`)."""
+    def measure() -> float:
+        tcp = np.asarray(robot.batch_fk(dense).positions)
+        return float(np.linalg.norm(np.diff(tcp, axis=0), axis=1).sum())
+
+    return measure
+
+
 def _clearance_of(verifier: PathVerifier, dense: Array, step: float,
                   ) -> Callable[[], float | None]:
     """The report's clearance measurement (`TrajectoryReport.min_clearance`)."""
@@ -360,10 +384,10 @@ def _report(robot: Robot, traj: Trajectory | None, fit: PrimitiveFit | None,
             failure: VerificationFailure | None,
             clearance: float | None | Callable[[], float | None], *,
             max_deviation: float | None = None) -> TrajectoryReport:
+    tcp_len: float | Callable[[], float]
     if traj is not None:
         dense = traj.dense_joint_path()
-        tcp = np.asarray(robot.batch_fk(dense).positions)
-        tcp_len = float(np.linalg.norm(np.diff(tcp, axis=0), axis=1).sum())
+        tcp_len = _tcp_length_of(robot, dense)
         joint_len = float(np.linalg.norm(np.diff(dense, axis=0), axis=1).sum())
         counts = traj.primitive_counts()
         n_dense = len(dense)

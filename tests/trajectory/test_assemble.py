@@ -71,6 +71,10 @@ def test_known_trajectory_is_assembled_and_verified(rv2aj, corner):
     assert traj.motions[0].blend_radius == 0.0  # line -> arc is tangent: nothing to blend
     r = res.report
     assert r.primitive_counts == {"linear": 2, "circular": 1}
+    assert callable(r.tcp_measure)  # measured when first read, then kept
+    dense_tcp = np.asarray(rv2aj.batch_fk(traj.dense_joint_path()).positions)
+    assert r.tcp_length == np.linalg.norm(np.diff(dense_tcp, axis=0), axis=1).sum()
+    assert r.tcp_measure == r.tcp_length
     assert r.tcp_length == pytest.approx(fit.length, rel=1e-3)
     assert r.joint_length > 0.5
     tcp = np.asarray(rv2aj.batch_fk(traj.dense_joint_path()).positions)
