@@ -5,13 +5,13 @@ The kernels (`broad_phase`, `segment_box`, `dh`, `rv2aj_fk_batch`, `rv2aj_positi
 `trajectory.fit_search`, `trajectory.net_forces`, `trajectory.net_kernel`,
 `trajectory.net_sweep`, `trajectory.net_stage`, `trajectory.follow_kernel`,
 `roadmap.brushfire`, `roadmap.voronoi_update`, `roadmap.graph_kernel`,
-`roadmap.astar_kernel`, `roadmap.grid_ops`, `world.leaf_lookup`, `shape_poses`) compile on
-their first call and cache the result on disk; only the first run after an install pays,
-~50 s for all of them on this 2-core machine. `cellteach serve` runs `warm_up` in a
-background thread at start, so that first run does not stall the operator's first world
-build or plan (a compile reports no progress); `cellteach run` and the tests call it before
-anything else, so no compile happens inside a robot link's exchange, where seconds look like
-a lost link.
+`roadmap.astar_kernel`, `roadmap.grid_ops`, `world.leaf_lookup`, `shape_poses`,
+`trajectory.densify_kernel`) compile on their first call and cache the result on disk;
+only the first run after an install pays, ~50 s for all of them on this 2-core machine.
+`cellteach serve` runs `warm_up` in a background thread at start, so that first run does
+not stall the operator's first world build or plan (a compile reports no progress);
+`cellteach run` and the tests call it before anything else, so no compile happens inside a
+robot link's exchange, where seconds look like a lost link.
 """
 
 from __future__ import annotations
@@ -51,6 +51,7 @@ from assistant.rv2aj_pose_batch import _candidates
 from assistant.rv2aj_position_ik import planar_position_ik
 from assistant.segment_box import segment_box_distance_one
 from assistant.shape_poses import shape_poses
+from assistant.trajectory.densify_kernel import densify_rows
 from assistant.trajectory.fit_kernels import (
     arc_distances,
     circle_through_kernel,
@@ -76,7 +77,7 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            motion_marks, rows_inside, rows_before_first_bad, valid_before_first_bad,
            sweep_moves, halve_retries, repin, expand, weighted_distances,
            connected26, successor_costs, search, fit_rows, run_sweeps, select_nodes,
-           shape_poses, terminal_round)
+           shape_poses, terminal_round, densify_rows)
 
 
 def warm_up() -> float:

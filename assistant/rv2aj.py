@@ -178,12 +178,17 @@ class RV2AJ(Robot):
     def batch_fk(self, Q: Array, dtype: type = np.float64) -> BatchPoses:
         """TCP poses of many configurations (closed form, `rv2aj_fk_batch`); float64 inside,
         returned as `dtype`."""
-        BP, BM, BK, v = self._batch_consts
-        pos, rot = tcp_poses(np.ascontiguousarray(Q, dtype=float), _ARM, BP, BM, BK,
-                             np.zeros(3) if v is None else v, v is not None)
+        pos, rot = tcp_poses(np.ascontiguousarray(Q, dtype=float), *self.tcp_kernel_constants)
         if np.dtype(dtype) != np.float64:
             pos, rot = pos.astype(dtype), rot.astype(dtype)
         return BatchPoses(pos, rot)
+
+    @functools.cached_property
+    def tcp_kernel_constants(self) -> tuple[Array, Array, Array, Array, Array, bool]:
+        """(arm, BP, BM, BK, v, tool offset?): what the compiled TCP FK (`rv2aj_fk_batch`)
+        takes besides the joints; compiled planners call it per row."""
+        BP, BM, BK, v = self._batch_consts
+        return (_ARM, BP, BM, BK, np.zeros(3) if v is None else v, v is not None)
 
     @functools.cached_property
     def _tcp_on_flange_axis(self) -> bool:

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from assistant.robot_model import Robot
+from assistant.trajectory.densify_kernel import densify_rows
 
 Array = np.ndarray
 
@@ -64,8 +65,21 @@ def densify_joint_path(robot: Robot, joint_path: Sequence[Array] | Array, max_tc
     Q = np.atleast_2d(np.asarray(joint_path, dtype=float))
     if len(Q) < 2:
         raise ValueError("a joint path needs at least two configurations")
+    consts = getattr(robot, "tcp_kernel_constants", None)  # the RV-2AJ's compiled FK
+    if consts is not None and np.isfinite(Q).all():
+        return densify_rows(np.ascontiguousarray(Q), float(max_tcp_step), _PASSES, *consts)
+    return _densify_numpy(robot, Q, max_tcp_step)
+
+
+#: Subdivision passes (bounded: each pass at least halves the longest chord).
+_PASSES = 6
+
+
+def _densify_numpy(robot: Robot, Q: Array, max_tcp_step: float) -> tuple[Array, Array]:
+    """`densify_joint_path` for any robot (`densify_kernel.densify_rows` gives the same
+    rows to the bit for the RV-2AJ)."""
     P = robot.batch_fk(Q).positions
-    for _ in range(6):  # bounded: each pass at least halves the longest chord
+    for _ in range(_PASSES):
         chord = np.linalg.norm(np.diff(P, axis=0), axis=1)
         if chord.max(initial=0.0) <= max_tcp_step:
             break

@@ -35,6 +35,34 @@ def test_densified_path_has_short_chords_and_keeps_the_configurations(rv2aj, coa
         assert np.min(np.linalg.norm(Q - q, axis=1)) < 1e-12
 
 
+@pytest.mark.parametrize("offset", [False, True])
+def test_compiled_densify_gives_the_numpy_rows_to_the_bit(offset, monkeypatch):
+    """The RV-2AJ's compiled subdivision (`densify_kernel`) against the numpy form on
+    random joint paths: done in one pass or several, or still long when the passes run
+    out (one pass allowed); a tool with and without an offset from the flange axis."""
+    import assistant.trajectory.particles as particles
+    from assistant.robot_model import Tool
+    from assistant.rv2aj import RV2AJ, RV2AJConfig
+
+    T = np.eye(4)
+    T[:3, 3] = [0.03, 0.0, 0.08]
+    robot = RV2AJ(RV2AJConfig(tool=Tool("offset", T) if offset else Tool.straight(0.1)))
+    rng = np.random.default_rng(3)
+    lo, hi = robot.limits.lower, robot.limits.upper
+    ends = set()
+    for passes in (1, particles._PASSES):
+        monkeypatch.setattr(particles, "_PASSES", passes)
+        for n in (2, 3, 5, 9):
+            for step in (0.001, 0.005, 0.05):
+                Q = rng.uniform(lo, hi, (n, 5))
+                got_q, got_p = densify_joint_path(robot, Q, step)
+                ref_q, ref_p = particles._densify_numpy(robot, Q, step)
+                assert np.array_equal(got_q, ref_q) and np.array_equal(got_p, ref_p)
+                long = np.linalg.norm(np.diff(got_p, axis=0), axis=1).max() > step
+                ends.add((passes, long))
+    assert {(1, True), (6, False)} <= ends
+
+
 def test_small_moves_are_solved_next_to_the_seeds(rv2aj, coarse_path, rng):
     parts = resample_joint_path(rv2aj, coarse_path, 0.02)
     ik = BatchPositionIK(rv2aj)
