@@ -304,8 +304,10 @@ def verify(robot: Robot, traj: Trajectory, verifier: PathVerifier | None, *,
     (`PathVerifier.check_path`'s `trusted`), the rest of the path is, and the result is the
     same."""
     paths = [_motion_path(traj, i) for i in range(len(traj.motions))]
-    # Joint limits first: a clearer message than a collision report.
-    for i, Q in enumerate(paths):
+    # Joint limits first: a clearer message than a collision report. One test of every
+    # row; motion by motion only to name the first offender.
+    inside_all = not paths or bool(robot.limits.contains_batch(np.concatenate(paths)).all())
+    for i, Q in enumerate(() if inside_all else paths):
         inside = robot.limits.contains_batch(Q)
         if not inside.all():
             j = int(np.argmin(inside))
@@ -335,7 +337,7 @@ def verify(robot: Robot, traj: Trajectory, verifier: PathVerifier | None, *,
     clearance = (_clearance_of(verifier, dense, clearance_step)
                  if verifier is not None else None)
     report = _report(robot, traj, None, fallbacks, True, "", None, clearance,
-                     max_deviation=max_deviation)
+                     max_deviation=max_deviation, dense=dense)
     return AssemblyResult(traj, report, traj)
 
 
@@ -383,10 +385,12 @@ def _report(robot: Robot, traj: Trajectory | None, fit: PrimitiveFit | None,
             fallbacks: Sequence[str], ok: bool, reason: str,
             failure: VerificationFailure | None,
             clearance: float | None | Callable[[], float | None], *,
-            max_deviation: float | None = None) -> TrajectoryReport:
+            max_deviation: float | None = None, dense: Array | None = None,
+            ) -> TrajectoryReport:
+    """The report of `traj` (`dense`: its dense joint path, if the caller has it)."""
     tcp_len: float | Callable[[], float]
     if traj is not None:
-        dense = traj.dense_joint_path()
+        dense = traj.dense_joint_path() if dense is None else dense
         tcp_len = _tcp_length_of(robot, dense)
         joint_len = float(np.linalg.norm(np.diff(dense, axis=0), axis=1).sum())
         counts = traj.primitive_counts()
