@@ -47,6 +47,16 @@ def _reference(D, T, L, S, reach, R):
         d += 1
 
 
+def _assert_same_as_reference(base, src, reach, region) -> None:
+    """The compiled brushfire and the numpy reference recompute `region` of `base` alike."""
+    ref = [base.dist.copy(), base.tent.copy(), base.label.copy()]
+    out = [base.dist.copy(), base.tent.copy(), base.label.copy()]
+    _reference(*ref, src, reach, region)
+    brushfire_region(*out, src, reach, region)
+    for a, b in zip(out, ref, strict=True):
+        assert np.array_equal(a, b)
+
+
 def _grid(rng, density: tuple[float, float] = (0.01, 0.2)):
     shape = tuple(int(v) for v in rng.integers(1, 14, 3))
     n_labels = int(rng.integers(1, 6))
@@ -67,12 +77,7 @@ def test_brushfire_equals_numpy_reference(seed: int) -> None:
     other = np.where(rng.random(src.shape) < 0.1, rng.integers(1, 4, src.shape), src)
     base = build_voronoi(other.astype(np.int32), reach)
     for region in (np.ones(src.shape, bool), rng.random(src.shape) < rng.uniform(0.2, 0.9)):
-        ref = [base.dist.copy(), base.tent.copy(), base.label.copy()]
-        out = [base.dist.copy(), base.tent.copy(), base.label.copy()]
-        _reference(*ref, src, reach, region)
-        brushfire_region(*out, src, reach, region)
-        for a, b in zip(out, ref, strict=True):
-            assert np.array_equal(a, b)
+        _assert_same_as_reference(base, src, reach, region)
 
 
 def test_even_gap_and_unreachable_roads_are_exercised() -> None:
@@ -97,9 +102,4 @@ def test_distances_past_the_counted_range_equal_the_reference() -> None:
                          reach)
     assert base.dist.max() > 70
     for region in (np.ones(shape, bool), np.arange(150)[:, None, None] > np.full(shape, 90)):
-        ref = [base.dist.copy(), base.tent.copy(), base.label.copy()]
-        out = [base.dist.copy(), base.tent.copy(), base.label.copy()]
-        _reference(*ref, src, reach, region)
-        brushfire_region(*out, src, reach, region)
-        for a, b in zip(out, ref, strict=True):
-            assert np.array_equal(a, b)
+        _assert_same_as_reference(base, src, reach, region)
