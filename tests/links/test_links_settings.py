@@ -66,9 +66,16 @@ def test_links_built_from_settings_drive_the_emulators(fast_robot, closing):
     ("assistant.links.emulators.melfa_emulator", ["--port", "0", "--datalink-port", "0"]),
     ("assistant.links.emulators.kuka_bridge_emulator", ["--port", "0"]),
 ])
-def test_emulators_run_as_scripts(rv2aj, module, args):
+@pytest.mark.parametrize("sigint_ignored", [False, True])
+def test_emulators_run_as_scripts(rv2aj, module, args, sigint_ignored):
+    """Started, answering, and stopped cleanly by Ctrl-C - also when started the way a
+    background job of a non-interactive shell is (SIGINT inherited as ignored)."""
+    def ignore_sigint() -> None:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
     proc = subprocess.Popen([sys.executable, "-m", module, *args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True)
+                            stderr=subprocess.PIPE, text=True,
+                            preexec_fn=ignore_sigint if sigint_ignored else None)
     try:
         line = proc.stdout.readline()
         ports = [int(p) for p in re.findall(r":(\d+)", line)]

@@ -34,6 +34,7 @@ from assistant.links.emulators.arm import EmulatedArm, solve_wire_pose
 from assistant.links.emulators.cartesian import arc_poses, line_poses
 from assistant.links.emulators.faults import Faults, Received
 from assistant.links.emulators.krl_program import KrlError, KrlMotion, parse_dat, parse_motions
+from assistant.links.emulators.until_stopped import wait_until_stopped
 from assistant.robot_model import Robot
 
 Array = np.ndarray
@@ -349,11 +350,7 @@ def main(argv: list[str] | None = None) -> None:
     with emu:
         print(f"KUKA bridge emulator on http://{args.host}:{emu.port}/krl/; Ctrl-C to stop",
               flush=True)
-        try:
-            while True:
-                time.sleep(1.0)
-        except KeyboardInterrupt:
-            pass
+        wait_until_stopped()
 
 
 if __name__ == "__main__":

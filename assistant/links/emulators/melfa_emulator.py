@@ -38,6 +38,7 @@ from assistant.links.emulators.melfa_program import (
     ProgramError,
     ProgramSyntaxError,
 )
+from assistant.links.emulators.until_stopped import wait_until_stopped
 from assistant.links.melfa_protocol import DState, MelfaPose
 from assistant.robot_model import Robot
 
@@ -667,11 +668,7 @@ def main(argv: list[str] | None = None) -> None:
     with emu:
         print(f"MELFA emulator: commands on {args.host}:{emu.port}, COM2: data link on "
               f"{args.host}:{emu.datalink_port()}; Ctrl-C to stop", flush=True)
-        try:
-            while True:
-                time.sleep(1.0)
-        except KeyboardInterrupt:
-            pass
+        wait_until_stopped()
 
 
 if __name__ == "__main__":
