@@ -55,6 +55,10 @@ def polyline_length(points: Array) -> float:
     return float(row_norms(np.diff(points, axis=0)).sum())
 
 
+#: Subdivision passes (bounded: each pass at least halves the longest chord).
+_PASSES = 6
+
+
 def densify_joint_path(robot: Robot, joint_path: Sequence[Array] | Array, max_tcp_step: float,
                        ) -> tuple[Array, Array]:
     """Subdivide a joint path linearly until no TCP chord exceeds `max_tcp_step`.
@@ -69,10 +73,6 @@ def densify_joint_path(robot: Robot, joint_path: Sequence[Array] | Array, max_tc
     if consts is not None and np.isfinite(Q).all():
         return densify_rows(np.ascontiguousarray(Q), float(max_tcp_step), _PASSES, *consts)
     return _densify_numpy(robot, Q, max_tcp_step)
-
-
-#: Subdivision passes (bounded: each pass at least halves the longest chord).
-_PASSES = 6
 
 
 def _densify_numpy(robot: Robot, Q: Array, max_tcp_step: float) -> tuple[Array, Array]:
