@@ -27,6 +27,7 @@ from numba import njit
 Array = np.ndarray
 
 _JIT = {"cache": True, "error_model": "numpy"}
+_INLINE = {**_JIT, "inline": "always"}
 
 
 @njit(**_JIT)
@@ -50,8 +51,40 @@ def _unit(v: Array) -> Array:
 
 
 @njit(**_JIT)
+def _unit3(v0: float, v1: float, v2: float) -> tuple[float, float, float]:
+    """`_unit` of (v0, v1, v2), as scalars."""
+    n = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    if n > 1e-15:
+        return v0 / n, v1 / n, v2 / n
+    return v0 * 0.0, v1 * 0.0, v2 * 0.0
+
+
+@njit(**_JIT)
+def _put_guess(O: Array, t0: Array, w0: float, w1: float, w2: float, c: Array,
+               n: Array) -> None:
+    """A tangent circle guess: centre O + w into c, normal _unit(t0 x w) into n."""
+    c[0], c[1], c[2] = O[0] + w0, O[1] + w1, O[2] + w2
+    n[0], n[1], n[2] = _unit3(t0[1] * w2 - t0[2] * w1, t0[2] * w0 - t0[0] * w2,
+                              t0[0] * w1 - t0[1] * w0)
+
+
+@njit(**_JIT)
 def _rotate_radius(r0: Array, normal: Array, angle: float) -> Array:
     return math.cos(angle) * r0 + math.sin(angle) * _cross(normal, r0)
+
+
+@njit(**_JIT)
+def put_on_arc(centre: Array, r0: Array, normal: Array, angle: float, out: Array,
+               at: int) -> None:
+    """centre + `_rotate_radius`(r0, normal, angle) into out[at:at + 3], as scalars (the
+    same operations; no array per intermediate)."""
+    c, s = math.cos(angle), math.sin(angle)
+    x0 = normal[1] * r0[2] - normal[2] * r0[1]
+    x1 = normal[2] * r0[0] - normal[0] * r0[2]
+    x2 = normal[0] * r0[1] - normal[1] * r0[0]
+    out[at] = centre[0] + (c * r0[0] + s * x0)
+    out[at + 1] = centre[1] + (c * r0[1] + s * x1)
+    out[at + 2] = centre[2] + (c * r0[2] + s * x2)
 
 
 @njit(**_JIT)
@@ -140,17 +173,39 @@ def line_distances(start: Array, end: Array, points: Array) -> Array:
     """Distance of each point (m, 3) to the segment start-end. Scalars, not 3-vectors, per
     point: the fitter asks this ~80 times a transfer, and an array per intermediate was an
     allocation each (the same operations in the same order, so the same bits)."""
-    d0, d1, d2 = end[0] - start[0], end[1] - start[1], end[2] - start[2]
-    L2 = d0 * d0 + d1 * d1 + d2 * d2
+    s0, s1, s2 = start[0], start[1], start[2]
+    d0, d1, d2 = end[0] - s0, end[1] - s1, end[2] - s2
     out = np.empty(len(points))
     for i in range(len(points)):
-        x0, x1, x2 = points[i, 0] - start[0], points[i, 1] - start[1], points[i, 2] - start[2]
-        s = 0.0
-        if L2 > 0.0:
-            s = min(max((x0 * d0 + x1 * d1 + x2 * d2) / L2, 0.0), 1.0)
-        r0, r1, r2 = x0 - s * d0, x1 - s * d1, x2 - s * d2
-        out[i] = math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+        out[i] = _line_point(points[i, 0] - s0, points[i, 1] - s1, points[i, 2] - s2,
+                             d0, d1, d2)
     return out
+
+
+@njit(**_JIT)
+def line_deviation(start: Array, end: Array, points: Array) -> float:
+    """`_max_or_nan(line_distances(...))` without the array of distances."""
+    s0, s1, s2 = start[0], start[1], start[2]
+    d0, d1, d2 = end[0] - s0, end[1] - s1, end[2] - s2
+    worst = -np.inf
+    for i in range(len(points)):
+        d = _line_point(points[i, 0] - s0, points[i, 1] - s1, points[i, 2] - s2, d0, d1, d2)
+        if d != d:
+            return np.nan
+        worst = max(worst, d)
+    return worst
+
+
+@njit(**_INLINE)
+def _line_point(x0: float, x1: float, x2: float, d0: float, d1: float, d2: float) -> float:
+    """Distance of start + x to the segment start -> start + d. Scalar arguments only: an
+    array handed to a helper per point costs reference counts, even inlined."""
+    L2 = d0 * d0 + d1 * d1 + d2 * d2
+    s = 0.0
+    if L2 > 0.0:
+        s = min(max((x0 * d0 + x1 * d1 + x2 * d2) / L2, 0.0), 1.0)
+    r0, r1, r2 = x0 - s * d0, x1 - s * d1, x2 - s * d2
+    return math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
 
 
 @njit(**_JIT)
@@ -159,29 +214,46 @@ def arc_distances(start: Array, end: Array, centre: Array, radius: float, normal
     """Distance of each point (m, 3) to the arc (not the full circle): to the circle where
     the point's angle about the normal lies within the sweep, else to the nearer end.
     Scalars per point, as `line_distances`."""
-    r0 = start - centre
-    y_axis = _cross(normal, r0)
-    n0, n1, n2 = normal[0], normal[1], normal[2]
     out = np.empty(len(points))
     for i in range(len(points)):
-        x0, x1, x2 = (points[i, 0] - centre[0], points[i, 1] - centre[1],
-                      points[i, 2] - centre[2])
-        h = x0 * n0 + x1 * n1 + x2 * n2
-        v0, v1, v2 = x0 - h * n0, x1 - h * n1, x2 - h * n2
-        rho = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
-        phi = math.atan2(v0 * y_axis[0] + v1 * y_axis[1] + v2 * y_axis[2],
-                         v0 * r0[0] + v1 * r0[1] + v2 * r0[2])
-        if phi < 0.0:
-            phi += 2.0 * math.pi
-        if phi <= sweep + 1e-12:
-            out[i] = math.sqrt(h * h + (rho - radius) ** 2)
-        else:
-            s0, s1, s2 = (points[i, 0] - start[0], points[i, 1] - start[1],
-                          points[i, 2] - start[2])
-            e0, e1, e2 = points[i, 0] - end[0], points[i, 1] - end[1], points[i, 2] - end[2]
-            out[i] = min(math.sqrt(s0 * s0 + s1 * s1 + s2 * s2),
-                         math.sqrt(e0 * e0 + e1 * e1 + e2 * e2))
+        out[i] = _arc_point(points[i, 0], points[i, 1], points[i, 2], start, end, centre,
+                            radius, normal, sweep)
     return out
+
+
+@njit(**_JIT)
+def arc_deviation(start: Array, end: Array, centre: Array, radius: float, normal: Array,
+                  sweep: float, points: Array) -> float:
+    """`_max_or_nan(arc_distances(...))` without the array of distances."""
+    worst = -np.inf
+    for i in range(len(points)):
+        d = _arc_point(points[i, 0], points[i, 1], points[i, 2], start, end, centre, radius,
+                       normal, sweep)
+        if d != d:
+            return np.nan
+        worst = max(worst, d)
+    return worst
+
+
+@njit(**_JIT)
+def _arc_point(p0: float, p1: float, p2: float, start: Array, end: Array, centre: Array,
+               radius: float, normal: Array, sweep: float) -> float:
+    """Distance of the point p to the arc."""
+    n0, n1, n2 = normal[0], normal[1], normal[2]
+    r00, r01, r02 = start[0] - centre[0], start[1] - centre[1], start[2] - centre[2]
+    y0, y1, y2 = n1 * r02 - n2 * r01, n2 * r00 - n0 * r02, n0 * r01 - n1 * r00  # n x r0
+    x0, x1, x2 = p0 - centre[0], p1 - centre[1], p2 - centre[2]
+    h = x0 * n0 + x1 * n1 + x2 * n2
+    v0, v1, v2 = x0 - h * n0, x1 - h * n1, x2 - h * n2
+    rho = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+    phi = math.atan2(v0 * y0 + v1 * y1 + v2 * y2, v0 * r00 + v1 * r01 + v2 * r02)
+    if phi < 0.0:
+        phi += 2.0 * math.pi
+    if phi <= sweep + 1e-12:
+        return math.sqrt(h * h + (rho - radius) ** 2)
+    s0, s1, s2 = p0 - start[0], p1 - start[1], p2 - start[2]
+    e0, e1, e2 = p0 - end[0], p1 - end[1], p2 - end[2]
+    return min(math.sqrt(s0 * s0 + s1 * s1 + s2 * s2), math.sqrt(e0 * e0 + e1 * e1 + e2 * e2))
 
 
 @njit(**_JIT)
@@ -246,7 +318,7 @@ def fit_line(O: Array, t0: Array, has_t0: bool, pts: Array, tol: float, slack: f
         if back:
             continue
         end = O + proj[m - 1] * d
-        if _max_or_nan(line_distances(O, end, pts)) <= tol:
+        if line_deviation(O, end, pts) <= tol:
             return True, end
     return False, np.zeros(3)
 
@@ -296,15 +368,21 @@ def _tangent_candidates(O: Array, t0: Array, X: Array, C: Array, N: Array, k: in
     is the least-variance direction of the nodes across t0 (and the one through the last
     node), the least-squares curvature and the exact circle through the last node."""
     m = len(X)
-    helper = np.array([1.0, 0.0, 0.0]) if abs(t0[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    b1 = _unit(_cross(t0, helper))
-    b2 = _cross(t0, b1)
+    # Scalars throughout (the same operations in the same order as the vector forms
+    # `_unit(_cross(t0, helper))` etc.): the fitter asks this for every tangent arc guess,
+    # and a small array per intermediate was an allocation and reference counts each.
+    h0, h1, h2 = (1.0, 0.0, 0.0) if abs(t0[0]) < 0.9 else (0.0, 1.0, 0.0)
+    t_0, t_1, t_2 = t0[0], t0[1], t0[2]
+    b10, b11, b12 = _unit3(t_1 * h2 - t_2 * h1, t_2 * h0 - t_0 * h2, t_0 * h1 - t_1 * h0)
+    b20, b21, b22 = t_1 * b12 - t_2 * b11, t_2 * b10 - t_0 * b12, t_0 * b11 - t_1 * b10
     Y = np.empty((m, 2))
     r2 = np.empty(m)
     syy0 = syy1 = sy01 = 0.0
     for i in range(m):
-        Y[i, 0], Y[i, 1] = _dot(X[i], b1), _dot(X[i], b2)
-        r2[i] = _dot(X[i], X[i])
+        x0, x1, x2 = X[i, 0], X[i, 1], X[i, 2]
+        Y[i, 0] = x0 * b10 + x1 * b11 + x2 * b12
+        Y[i, 1] = x0 * b20 + x1 * b21 + x2 * b22
+        r2[i] = x0 * x0 + x1 * x1 + x2 * x2
         syy0 += Y[i, 0] * Y[i, 0]
         sy01 += Y[i, 0] * Y[i, 1]
         syy1 += Y[i, 1] * Y[i, 1]
@@ -320,19 +398,21 @@ def _tangent_candidates(O: Array, t0: Array, X: Array, C: Array, N: Array, k: in
             mc0, mc1 = Y[m - 1, 0] / ylen, Y[m - 1, 1] / ylen
         else:
             continue
-        mv = mc0 * b1 + mc1 * b2  # in-plane normal to t0
+        # in-plane normal to t0
+        mv0, mv1, mv2 = mc0 * b10 + mc1 * b20, mc0 * b11 + mc1 * b21, mc0 * b12 + mc1 * b22
         s = 0.0
         for i in range(m):
-            s += _dot(X[i], mv) * r2[i]
+            s += (X[i, 0] * mv0 + X[i, 1] * mv1 + X[i, 2] * mv2) * r2[i]
         kappa = 2.0 * s / denom if denom > 0.0 else 0.0
         if abs(kappa) < 1e-9:
             continue
-        C[k], N[k] = O + mv / kappa, _unit(_cross(t0, mv / kappa))
+        _put_guess(O, t0, mv0 / kappa, mv1 / kappa, mv2 / kappa, C[k], N[k])
         k += 1
-        xl, rl = _dot(X[m - 1], mv), _dot(X[m - 1], X[m - 1])
+        xl = X[m - 1, 0] * mv0 + X[m - 1, 1] * mv1 + X[m - 1, 2] * mv2
+        rl = X[m - 1, 0] * X[m - 1, 0] + X[m - 1, 1] * X[m - 1, 1] + X[m - 1, 2] * X[m - 1, 2]
         if abs(xl) > 1e-12:
             k2 = 2.0 * xl / rl
-            C[k], N[k] = O + mv / k2, _unit(_cross(t0, mv / k2))
+            _put_guess(O, t0, mv0 / k2, mv1 / k2, mv2 / k2, C[k], N[k])
             k += 1
     return k
 
@@ -403,8 +483,10 @@ def _arc_from(O: Array, centre: Array, normal: Array, pts: Array, t0: Array, has
         normal = -normal
         phi = -phi
     if has_t0:
-        t_start = _unit(_cross(normal, r0))
-        if _dot(t_start, t0) < math.cos(slack) - 1e-12:
+        s0, s1, s2 = _unit3(normal[1] * r0[2] - normal[2] * r0[1],
+                            normal[2] * r0[0] - normal[0] * r0[2],
+                            normal[0] * r0[1] - normal[1] * r0[0])  # the start tangent
+        if s0 * t0[0] + s1 * t0[1] + s2 * t0[2] < math.cos(slack) - 1e-12:
             return -1.0
     step_back = tol / radius
     for i in range(m - 1):
@@ -413,12 +495,12 @@ def _arc_from(O: Array, centre: Array, normal: Array, pts: Array, t0: Array, has
     sweep = phi[m - 1]
     if sweep > max_sweep or not sweep > 0.0:
         return -1.0
-    end = centre + _rotate_radius(r0, normal, sweep)
-    via = centre + _rotate_radius(r0, normal, sweep / 2.0)
-    dev = _max_or_nan(arc_distances(O, end, centre, radius, normal, sweep, pts))
+    put_on_arc(centre, r0, normal, sweep / 2.0, out, 3)  # via
+    put_on_arc(centre, r0, normal, sweep, out, 6)  # end
+    dev = arc_deviation(O, out[6:9], centre, radius, normal, sweep, pts)
     if not dev <= tol:
         return -1.0
-    out[0:3], out[3:6], out[6:9] = normal, via, end
+    out[0:3] = normal
     out[9], out[10] = radius, sweep
     return dev
 

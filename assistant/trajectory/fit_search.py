@@ -24,15 +24,13 @@ import numpy as np
 from numba import njit
 
 from assistant.trajectory.fit_kernels import (
-    _cross,
     _dot,
-    _max_or_nan,
-    _rotate_radius,
-    _unit,
-    arc_distances,
+    _unit3,
+    arc_deviation,
     fit_arc,
     fit_line,
-    line_distances,
+    line_deviation,
+    put_on_arc,
 )
 
 Array = np.ndarray
@@ -79,22 +77,29 @@ def _arc(O: Array, r: Array, s: int, e: int) -> Array:
 
 @njit(**_JIT)
 def _tangent_end(p: Array) -> Array:
+    """Unit direction of the primitive at its end: as scalars into one array (the same
+    operations as `d / max(|d|, 1e-15)` for a line, `_unit(normal x (end - centre))` for an
+    arc, without an array per intermediate)."""
+    t = np.empty(3)
     if p[_KIND] == LINE:
-        d = p[_END:_END + 3] - p[_START:_START + 3]
-        return d / max(math.sqrt(_dot(d, d)), 1e-15)
-    return _unit(_cross(p[_NORMAL:_NORMAL + 3], p[_END:_END + 3] - p[_CENTRE:_CENTRE + 3]))
+        d0, d1, d2 = p[_END] - p[_START], p[_END + 1] - p[_START + 1], p[_END + 2] - p[_START + 2]
+        n = max(math.sqrt(d0 * d0 + d1 * d1 + d2 * d2), 1e-15)
+        t[0], t[1], t[2] = d0 / n, d1 / n, d2 / n
+        return t
+    n0, n1, n2 = p[_NORMAL], p[_NORMAL + 1], p[_NORMAL + 2]
+    v0, v1, v2 = (p[_END] - p[_CENTRE], p[_END + 1] - p[_CENTRE + 1],
+                  p[_END + 2] - p[_CENTRE + 2])
+    t[0], t[1], t[2] = _unit3(n1 * v2 - n2 * v1, n2 * v0 - n0 * v2, n0 * v1 - n1 * v0)
+    return t
 
 
 @njit(**_JIT)
 def _max_distance(p: Array, pts: Array) -> float:
     """Largest distance of the points to the primitive; NaN if any is (as numpy's max)."""
     if p[_KIND] == LINE:
-        d = line_distances(p[_START:_START + 3].copy(), p[_END:_END + 3].copy(), pts)
-    else:
-        d = arc_distances(p[_START:_START + 3].copy(), p[_END:_END + 3].copy(),
-                          p[_CENTRE:_CENTRE + 3].copy(), p[_RADIUS],
-                          p[_NORMAL:_NORMAL + 3].copy(), p[_SWEEP], pts)
-    return _max_or_nan(d)
+        return line_deviation(p[_START:_START + 3], p[_END:_END + 3], pts)
+    return arc_deviation(p[_START:_START + 3], p[_END:_END + 3], p[_CENTRE:_CENTRE + 3],
+                         p[_RADIUS], p[_NORMAL:_NORMAL + 3], p[_SWEEP], pts)
 
 
 @njit(**_JIT)
@@ -115,8 +120,8 @@ def _shift_end(p: Array, delta: float) -> tuple[bool, Array]:
     centre, normal = p[_CENTRE:_CENTRE + 3], p[_NORMAL:_NORMAL + 3]
     r0 = start - centre
     q = p.copy()
-    q[_VIA:_VIA + 3] = centre + _rotate_radius(r0, normal, sweep / 2)
-    q[_END:_END + 3] = centre + _rotate_radius(r0, normal, sweep)
+    put_on_arc(centre, r0, normal, sweep / 2, q, _VIA)
+    put_on_arc(centre, r0, normal, sweep, q, _END)
     q[_SWEEP] = sweep
     return True, q
 

@@ -12,10 +12,15 @@ import pytest
 
 from assistant.trajectory.fit_kernels import (
     _gram,
+    _max_or_nan,
+    _rotate_radius,
+    arc_deviation,
     arc_distances,
     fit_arc,
     fit_line,
+    line_deviation,
     line_distances,
+    put_on_arc,
     sym2_major,
     sym3_eigvec,
 )
@@ -264,6 +269,32 @@ def test_distances_equal_numpy_reference() -> None:
         assert np.allclose(arc_distances(start, end, centre, radius, normal, sweep, P),
                            _ref_arc_dist(start, end, centre, radius, normal, sweep, P),
                            atol=1e-12)
+
+
+def test_deviations_and_arc_points_equal_their_array_forms_to_the_bit() -> None:
+    """The fitter's allocation-free forms: `line_deviation`/`arc_deviation` are the largest
+    distance (NaN if any distance is NaN, as `_max_or_nan`), `put_on_arc` is
+    centre + `_rotate_radius` - the same bits, so the fitted primitives cannot change."""
+    rng = np.random.default_rng(9)
+    for t in range(300):
+        P = rng.uniform(-1, 1, (int(rng.integers(1, 30)), 3))
+        if t % 10 == 0:
+            P[int(rng.integers(len(P)))] = np.nan
+        a, b, centre = rng.uniform(-1, 1, (3, 3))
+        normal = _unit(rng.normal(size=3))
+        r0 = _unit(np.cross(normal, rng.normal(size=3))) * rng.uniform(0.01, 1.0)
+        sweep = rng.uniform(0.1, 6.0)
+        radius = float(np.linalg.norm(r0))
+        for got, want in ((line_deviation(a, b, P), _max_or_nan(line_distances(a, b, P))),
+                          (arc_deviation(centre + r0, b, centre, radius, normal, sweep, P),
+                           _max_or_nan(arc_distances(centre + r0, b, centre, radius, normal,
+                                                     sweep, P)))):
+            assert got == want or (np.isnan(got) and np.isnan(want))
+        assert np.isnan(line_deviation(a, b, P)) == (t % 10 == 0)
+        out = np.full(7, -1.0)
+        put_on_arc(centre, r0, normal, sweep, out, 2)
+        assert np.array_equal(out[2:5], centre + _rotate_radius(r0, normal, sweep))
+        assert (out[[0, 1, 5, 6]] == -1.0).all()
 
 
 def test_gram_eigenvectors_equal_the_singular_vectors() -> None:
