@@ -251,11 +251,17 @@ def certify_samples(frames: Array, ready: Array, F: Array, Q: Array, inside: Arr
         if first[k]:
             start = k
         coarse[k] = (k - start) % stride == 0 or last[k]
+    # Rows are posed in passes of their own, before their broad phase: with the DH chain's
+    # arithmetic in the same loop, numba's reference-count pruning left the 13 array
+    # arguments of the inlined broad phase counted in and out per row (LLVM IR; a third of
+    # this pass's time went to those atomic counts).
+    for k in range(n):
+        if inside[k] and coarse[k]:
+            _pose(frames, ready, Q, F, k, T)
     for k in range(n):
         if not inside[k]:
             status[k] = OUTSIDE_LIMITS
         elif coarse[k]:
-            _pose(frames, ready, Q, F, k, T)
             margin[k] = _broad_row(frames, k, sph_link, sph_local, sph_r, sph_shape, env_lo,
                                    env_hi, sp_a, sp_b, sp_pair, centre, env_c, self_c)
             status[k] = _prune_and_flag(frames, k, env_c, self_c, shape_link, seg_a, seg_b,
@@ -268,6 +274,7 @@ def certify_samples(frames: Array, ready: Array, F: Array, Q: Array, inside: Arr
         if coarse[k]:
             prev = k
     prev = -1
+    todo = np.zeros(n, dtype=np.bool_)  # rows no checked neighbour's margin certifies
     for k in range(n):
         if coarse[k]:
             prev = k
@@ -284,8 +291,14 @@ def certify_samples(frames: Array, ready: Array, F: Array, Q: Array, inside: Arr
                 break
         if free:
             status[k] = CERTIFIED
+        else:
+            todo[k] = True
+    for k in range(n):
+        if todo[k]:
+            _pose(frames, ready, Q, F, k, T)
+    for k in range(n):
+        if not todo[k]:
             continue
-        _pose(frames, ready, Q, F, k, T)
         _broad_row(frames, k, sph_link, sph_local, sph_r, sph_shape, env_lo, env_hi, sp_a,
                    sp_b, sp_pair, centre, env_c, self_c)
         status[k] = _prune_and_flag(frames, k, env_c, self_c, shape_link, seg_a, seg_b, seg_r,

@@ -101,6 +101,7 @@ def check_moves(P: Array, Q: Array, idx: Array, D: Array, trial: Array, grid_ori
     pos = np.empty(3)
     rot = np.empty((3, 3))
     certified = 0
+    broad = np.zeros(m, dtype=np.bool_)  # moves for the broad phase
     for i in range(m):
         k = idx[i]
         x, y, z = P[k, 0] + D[i, 0], P[k, 1] + D[i, 1], P[k, 2] + D[i, 2]
@@ -142,12 +143,21 @@ def check_moves(P: Array, Q: Array, idx: Array, D: Array, trial: Array, grid_ori
             status[i] = ACCEPTED
             gap[i] = ref_margin[k] - travel
             continue
-        chain_row(q, F, frames[i], T)
+        broad[i] = True
+    # The moves left to the broad phase, posed in a pass of their own first (as
+    # `broad_phase.certify_samples`: with the DH chain's arithmetic in the same loop, numba
+    # left the broad phase's array arguments counted in and out per move).
+    for i in range(m):
+        if broad[i]:
+            chain_row(Qn[i], F, frames[i], T)
+    for i in range(m):
+        if not broad[i]:
+            continue
         g = _broad_row(frames, i, sph_link, sph_local, sph_r, sph_shape, env_lo, env_hi,
                        sp_a, sp_b, sp_pair, centre, env_c, self_c)
         margin[i] = g
         gap[i] = g
-        if need > 0.0 and g < need and g < gap_lb[k]:
+        if need > 0.0 and g < need and g < gap_lb[idx[i]]:
             continue  # nearer than min_gap, and nearer than the particle was: refused
         free_row = _prune_and_flag(frames, i, env_c, self_c, shape_link, seg_a, seg_b, seg_r,
                                    box_R, box_c, box_h, pair_a, pair_b, apart, A, B, la,
