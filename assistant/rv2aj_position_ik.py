@@ -25,8 +25,8 @@ def _wrap(a: float) -> float:
 
 
 @njit(cache=True, inline="always")
-def _planar(tx: float, ty: float, tz: float, seed: Array, pitch: float, q6: float,
-            arm: Array, tool_length: float, max_jump: float, lower: Array, upper: Array,
+def _planar(tx: float, ty: float, tz: float, seed: tuple, pitch: float, q6: float,
+            arm: tuple, tool_length: float, max_jump: float, lower: tuple, upper: tuple,
             out: Array) -> bool:
     """Joints for one TCP point and one tool pitch into `out`; True if reachable, inside
     the limits and within `max_jump` of the seed in every joint (angles nearest the seed's).
@@ -34,6 +34,8 @@ def _planar(tx: float, ty: float, tz: float, seed: Array, pitch: float, q6: floa
     Inlined (numba IR) into `solve_row`, which calls it up to 1 + 2 `n_steps` times per
     move of the elastic net: as a call, its five array arguments were counted in and out
     of use (atomic reference counts) each time - 17 % of the net's reference counting.
+    Inlined, numba still counted the arrays in and out per call (LLVM IR), so the seed,
+    arm lengths and limits come as tuples of floats (values, never counted).
     """
     L1, L2, L3, L6 = arm[0], arm[1], arm[2], arm[3]
     face = np.arctan2(ty, tx)
@@ -71,20 +73,32 @@ def planar_position_ik(targets: Array, seeds: Array, pitch: Array, q6: Array, ar
     Q = seeds.copy()
     ok = np.zeros(n, dtype=np.bool_)
     q = np.empty(5)
+    arm_t, lo, hi = as_tuples(arm, lower, upper)
     for i in range(n):
-        if solve_row(targets[i, 0], targets[i, 1], targets[i, 2], seeds[i], pitch[i], q6[i],
-                     arm, tool_length, max_jump, lower, upper, n_steps, step, q):
+        seed = (seeds[i, 0], seeds[i, 1], seeds[i, 2], seeds[i, 3], seeds[i, 4])
+        if solve_row(targets[i, 0], targets[i, 1], targets[i, 2], seed, pitch[i], q6[i],
+                     arm_t, tool_length, max_jump, lo, hi, n_steps, step, q):
             Q[i] = q
             ok[i] = True
     return Q, ok
 
 
+@njit(cache=True)
+def as_tuples(arm: Array, lower: Array, upper: Array) -> tuple:
+    """The arm lengths (L1, L2, L3, L6) and the five joints' limits as tuples, the form
+    `solve_row` takes them in."""
+    return ((arm[0], arm[1], arm[2], arm[3]),
+            (lower[0], lower[1], lower[2], lower[3], lower[4]),
+            (upper[0], upper[1], upper[2], upper[3], upper[4]))
+
+
 @njit(cache=True, inline="always")
-def solve_row(tx: float, ty: float, tz: float, seed: Array, pitch: float, q6: float,
-              arm: Array, tool_length: float, max_jump: float, lower: Array, upper: Array,
+def solve_row(tx: float, ty: float, tz: float, seed: tuple, pitch: float, q6: float,
+              arm: tuple, tool_length: float, max_jump: float, lower: tuple, upper: tuple,
               n_steps: int, step: float, q: Array) -> bool:
-    """`planar_position_ik` of one row into q; True if a pitch worked. Also called per row
-    by compiled planners (`trajectory.net_kernel`)."""
+    """`planar_position_ik` of one row into q (seed, arm and limits as tuples, see
+    `as_tuples`); True if a pitch worked. Also called per row by compiled planners
+    (`trajectory.net_kernel`)."""
     found = _planar(tx, ty, tz, seed, pitch, q6, arm, tool_length, max_jump, lower, upper, q)
     m = 1
     while not found and m <= n_steps:

@@ -27,7 +27,7 @@ from assistant.broad_phase import FREE, _broad_row, _prune_and_flag
 from assistant.dh import chain_row
 from assistant.kernel_helpers import within_limits
 from assistant.rv2aj_fk_batch import tcp_row
-from assistant.rv2aj_position_ik import _wrap, solve_row
+from assistant.rv2aj_position_ik import _wrap, as_tuples, solve_row
 from assistant.world.leaf_lookup import leaf_flag
 
 Array = np.ndarray
@@ -102,6 +102,7 @@ def check_moves(P: Array, Q: Array, idx: Array, D: Array, trial: Array, grid_ori
     rot = np.empty((3, 3))
     certified = 0
     broad = np.zeros(m, dtype=np.bool_)  # moves for the broad phase
+    arm_t, lo, hi = as_tuples(arm, lower, upper)  # the IK's constants, never counted
     for i in range(m):
         k = idx[i]
         x, y, z = P[k, 0] + D[i, 0], P[k, 1] + D[i, 1], P[k, 2] + D[i, 2]
@@ -113,7 +114,7 @@ def check_moves(P: Array, Q: Array, idx: Array, D: Array, trial: Array, grid_ori
                 continue
         # Position IK next to the particle's joints, the free joints pulled towards the
         # neighbours' mean (`RV2AJ.batch_position_ik`).
-        seed = Q[k]
+        seed = (Q[k, 0], Q[k, 1], Q[k, 2], Q[k, 3], Q[k, 4])
         for j in range(dof):
             ref[j] = 0.5 * (Q[k - 1, j] + Q[k + 1, j])
         s_seed = seed[1] + seed[2] + seed[3]
@@ -121,7 +122,7 @@ def check_moves(P: Array, Q: Array, idx: Array, D: Array, trial: Array, grid_ori
         if gain > 0.0:
             pitch = s_seed + gain * _wrap(ref[1] + ref[2] + ref[3] - s_seed)
             q6 = q6 + gain * (ref[4] - q6)
-        if not solve_row(x, y, z, seed, pitch, q6, arm, tool_length, max_jump, lower, upper,
+        if not solve_row(x, y, z, seed, pitch, q6, arm_t, tool_length, max_jump, lo, hi,
                          n_steps, step, q):
             continue
         tcp_row(q, arm, BP, BM, BK, v, tool_offset, pos, rot)
