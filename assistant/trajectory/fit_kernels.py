@@ -70,6 +70,8 @@ def _put_guess(O: Array, t0: Array, w0: float, w1: float, w2: float, c: Array,
 
 @njit(**_JIT)
 def _rotate_radius(r0: Array, normal: Array, angle: float) -> Array:
+    """r0 turned by `angle` about `normal` (r0 perpendicular to it). The vector form:
+    the fitter uses `put_on_arc`; the tests compare the two to the bit."""
     return math.cos(angle) * r0 + math.sin(angle) * _cross(normal, r0)
 
 
@@ -198,8 +200,8 @@ def line_deviation(start: Array, end: Array, points: Array) -> float:
 
 @njit(**_INLINE)
 def _line_point(x0: float, x1: float, x2: float, d0: float, d1: float, d2: float) -> float:
-    """Distance of start + x to the segment start -> start + d. Scalar arguments only: an
-    array handed to a helper per point costs reference counts, even inlined."""
+    """Distance of start + x to the segment start -> start + d (scalars; `line_distances`
+    and `line_deviation` share it)."""
     L2 = d0 * d0 + d1 * d1 + d2 * d2
     s = 0.0
     if L2 > 0.0:
@@ -238,7 +240,8 @@ def arc_deviation(start: Array, end: Array, centre: Array, radius: float, normal
 @njit(**_JIT)
 def _arc_point(p0: float, p1: float, p2: float, start: Array, end: Array, centre: Array,
                radius: float, normal: Array, sweep: float) -> float:
-    """Distance of the point p to the arc."""
+    """Distance of the point p to the arc (`arc_distances` and `arc_deviation` share it;
+    the point as scalars, no row view per point)."""
     n0, n1, n2 = normal[0], normal[1], normal[2]
     r00, r01, r02 = start[0] - centre[0], start[1] - centre[1], start[2] - centre[2]
     y0, y1, y2 = n1 * r02 - n2 * r01, n2 * r00 - n0 * r02, n0 * r01 - n1 * r00  # n x r0
@@ -258,7 +261,9 @@ def _arc_point(p0: float, p1: float, p2: float, start: Array, end: Array, centre
 
 @njit(**_JIT)
 def _max_or_nan(values: Array) -> float:
-    """The largest value; NaN if any is NaN (so a `<= tol` test fails)."""
+    """The largest value; NaN if any is NaN (so a `<= tol` test fails). The fitter asks
+    `line_deviation`/`arc_deviation`, which keep this rule without the array; the tests
+    compare them with this."""
     m = -np.inf
     for v in values:
         if v != v:
