@@ -39,9 +39,11 @@ from assistant.roadmap.brushfire import brushfire_region
 from assistant.roadmap.graph_kernel import (
     expand,
     neighbour_cells,
+    neighbour_cells_into,
     neighbour_nodes,
     select_nodes,
     successor_costs,
+    successors_into,
     weighted_distances,
 )
 from assistant.roadmap.grid_ops import connected26
@@ -76,8 +78,8 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            certify_samples, check_moves, apply_moves, _candidates, slerp_kernel, update_rounds,
            motion_marks, rows_inside, rows_before_first_bad, valid_before_first_bad,
            sweep_moves, halve_retries, repin, expand, weighted_distances,
-           connected26, successor_costs, search, fit_rows, run_sweeps, select_nodes,
-           shape_poses, terminal_round, densify_rows)
+           connected26, successor_costs, successors_into, neighbour_cells_into, search,
+           fit_rows, run_sweeps, select_nodes, shape_poses, terminal_round, densify_rows)
 
 
 def warm_up() -> float:

@@ -22,19 +22,25 @@ def neighbour_cells(cell: int, nx: int, ny: int, nz: int, searchable: Array,
     step along two or three axes is refused when at least two of the face cells it passes
     (those of its axes, in its directions, inside the grid) are blocked, unless it leaves
     or enters a cell of `exempt` (sorted)."""
-    i, j, k = cell // (ny * nz), (cell // nz) % ny, cell % nz
-    # blocked[2a + (0 if +1 else 1)]: the face neighbour along axis a
-    blocked = np.zeros(6, dtype=np.bool_)
-    ijk = (i, j, k)
-    dims = (nx, ny, nz)
-    for a in range(3):
-        for side in range(2):
-            c = [i, j, k]
-            c[a] = ijk[a] + (1 if side == 0 else -1)
-            if 0 <= c[a] < dims[a]:
-                blocked[2 * a + side] = squeeze_blocked[(c[0] * ny + c[1]) * nz + c[2]]
-    cell_exempt = _contains(exempt, cell)
     out = np.empty(27, dtype=np.int64)
+    n = neighbour_cells_into(cell, nx, ny, nz, searchable, squeeze_blocked, exempt, out)
+    return out[:n].copy()
+
+
+@njit(cache=True)
+def neighbour_cells_into(cell: int, nx: int, ny: int, nz: int, searchable: Array,
+                         squeeze_blocked: Array, exempt: Array, out: Array) -> int:
+    """`neighbour_cells` written into `out` (27 long); returns how many. The A* asks this
+    once per expansion: no array of its own (the face flags are scalars)."""
+    i, j, k = cell // (ny * nz), (cell // nz) % ny, cell % nz
+    # the face neighbour along each axis, +1 then -1 side, blocked (False outside the grid)
+    xp = i + 1 < nx and squeeze_blocked[((i + 1) * ny + j) * nz + k]
+    xm = i >= 1 and squeeze_blocked[((i - 1) * ny + j) * nz + k]
+    yp = j + 1 < ny and squeeze_blocked[(i * ny + j + 1) * nz + k]
+    ym = j >= 1 and squeeze_blocked[(i * ny + j - 1) * nz + k]
+    zp = k + 1 < nz and squeeze_blocked[(i * ny + j) * nz + k + 1]
+    zm = k >= 1 and squeeze_blocked[(i * ny + j) * nz + k - 1]
+    cell_exempt = _contains(exempt, cell)
     n_out = 0
     for di in range(-1, 2):
         for dj in range(-1, 2):
@@ -46,17 +52,17 @@ def neighbour_cells(cell: int, nx: int, ny: int, nz: int, searchable: Array,
                 if (di != 0) + (dj != 0) + (dk != 0) >= 2:
                     n_blocked = 0
                     if di != 0:
-                        n_blocked += blocked[0 if di > 0 else 1]
+                        n_blocked += xp if di > 0 else xm
                     if dj != 0:
-                        n_blocked += blocked[2 if dj > 0 else 3]
+                        n_blocked += yp if dj > 0 else ym
                     if dk != 0:
-                        n_blocked += blocked[4 if dk > 0 else 5]
+                        n_blocked += zp if dk > 0 else zm
                     if n_blocked >= 2 and not (cell_exempt or _contains(exempt, flat)):
                         continue
                 if searchable[flat]:
                     out[n_out] = flat
                     n_out += 1
-    return out[:n_out].copy()
+    return n_out
 
 
 @njit(cache=True)
@@ -134,34 +140,60 @@ def expand(u: int, gu: float, nx: int, ny: int, nz: int, searchable: Array,
            node_cell: Array, weights: Array, max_edge: float, penalty: Array, closed: Array,
            dead: Array, g: Array, parent: Array, h: Array, q_goal: Array,
            h_weight: float, bad: Array) -> tuple[Array, Array, Array]:
+    """One A* expansion of node u at cost gu (`astar.lazy_astar`): `successors_into` as
+    (f, g, node) arrays, in successor order."""
+    rows = np.empty((64, 4))
+    cells = np.empty(27, dtype=np.int64)
+    rows, n = successors_into(u, gu, nx, ny, nz, searchable, squeeze_blocked, exempt,
+                              cell_start, node_q, node_cell, weights, max_edge, penalty,
+                              closed, dead, g, parent, h, q_goal, h_weight, bad, cells, rows,
+                              0)
+    return rows[:n, 0].copy(), rows[:n, 1].copy(), rows[:n, 2].astype(np.int64)
+
+
+@njit(cache=True)
+def successors_into(u: int, gu: float, nx: int, ny: int, nz: int, searchable: Array,
+                    squeeze_blocked: Array, exempt: Array, cell_start: Array, node_q: Array,
+                    node_cell: Array, weights: Array, max_edge: float, penalty: Array,
+                    closed: Array, dead: Array, g: Array, parent: Array, h: Array,
+                    q_goal: Array, h_weight: float, bad: Array, cells: Array, rows: Array,
+                    size: int) -> tuple[Array, int]:
     """One A* expansion of node u at cost gu (`astar.lazy_astar`, `astar_kernel.search`):
-    the successors not closed or dead, and not over an edge of `bad` (sorted keys u * n + v,
-    edges known to be invalid), that u reaches cheaper get g and parent (in place) and are
-    returned as (f, g, node) to queue, in successor order; their heuristic (weight x
-    distance to the goal) is computed once per node into h (NaN = not yet)."""
-    vs, cost = successor_costs(u, nx, ny, nz, searchable, squeeze_blocked, exempt,
-                               cell_start, node_q, node_cell, weights, max_edge, penalty)
-    f = np.empty(vs.shape[0])
-    gn = np.empty(vs.shape[0])
-    out = np.empty(vs.shape[0], dtype=np.int64)
-    n = 0
+    the successors (`successor_costs`' nodes and costs) not closed or dead, and not over an
+    edge of `bad` (sorted keys u * n + v, edges known to be invalid), that u reaches cheaper
+    get g and parent (in place) and are appended as rows (f, g, node, u) to `rows` from row
+    `size` on, in successor order (`rows` grows by doubling; `cells` is scratch, 27 long);
+    their heuristic (weight x distance to the goal) is computed once per node into h (NaN =
+    not yet). Returns `rows` and its new size. Appending to the search's own queue array
+    spares the three arrays per expansion (and the successor arrays before them) that
+    returning the successors took."""
     n_nodes = node_q.shape[0]
-    for i in range(vs.shape[0]):
-        v = vs[i]
-        gv = gu + cost[i]
-        if closed[v] or dead[v] or not gv < g[v] - 1e-12:
-            continue
-        if bad.shape[0] and _contains(bad, u * n_nodes + v):
-            continue
-        g[v] = gv
-        parent[v] = u
-        if np.isnan(h[v]):
-            h[v] = h_weight * weighted_distance(q_goal, node_q[v], weights)
-        f[n] = gv + h[v]
-        gn[n] = gv
-        out[n] = v
-        n += 1
-    return f[:n], gn[:n], out[:n]
+    n_cells = neighbour_cells_into(node_cell[u], nx, ny, nz, searchable, squeeze_blocked,
+                                   exempt, cells)
+    for ci in range(n_cells):
+        c = cells[ci]
+        for v in range(cell_start[c], cell_start[c + 1]):
+            if v == u:
+                continue
+            d = weighted_distance(node_q[u], node_q[v], weights)
+            if not d <= max_edge:
+                continue
+            gv = gu + (d + penalty[c])  # node_cell[v] == c
+            if closed[v] or dead[v] or not gv < g[v] - 1e-12:
+                continue
+            if bad.shape[0] and _contains(bad, u * n_nodes + v):
+                continue
+            g[v] = gv
+            parent[v] = u
+            if np.isnan(h[v]):
+                h[v] = h_weight * weighted_distance(q_goal, node_q[v], weights)
+            if size == rows.shape[0]:
+                more = np.empty((2 * size, 4))
+                more[:size] = rows
+                rows = more
+            rows[size, 0], rows[size, 1], rows[size, 2], rows[size, 3] = gv + h[v], gv, v, u
+            size += 1
+    return rows, size
 
 
 @njit(cache=True)
