@@ -53,7 +53,7 @@ from assistant.rv2aj_pose_batch import _candidates
 from assistant.rv2aj_position_ik import planar_position_ik
 from assistant.segment_box import segment_box_distance_one
 from assistant.shape_poses import shape_poses
-from assistant.trajectory.densify_kernel import densify_rows
+from assistant.trajectory.densify_kernel import densify_rows, resample_rows
 from assistant.trajectory.fit_kernels import (
     arc_distances,
     circle_through_kernel,
@@ -79,7 +79,8 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            motion_marks, rows_inside, rows_before_first_bad, valid_before_first_bad,
            sweep_moves, halve_retries, repin, expand, weighted_distances,
            connected26, successor_costs, successors_into, neighbour_cells_into, search,
-           fit_rows, run_sweeps, select_nodes, shape_poses, terminal_round, densify_rows)
+           fit_rows, run_sweeps, select_nodes, shape_poses, terminal_round, densify_rows,
+           resample_rows)
 
 
 def warm_up() -> float:

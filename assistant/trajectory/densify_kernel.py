@@ -1,11 +1,14 @@
-"""`particles.densify_joint_path` for the RV-2AJ as one compiled loop (numba).
+"""`particles.densify_joint_path` and `resample_joint_path` for the RV-2AJ as compiled
+loops (numba).
 
 Every transfer's elastic net starts by subdividing the searched joint path until no TCP
 chord exceeds an eighth of the particle spacing: a few passes, each a dozen numpy calls
 and a batch FK of every row - ~0.1 ms a query (2-3 %), nearly all of it per-call cost.
 The steps are the numpy form's, operation for operation (the chord norms summed in order,
 the fractions k / parts as float divisions, a + f (b - a) per joint, the same closed-form
-FK), so the rows come out the same to the bit (tested against it).
+FK), so the rows come out the same to the bit (tested against it). The resampling that
+follows (`resample_rows`: arc lengths, even targets, interpolation, FK) was another dozen
+numpy calls, ~60 us a query; it too follows the numpy form step for step.
 """
 
 from __future__ import annotations
@@ -65,3 +68,42 @@ def densify_rows(Q: Array, max_tcp_step: float, passes: int, arm: Array, BP: Arr
         Q = out
         P = _positions(Q, arm, BP, BM, BK, v, tool_offset)
     return Q, P
+
+
+@njit(cache=True)
+def resample_rows(Q: Array, P: Array, spacing: float, arm: Array, BP: Array, BM: Array,
+                  BK: Array, v: Array, tool_offset: bool) -> tuple[Array, Array]:
+    """(joints, TCP points) of particles about `spacing` apart along the densified path
+    (Q, P) (`particles.resample_joint_path`): the count round(length / spacing) rounded
+    half to even as Python's round, targets as `np.linspace` makes them, each target's
+    segment as `np.searchsorted(..., side="right") - 1` clipped to the path."""
+    m = Q.shape[0] - 1
+    seg = np.empty(m)
+    s = np.empty(m + 1)
+    s[0] = 0.0
+    for i in range(m):
+        dx, dy, dz = P[i + 1, 0] - P[i, 0], P[i + 1, 1] - P[i, 1], P[i + 1, 2] - P[i, 2]
+        seg[i] = math.sqrt(dx * dx + dy * dy + dz * dz)
+        s[i + 1] = s[i] + seg[i]
+    total = s[m]
+    x = total / spacing
+    n_seg = math.floor(x)
+    if x - n_seg > 0.5 or (x - n_seg == 0.5 and n_seg % 2 == 1):
+        n_seg += 1
+    n_seg = max(1, int(n_seg))
+    step = total / n_seg
+    dof = Q.shape[1]
+    joints = np.empty((n_seg + 1, dof))
+    j = 0  # s[:j + 1] <= t: the segment searchsorted finds (targets ascend)
+    for i in range(n_seg + 1):
+        t = total if i == n_seg else (i * step if step != 0.0 else i / n_seg * total) + 0.0
+        while j + 1 <= m and s[j + 1] <= t:
+            j += 1
+        k = min(max(j, 0), m - 1)
+        f = (t - s[k]) / seg[k] if seg[k] > 0.0 else 0.0
+        f = min(max(f, 0.0), 1.0)
+        for c in range(dof):
+            joints[i, c] = Q[k, c] + f * (Q[k + 1, c] - Q[k, c])
+    joints[0] = Q[0]
+    joints[n_seg] = Q[m]
+    return joints, _positions(joints, arm, BP, BM, BK, v, tool_offset)

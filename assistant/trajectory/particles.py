@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from assistant.robot_model import Robot
-from assistant.trajectory.densify_kernel import densify_rows
+from assistant.trajectory.densify_kernel import densify_rows, resample_rows
 
 Array = np.ndarray
 
@@ -103,6 +103,16 @@ def resample_joint_path(robot: Robot, joint_path: Sequence[Array] | Array, spaci
     if spacing <= 0.0:
         raise ValueError("spacing must be positive")
     Q, P = densify_joint_path(robot, joint_path, spacing / 8.0)
+    consts = getattr(robot, "tcp_kernel_constants", None)  # as `densify_joint_path`
+    if consts is not None and np.isfinite(Q).all():
+        joints, points = resample_rows(Q, P, float(spacing), *consts)
+        return Particles(points, joints)
+    return _resample_numpy(robot, Q, P, spacing)
+
+
+def _resample_numpy(robot: Robot, Q: Array, P: Array, spacing: float) -> Particles:
+    """`resample_joint_path` for any robot, on the densified path (Q, P)
+    (`densify_kernel.resample_rows` gives the same particles to the bit for the RV-2AJ)."""
     seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
     s = np.concatenate([[0.0], np.cumsum(seg)])
     total = float(s[-1])

@@ -63,6 +63,45 @@ def test_compiled_densify_gives_the_numpy_rows_to_the_bit(offset, monkeypatch):
     assert {(1, True), (6, False)} <= ends
 
 
+@pytest.mark.parametrize("offset", [False, True])
+def test_compiled_resampling_gives_the_numpy_particles_to_the_bit(offset):
+    """The RV-2AJ's compiled resampling (`densify_kernel.resample_rows`) against the numpy
+    form on densified random joint paths: spacings that give one particle gap or many,
+    lengths exactly half-way between two counts (Python's round takes the even one), a
+    path with repeated rows (zero-length segments); and through `resample_joint_path`."""
+    import assistant.trajectory.particles as particles
+    from assistant.robot_model import Tool
+    from assistant.rv2aj import RV2AJ, RV2AJConfig
+    from assistant.trajectory.densify_kernel import resample_rows
+
+    T = np.eye(4)
+    T[:3, 3] = [0.03, 0.0, 0.08]
+    robot = RV2AJ(RV2AJConfig(tool=Tool("offset", T) if offset else Tool.straight(0.1)))
+    rng = np.random.default_rng(5)
+    lo, hi = robot.limits.lower, robot.limits.upper
+    paths = [rng.uniform(lo, hi, (n, 5)) for n in (2, 3, 5, 9) for _ in range(3)]
+    paths.append(np.repeat(paths[2], 2, axis=0))
+    ties, gaps = set(), set()
+    for Q0 in paths:
+        Q, P = particles.densify_joint_path(robot, Q0, 0.002)
+        # the length as the resampling sums it (in order)
+        total = float(np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))[-1])
+        for spacing in (0.005, 0.02, 0.3, 10.0, total / 2.5, total / 3.5):
+            ref = particles._resample_numpy(robot, Q, P, spacing)
+            joints, points = resample_rows(Q, P, spacing, *robot.tcp_kernel_constants)
+            assert np.array_equal(joints, ref.joints) and np.array_equal(points, ref.points)
+            gaps.add(len(joints) - 1)
+            x = total / spacing
+            if x % 1.0 == 0.5:
+                ties.add(int(x) % 2)
+        got = particles.resample_joint_path(robot, Q0, 0.02)
+        ref = particles._resample_numpy(robot, *particles.densify_joint_path(robot, Q0, 0.0025),
+                                        0.02)
+        assert np.array_equal(got.joints, ref.joints) and np.array_equal(got.points, ref.points)
+    assert 1 in gaps and max(gaps) > 50
+    assert ties == {0, 1}  # half-way lengths over an even and over an odd count
+
+
 def test_small_moves_are_solved_next_to_the_seeds(rv2aj, coarse_path, rng):
     parts = resample_joint_path(rv2aj, coarse_path, 0.02)
     ik = BatchPositionIK(rv2aj)
