@@ -37,6 +37,7 @@ from assistant.motion_rows import (
 from assistant.roadmap.astar_kernel import search
 from assistant.roadmap.brushfire import brushfire_region
 from assistant.roadmap.graph_kernel import (
+    base_nodes,
     expand,
     neighbour_cells,
     neighbour_cells_into,
@@ -80,7 +81,7 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            sweep_moves, halve_retries, repin, expand, weighted_distances,
            connected26, successor_costs, successors_into, neighbour_cells_into, search,
            fit_rows, run_sweeps, select_nodes, shape_poses, terminal_round, densify_rows,
-           resample_rows)
+           resample_rows, base_nodes)
 
 
 def warm_up() -> float:
@@ -88,7 +89,7 @@ def warm_up() -> float:
     returns the seconds it took (compiling or loading the cache)."""
     from assistant.collision import CollisionChecker, Obstacle
     from assistant.roadmap.astar import lazy_astar
-    from assistant.roadmap.graph import JointGraph
+    from assistant.roadmap.graph import GraphBase, JointGraph
     from assistant.roadmap.path_first import lazy_path_search
     from assistant.roadmap.voronoi import build_voronoi, terminal_labels, update_voronoi
     from assistant.robot_model import CollisionShape, ShapeKind, Tool
@@ -131,6 +132,7 @@ def warm_up() -> float:
     graph, _ = JointGraph.build((2, 2, 2), cells, np.arange(9), np.zeros((8, 5)),
                                 np.ones(8, bool), np.zeros(8, bool), np.zeros(8), np.ones(5))
     graph.successors(0)
+    GraphBase.of((2, 2, 2), cells, np.arange(9), np.zeros((8, 5)))  # the planner's graphs
     graph.distance(graph.node_q[0], graph.node_q)  # the A*'s repair of a rejected edge
     connected26(source > 0, 0, 63)
     lazy_astar(graph, 0, 7, _AllFree())  # its expansion kernel

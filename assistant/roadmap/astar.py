@@ -197,7 +197,7 @@ def lazy_astar(graph: JointGraph, start: int, goal: int, checker: EdgeChecker,
                            graph.squeeze_exempt, graph.cell_start, graph.node_q,
                            graph.node_cell, graph.weights, float(graph.max_edge), graph.penalty,
                            closed, dead, g, parent, h, q_goal, float(heuristic_weight),
-                           _NO_EDGES)
+                           _NO_EDGES, graph.extra_cell)
         for fv, gv, v in zip(f.tolist(), gn.tolist(), vs.tolist(), strict=True):
             heapq.heappush(heap, (fv, gv, v, u))
     return result(False, REASON_NO_PATH)

@@ -32,7 +32,7 @@ BUDGET = 2
 def search(start: int, goal: int, nx: int, ny: int, nz: int, searchable: Array,
            squeeze_blocked: Array, exempt: Array, cell_start: Array, node_q: Array,
            node_cell: Array, weights: Array, max_edge: float, penalty: Array, dead: Array,
-           bad: Array, h: Array, h_weight: float, max_expansions: int,
+           bad: Array, h: Array, h_weight: float, max_expansions: int, extra_cell: Array,
            ) -> tuple[int, Array, float, int]:
     """(status, path start..goal, its cost, expansions) of a weighted A* from start to goal
     that never enters a `dead` node nor takes an edge of `bad` (sorted keys u * n + v).
@@ -40,6 +40,7 @@ def search(start: int, goal: int, nx: int, ny: int, nz: int, searchable: Array,
     `h` caches the weighted heuristic per node (NaN = not yet) across calls: it does not
     depend on which edges are known. Status FOUND, NO_PATH, or BUDGET when more than
     `max_expansions` nodes were expanded (counted as `lazy_astar` counts them).
+    `extra_cell`: `JointGraph.extra_cell`.
     """
     n = node_q.shape[0]
     g = np.full(n, np.inf)
@@ -81,7 +82,7 @@ def search(start: int, goal: int, nx: int, ny: int, nz: int, searchable: Array,
         heap, size = successors_into(u, gu, nx, ny, nz, searchable, squeeze_blocked, exempt,
                                      cell_start, node_q, node_cell, weights, max_edge,
                                      penalty, closed, dead, g, parent, h, q_goal, h_weight,
-                                     bad, cells, heap, size)
+                                     bad, extra_cell, cells, heap, size)
         for r in range(first, size):  # heappush of each, in order (the rows after r are
             _sift_down(heap, 0, r)    # not on r's path to the root)
     return NO_PATH, np.zeros(0, dtype=np.int64), np.inf, expansions

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from assistant.roadmap.graph_kernel import (
+    base_nodes,
     neighbour_cells,
     select_nodes,
     successor_costs,
@@ -36,11 +37,17 @@ Array = np.ndarray
 
 @dataclass
 class JointGraph:
-    """Nodes grouped by cell (CSR over flat cell ids) and the cell masks of the search."""
+    """Nodes grouped by cell (CSR over flat cell ids) and the cell masks of the search.
+
+    The nodes of cell c are cell_start[c]:cell_start[c + 1] and then those of the extra
+    nodes (ids cell_start[-1] + e, after all the others) with extra_cell[e] == c. `build`
+    selects the searchable cells' positions and sorts the extras in (no extra_cell);
+    `over` puts the extras after the positions of every cell, which a `GraphBase` holds
+    once, so a planning query copies nothing."""
 
     shape: tuple[int, int, int]
     node_q: Array  # (n, dof)
-    node_cell: Array  # (n,) flat cell of each node, ascending
+    node_cell: Array  # (n,) flat cell of each node, ascending up to cell_start[-1]
     cell_start: Array  # (n_cells + 1,) nodes of cell c: cell_start[c]:cell_start[c + 1]
     searchable: Array  # (n_cells,) bool
     squeeze_blocked: Array  # (n_cells,) bool: cells a diagonal step may not squeeze between
@@ -49,6 +56,45 @@ class JointGraph:
     max_edge: float = np.inf
     #: Cells (sorted) whose steps in or out the squeeze rule spares: start or goal cells.
     squeeze_exempt: Array = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+    #: Cells of the extra nodes kept after the cells' own (see the class docstring).
+    extra_cell: Array = field(default_factory=lambda: np.zeros(0, dtype=np.int64))
+
+    @staticmethod
+    def over(base: GraphBase, searchable: Array, squeeze_blocked: Array, penalty: Array,
+             weights: Array, extra: list[tuple[int, Array]], max_edge: float = np.inf,
+             squeeze_exempt: Sequence[int] = ()) -> tuple[JointGraph, list[int]]:
+        """`build`'s graph over the positions of `base`, which the searchable mask limits
+        (the search never enters another cell), with the `extra` (cell, q) nodes written
+        into the base's spare rows: the graph is valid until the next `over` the same base
+        (a planning query's searches share their start and goal). The same searches as
+        over `build`'s graph, node for node (other ids; `build`'s graph itself when an
+        extra sits in an unsearchable cell with positions, or more extras than spare rows
+        come); the copy of the searchable cells' positions `build` makes cost ~0.1 ms a
+        query."""
+        k = len(extra)
+        n_base = int(base.cell_start[-1])
+        searchable = np.asarray(searchable, bool).reshape(-1).copy()
+        start = base.cell_start
+        if k > base.n_extra or any(not searchable[c] and start[c + 1] > start[c]
+                                   for c, _ in extra):
+            # `build` leaves out the own positions of an extra's cell that was not
+            # searchable, which the base cannot (and the planner's terminal cells are
+            # searchable or hold no position): the selected graph then
+            return JointGraph.build(base.shape, base.cells, base.offsets,
+                                    base.node_q[:n_base], searchable, squeeze_blocked,
+                                    penalty, weights, extra, max_edge, squeeze_exempt)
+        extra_cell = np.array([c for c, _ in extra], dtype=np.int64)
+        for e, (c, q) in enumerate(extra):
+            base.node_q[n_base + e] = q
+            base.node_cell[n_base + e] = c
+        searchable[extra_cell] = True
+        n = n_base + k
+        g = JointGraph(base.shape, base.node_q[:n], base.node_cell[:n], base.cell_start,
+                       searchable, np.asarray(squeeze_blocked, bool).reshape(-1),
+                       np.asarray(penalty, float).reshape(-1), np.asarray(weights, float),
+                       float(max_edge), np.array(sorted(set(squeeze_exempt)), dtype=np.int64),
+                       extra_cell)
+        return g, list(range(n_base, n))
 
     @staticmethod
     def build(shape: tuple[int, int, int], cells: Array, offsets: Array, Q: Array,
@@ -93,8 +139,33 @@ class JointGraph:
         return successor_costs(int(u), *self.shape, self.searchable, self.squeeze_blocked,
                                self.squeeze_exempt, self.cell_start, self.node_q,
                                self.node_cell, self.weights, float(self.max_edge),
-                               self.penalty)
+                               self.penalty, self.extra_cell)
 
     def cost(self, u: int, v: int) -> float:
         d = float(self.distance(self.node_q[u], self.node_q[v][None])[0])
         return d + float(self.penalty[self.node_cell[v]])
+
+
+@dataclass
+class GraphBase:
+    """Every cell's positions as graph nodes, with spare rows for a query's extra nodes
+    (`JointGraph.over`): made once per selection of the world's positions."""
+
+    shape: tuple[int, int, int]
+    node_q: Array  # (n + n_extra, dof)
+    node_cell: Array
+    cell_start: Array  # (n_cells + 1,) over the n positions
+    n_extra: int
+    cells: Array  # the positions' CSR, as given (`JointGraph.over` may need `build`)
+    offsets: Array
+
+    @staticmethod
+    def of(shape: tuple[int, int, int], cells: Array, offsets: Array, Q: Array,
+           n_extra: int = 2) -> GraphBase:
+        """The base over the positions of cell cells[i] (ascending) Q[offsets[i]:offsets[i + 1]]."""
+        n_cells = shape[0] * shape[1] * shape[2]
+        node_q, node_cell, cell_start = base_nodes(
+            np.asarray(cells, dtype=np.int64), np.asarray(offsets, dtype=np.int64),
+            np.ascontiguousarray(Q, dtype=float), n_cells, n_extra)
+        return GraphBase(tuple(shape), node_q, node_cell, cell_start, n_extra,
+                         np.asarray(cells, dtype=np.int64), np.asarray(offsets, dtype=np.int64))

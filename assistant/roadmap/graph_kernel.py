@@ -67,20 +67,38 @@ def neighbour_cells_into(cell: int, nx: int, ny: int, nz: int, searchable: Array
 
 @njit(cache=True)
 def neighbour_nodes(u: int, cell: int, nx: int, ny: int, nz: int, searchable: Array,
-                    squeeze_blocked: Array, exempt: Array, cell_start: Array) -> Array:
-    """Node ids of `neighbour_cells` (cell by cell, ascending within a cell), u left out."""
+                    squeeze_blocked: Array, exempt: Array, cell_start: Array,
+                    extra_cell: Array) -> Array:
+    """Node ids of `neighbour_cells` (cell by cell, ascending within a cell, a cell's
+    extra nodes after its own), u left out."""
     cells = neighbour_cells(cell, nx, ny, nz, searchable, squeeze_blocked, exempt)
+    n_base = cell_start[cell_start.shape[0] - 1]
     n = 0
     for c in cells:
         n += cell_start[c + 1] - cell_start[c]
+        for e in range(extra_cell.shape[0]):
+            n += extra_cell[e] == c
     out = np.empty(n, dtype=np.int64)
     n_out = 0
     for c in cells:
-        for v in range(cell_start[c], cell_start[c + 1]):
-            if v != u:
+        hi = cell_start[c + 1]
+        for t in range(cell_start[c], hi + extra_cell.shape[0]):
+            v = node_of(t, c, hi, n_base, extra_cell)
+            if v >= 0 and v != u:
                 out[n_out] = v
                 n_out += 1
     return out[:n_out]
+
+
+@njit(cache=True, inline="always")
+def node_of(t: int, c: int, hi: int, n_base: int, extra_cell: Array) -> int:
+    """The t-th node of cell c, counting from its first node (`cell_start[c]`) on through
+    its own (up to hi = `cell_start[c + 1]`) and then over the graph's extra nodes (ids
+    n_base + e, in cell extra_cell[e]): the node id, or -1 for an extra of another cell."""
+    if t < hi:
+        return t
+    e = t - hi
+    return n_base + e if extra_cell[e] == c else -1
 
 
 @njit(cache=True)
@@ -117,11 +135,11 @@ def weighted_distances(q: Array, Q: Array, w: Array) -> Array:
 def successor_costs(u: int, nx: int, ny: int, nz: int, searchable: Array,
                     squeeze_blocked: Array, exempt: Array, cell_start: Array, node_q: Array,
                     node_cell: Array, weights: Array, max_edge: float, penalty: Array,
-                    ) -> tuple[Array, Array]:
+                    extra_cell: Array) -> tuple[Array, Array]:
     """`JointGraph.successors`: u's neighbour nodes within `max_edge` and the edge costs
     (weighted joint distance + the entered cell's penalty)."""
     vs = neighbour_nodes(u, node_cell[u], nx, ny, nz, searchable, squeeze_blocked, exempt,
-                         cell_start)
+                         cell_start, extra_cell)
     out = np.empty(vs.shape[0], dtype=np.int64)
     cost = np.empty(vs.shape[0])
     n = 0
@@ -139,15 +157,15 @@ def expand(u: int, gu: float, nx: int, ny: int, nz: int, searchable: Array,
            squeeze_blocked: Array, exempt: Array, cell_start: Array, node_q: Array,
            node_cell: Array, weights: Array, max_edge: float, penalty: Array, closed: Array,
            dead: Array, g: Array, parent: Array, h: Array, q_goal: Array,
-           h_weight: float, bad: Array) -> tuple[Array, Array, Array]:
+           h_weight: float, bad: Array, extra_cell: Array) -> tuple[Array, Array, Array]:
     """One A* expansion of node u at cost gu (`astar.lazy_astar`): `successors_into` as
     (f, g, node) arrays, in successor order."""
     rows = np.empty((64, 4))
     cells = np.empty(27, dtype=np.int64)
     rows, n = successors_into(u, gu, nx, ny, nz, searchable, squeeze_blocked, exempt,
                               cell_start, node_q, node_cell, weights, max_edge, penalty,
-                              closed, dead, g, parent, h, q_goal, h_weight, bad, cells, rows,
-                              0)
+                              closed, dead, g, parent, h, q_goal, h_weight, bad, extra_cell,
+                              cells, rows, 0)
     return rows[:n, 0].copy(), rows[:n, 1].copy(), rows[:n, 2].astype(np.int64)
 
 
@@ -156,8 +174,8 @@ def successors_into(u: int, gu: float, nx: int, ny: int, nz: int, searchable: Ar
                     squeeze_blocked: Array, exempt: Array, cell_start: Array, node_q: Array,
                     node_cell: Array, weights: Array, max_edge: float, penalty: Array,
                     closed: Array, dead: Array, g: Array, parent: Array, h: Array,
-                    q_goal: Array, h_weight: float, bad: Array, cells: Array, rows: Array,
-                    size: int) -> tuple[Array, int]:
+                    q_goal: Array, h_weight: float, bad: Array, extra_cell: Array,
+                    cells: Array, rows: Array, size: int) -> tuple[Array, int]:
     """One A* expansion of node u at cost gu (`astar.lazy_astar`, `astar_kernel.search`):
     the successors (`successor_costs`' nodes and costs) not closed or dead, and not over an
     edge of `bad` (sorted keys u * n + v, edges known to be invalid), that u reaches cheaper
@@ -168,17 +186,20 @@ def successors_into(u: int, gu: float, nx: int, ny: int, nz: int, searchable: Ar
     spares the three arrays per expansion (and the successor arrays before them) that
     returning the successors took."""
     n_nodes = node_q.shape[0]
+    n_base = cell_start[cell_start.shape[0] - 1]
     n_cells = neighbour_cells_into(node_cell[u], nx, ny, nz, searchable, squeeze_blocked,
                                    exempt, cells)
     for ci in range(n_cells):
         c = cells[ci]
-        for v in range(cell_start[c], cell_start[c + 1]):
-            if v == u:
+        hi = cell_start[c + 1]
+        for t in range(cell_start[c], hi + extra_cell.shape[0]):
+            v = node_of(t, c, hi, n_base, extra_cell)
+            if v < 0 or v == u:
                 continue
             d = weighted_distance(node_q[u], node_q[v], weights)
             if not d <= max_edge:
                 continue
-            gv = gu + (d + penalty[c])  # node_cell[v] == c
+            gv = gu + (d + penalty[c])  # v is in cell c
             if closed[v] or dead[v] or not gv < g[v] - 1e-12:
                 continue
             if bad.shape[0] and _contains(bad, u * n_nodes + v):
@@ -234,3 +255,24 @@ def select_nodes(cells: Array, offsets: Array, Q: Array, searchable: Array,
         ids[e] = fill[c]
         fill[c] += 1
     return node_q, node_cell, cell_start, ids
+
+
+@njit(cache=True)
+def base_nodes(cells: Array, offsets: Array, Q: Array, n_cells: int, n_extra: int,
+               ) -> tuple[Array, Array, Array]:
+    """(node_q, node_cell, cell_start) of every cell's positions (`JointGraph.over`'s base):
+    node r is Q[r] (positions of cell i: Q[offsets[i]:offsets[i + 1]], the cells
+    ascending), and `n_extra` rows follow for a query's extra nodes."""
+    n = Q.shape[0]
+    cell_start = np.zeros(n_cells + 1, dtype=np.int64)
+    for i in range(cells.shape[0]):
+        cell_start[cells[i] + 1] = offsets[i + 1] - offsets[i]
+    for c in range(n_cells):
+        cell_start[c + 1] += cell_start[c]
+    node_q = np.zeros((n + n_extra, Q.shape[1]))
+    node_q[:n] = Q
+    node_cell = np.full(n + n_extra, -1, dtype=np.int64)
+    for i in range(cells.shape[0]):
+        for r in range(offsets[i], offsets[i + 1]):
+            node_cell[r] = cells[i]
+    return node_q, node_cell, cell_start

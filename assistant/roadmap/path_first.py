@@ -68,7 +68,7 @@ def lazy_path_search(graph: JointGraph, start: int, goal: int, checker: EdgeChec
             graph.squeeze_exempt, graph.cell_start, graph.node_q, graph.node_cell,
             graph.weights, float(graph.max_edge), graph.penalty, dead,
             np.array(sorted(bad), dtype=np.int64), h, float(heuristic_weight),
-            budget.max_expansions - expansions)
+            budget.max_expansions - expansions, graph.extra_cell)
         expansions += used
         if status == BUDGET:
             return ended(False, REASON_BUDGET, detail=f"{budget.max_expansions} expansions")

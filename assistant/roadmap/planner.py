@@ -44,7 +44,7 @@ from assistant.roadmap.astar import (
     SearchBudget,
     SearchResult,
 )
-from assistant.roadmap.graph import JointGraph
+from assistant.roadmap.graph import GraphBase, JointGraph
 from assistant.roadmap.grid_ops import connected26
 from assistant.roadmap.path_first import lazy_path_search
 from assistant.roadmap.sources import SourceLabels, label_sources, relabel
@@ -222,6 +222,8 @@ class RoadmapPlanner:
         self.labels: SourceLabels | None = None
         self.voronoi: VoronoiMap | None = None
         self._edge = _EdgeCheck(checker, world)
+        #: The search graphs' nodes (`GraphBase`) and the positions array they were made of.
+        self._base: tuple[Array, GraphBase] | None = None
 
     # ---------------------------------------------------------------- build
     def build(self, progress: Progress | None = None) -> RoadmapBuildReport:
@@ -234,7 +236,7 @@ class RoadmapPlanner:
         self.labels = label_sources(w.occupied(), w.object_ids(), w.object_names(),
                                     w.reachable(), w.has_valid())
         self.voronoi = build_voronoi(self.labels.source, w.reachable())
-        w.decode_positions()  # the queries' graph nodes, decoded once here
+        self._graph_base()  # the queries' graph nodes, decoded and laid out once here
         dt = time.perf_counter() - t0
         progress.update(1.0, "roadmap ready", force=True)
         return RoadmapBuildReport(wrep, dt, int(self.voronoi.roads().sum()),
@@ -471,15 +473,15 @@ class RoadmapPlanner:
         """
         w = self.world
         t0 = time.perf_counter()
-        cells, offsets, Q = w.cell_positions_shared()  # read only (`JointGraph.build`)
+        base = self._graph_base()
         occ = w.occupancy().reshape(-1)
         squeeze = (w.occupied() | (w.reachable() & ~w.has_valid())).reshape(-1)
 
         def build(exempt: Sequence[int]) -> tuple[JointGraph, list[int]]:
-            return JointGraph.build(w.grid.shape, cells, offsets, Q, searchable, squeeze,
-                                    self.config.occupancy_penalty * occ, self._weights(),
-                                    extra=[(sc, q_s), (gc, q_g)],
-                                    max_edge=self.config.max_edge, squeeze_exempt=exempt)
+            return JointGraph.over(base, searchable, squeeze,
+                                   self.config.occupancy_penalty * occ, self._weights(),
+                                   extra=[(sc, q_s), (gc, q_g)],
+                                   max_edge=self.config.max_edge, squeeze_exempt=exempt)
 
         graph, (s_id, g_id) = build((sc, gc) if exempt_terminals else ())
         cut_off = [c for c, i in ((sc, s_id), (gc, g_id)) if not len(graph.successors(i)[0])]
@@ -491,6 +493,14 @@ class RoadmapPlanner:
                                progress, heuristic_weight=self.config.heuristic_weight)
         timings["search"] = timings.get("search", 0.0) + time.perf_counter() - t1
         return res, graph
+
+    def _graph_base(self) -> GraphBase:
+        """The search graphs' nodes: every position of the world's selection, laid out once
+        per selection (`JointGraph.over`; the world's arrays are shared, read only)."""
+        cells, offsets, Q = self.world.cell_positions_shared()
+        if self._base is None or self._base[0] is not Q:
+            self._base = (Q, GraphBase.of(self.world.grid.shape, cells, offsets, Q))
+        return self._base[1]
 
     def _plan_from(self, path: list[Array], res: SearchResult | None, searched: str,
                    timings: dict[str, float], cost: float) -> RoadmapPlan:

@@ -135,3 +135,56 @@ def test_node_selection_matches_the_stable_sort_it_replaced():
         assert g.searchable[picks].all() and np.array_equal(
             g.searchable[~np.isin(np.arange(n_cells), picks)],
             searchable[~np.isin(np.arange(n_cells), picks)])
+
+
+def test_graph_over_a_base_searches_as_the_selected_graph():
+    """`JointGraph.over` (every cell's positions, the extras after them all) against
+    `build` (the searchable cells' positions, extras sorted in): node for node the same
+    successors in the same order with the same costs, and the same A* paths (penalties,
+    squeeze rule, exempt cells, two extras in one cell, a base reused by a second query);
+    an extra in an unsearchable cell with positions gets `build`'s graph itself."""
+    from assistant.roadmap.astar_kernel import FOUND, search
+    from assistant.roadmap.graph import GraphBase
+
+    rng = np.random.default_rng(23)
+    shape = (5, 4, 4)
+    n_cells = int(np.prod(shape))
+    cells = np.sort(rng.choice(n_cells, size=n_cells * 3 // 4, replace=False))
+    offsets = np.r_[0, np.cumsum(rng.integers(1, 4, len(cells)))]
+    Q = rng.uniform(-1.0, 1.0, (offsets[-1], 5))
+    base = GraphBase.of(shape, cells, offsets, Q)
+    found = fast = 0
+    for trial in range(24):
+        searchable = rng.random(n_cells) < 0.6
+        blocked = rng.random(n_cells) < 0.3
+        penalty = rng.uniform(0.0, 0.2, n_cells)
+        picks = rng.choice(n_cells, size=2, replace=trial % 4 == 0)
+        extra = [(int(c), rng.uniform(-1.0, 1.0, 5)) for c in picks]
+        exempt = [int(picks[0])] if trial % 2 else []
+        args = (searchable, blocked, penalty, np.ones(5))
+        kw = {"extra": extra, "max_edge": 1.2, "squeeze_exempt": exempt}
+        sel, ids = JointGraph.build(shape, cells, offsets, Q, *args, **kw)
+        over, over_ids = JointGraph.over(base, *args, **kw)
+        fast += len(over.extra_cell) > 0
+        # node ids of `over` for the selected graph's nodes, by position (unique rows)
+        key = {tuple(q): i for i, q in enumerate(over.node_q)}
+        to_over = np.array([key[tuple(q)] for q in sel.node_q])
+        assert to_over[ids].tolist() == over_ids
+        for u in range(sel.n_nodes):
+            vs, cost = sel.successors(u)
+            vs_o, cost_o = over.successors(to_over[u])
+            assert to_over[vs].tolist() == vs_o.tolist() and np.array_equal(cost, cost_o)
+        for g, (s, t) in ((sel, ids), (over, over_ids)):
+            n = g.n_nodes
+            res = search(s, t, *g.shape, g.searchable, g.squeeze_blocked, g.squeeze_exempt,
+                         g.cell_start, g.node_q, g.node_cell, g.weights, g.max_edge,
+                         g.penalty, np.zeros(n, bool), np.zeros(0, np.int64),
+                         np.full(n, np.nan), 1.0, 10_000, g.extra_cell)
+            if g is sel:
+                status, path, cost, expansions = res
+                ref = sel.node_q[path]
+            else:
+                assert res[0] == status and res[2] == cost and res[3] == expansions
+                assert np.array_equal(over.node_q[res[1]], ref)
+        found += status == FOUND
+    assert 3 <= found < 24 and 3 <= fast < 24  # found or not; base graphs and `build`'s

@@ -54,7 +54,7 @@ def _search(graph, s, g, dead=None, bad=(), weight=1.0, max_expansions=60_000):
                   graph.weights, float(graph.max_edge), graph.penalty,
                   np.zeros(n, bool) if dead is None else dead,
                   np.array(sorted(bad), dtype=np.int64), np.full(n, np.nan), weight,
-                  max_expansions)
+                  max_expansions, graph.extra_cell)
 
 
 @pytest.mark.parametrize("seed", range(6))
