@@ -44,6 +44,7 @@ from assistant.roadmap.astar import (
     SearchBudget,
     SearchResult,
 )
+from assistant.roadmap.edge_samples import edge_samples, first_invalid
 from assistant.roadmap.graph import GraphBase, JointGraph
 from assistant.roadmap.grid_ops import connected26
 from assistant.roadmap.path_first import lazy_path_search
@@ -180,15 +181,12 @@ class _EdgeCheck:
         samples = getattr(self.checker, "motion_samples_between", None)
         if samples is None:
             return [self.first_invalid_fraction(a, b) for a, b in zip(Q0, Q1, strict=True)]
-        Q0, Q1 = np.asarray(Q0, dtype=float), np.asarray(Q1, dtype=float)
-        ns = np.asarray(samples(Q0, Q1), dtype=np.int64)
+        Q0 = np.ascontiguousarray(Q0, dtype=float)
+        Q1 = np.ascontiguousarray(Q1, dtype=float)
+        ns = np.ascontiguousarray(samples(Q0, Q1), dtype=np.int64)
         # every edge's samples a + (k / n) (b - a), k = 0..n, all at once (the same
         # operations on the same numbers as edge by edge)
-        counts = ns + 1
-        edge = np.repeat(np.arange(len(ns)), counts)
-        first = np.cumsum(counts) - counts
-        F = (np.arange(len(edge)) - first[edge]) / ns[edge]
-        Q = Q0[edge] + F[:, None] * (Q1 - Q0)[edge]
+        Q, edge, F = edge_samples(Q0, Q1, ns)
         near = (self.world.near_recorded_collision(Q, self.exempt)
                 if self.world.collisions else None)
         along = getattr(self.checker, "is_valid_samples", None)
@@ -198,12 +196,8 @@ class _EdgeCheck:
             ok = self.checker.is_valid_batch(Q)
             if near is not None:
                 ok &= ~near
-        bad = np.flatnonzero(~ok)
-        _, first_bad = np.unique(edge[bad], return_index=True)  # each failing edge's first
-        out: list[float | None] = [None] * len(ns)
-        for r in bad[first_bad].tolist():
-            out[int(edge[r])] = float(F[r])
-        return out
+        first = first_invalid(np.ascontiguousarray(ok, dtype=bool), edge, F, len(ns))
+        return [None if f != f else f for f in first.tolist()]  # NaN: no invalid sample
 
 
 class RoadmapPlanner:

@@ -62,6 +62,37 @@ def test_thesis_query_gives_a_collision_free_joint_path(planner, rv2aj):
     assert all(free[c] for c in plan.cells[1:-1])
 
 
+def test_batched_edge_check_answers_as_one_check_per_edge(planner, rv2aj):
+    """The search's batched edge check (`_EdgeCheck.first_invalid_fractions`, compiled
+    samples) against the checker's own motion check edge by edge: free edges, edges into
+    the parts (the first invalid fraction), an edge of one step, one batch of a single
+    edge; and its samples are the numpy form's to the bit."""
+    from assistant.roadmap.edge_samples import edge_samples
+
+    rng = np.random.default_rng(11)
+    lo, hi = rv2aj.limits.lower, rv2aj.limits.upper
+    # from around the start to around the goal (across the parts), or down to the table
+    Q0 = np.clip(Q_START + rng.normal(0.0, 0.1, (40, 5)), lo, hi)
+    Q1 = np.clip(Q_GOAL + rng.normal(0.0, 0.3, (40, 5)), lo, hi)
+    Q1[::3, 1] = rng.uniform(1.2, 1.8, len(Q1[::3]))
+    Q1[0] = Q0[0] + 1e-4  # one step
+    edge = planner._edge
+    got = edge.first_invalid_fractions(Q0, Q1)
+    want = [planner.checker.first_invalid_fraction(a, b) for a, b in zip(Q0, Q1, strict=True)]
+    assert got == want
+    assert 3 <= sum(f is not None for f in want) <= 35  # both kinds of edges
+    assert edge.first_invalid_fractions(Q0[3:4], Q1[3:4]) == want[3:4]
+    ns = planner.checker.motion_samples_between(Q0, Q1)
+    Q, at, F = edge_samples(Q0, Q1, ns)
+    counts = ns + 1  # the numpy form the kernel replaced
+    ref_edge = np.repeat(np.arange(len(ns)), counts)
+    first = np.cumsum(counts) - counts
+    ref_F = (np.arange(len(ref_edge)) - first[ref_edge]) / ns[ref_edge]
+    ref_Q = Q0[ref_edge] + ref_F[:, None] * (Q1 - Q0)[ref_edge]
+    assert np.array_equal(at, ref_edge) and np.array_equal(F, ref_F)
+    assert np.array_equal(Q, ref_Q)
+
+
 def test_j6_is_interpolated_between_start_and_goal(planner):
     # the table fixes J6 (it cannot move a straight tool); the path must not jump to that
     # value but turn J6 smoothly from the start's to the goal's
