@@ -34,6 +34,7 @@ from assistant.clearance_scan import pruned_clearance
 from assistant.fcl_shapes import covering_spheres, fcl_geometry, fcl_transform, world_aabb
 from assistant.motion_rows import (
     motion_marks,
+    path_samples,
     rows_before_first_bad,
     rows_inside,
     valid_before_first_bad,
@@ -691,20 +692,17 @@ class CollisionChecker:
         """
         if len(path) < 2:
             return None
-        A = _path_array(path)
-        S, F, counts = self._path_samples(A, max_step)
-        if trusted is not None:
-            keep = ~np.asarray(trusted, dtype=bool)[S]
-            S, F = S[keep], F[keep]
-        counts = counts.tolist()
+        A = np.ascontiguousarray(_path_array(path), dtype=float)
+        counts = np.ascontiguousarray(self.motion_samples_along(A, max_step), dtype=np.int64)
+        skip = _NONE_TRUSTED if trusted is None else np.ascontiguousarray(trusted, dtype=bool)
+        S, F, Qs = path_samples(A, counts, skip)  # `_path_samples`' samples, compiled
         for start in range(0, len(S), self.chunk):
-            s, f = S[start : start + self.chunk], F[start : start + self.chunk]
-            Q = A[s] + f[:, None] * (A[s + 1] - A[s])
+            Q = Qs[start : start + self.chunk]
             ok = self.is_valid_samples(Q, first_only=True)
             if not ok.all():
                 k = int(np.argmin(ok))
-                i = int(s[k])
-                return i, MotionCheck(float(f[k]), counts[i], self.check(Q[k]))
+                i = int(S[start + k])
+                return i, MotionCheck(float(F[start + k]), int(counts[i]), self.check(Q[k]))
         return None
 
     # ------------------------------------------------------------------ clearance
@@ -789,6 +787,9 @@ class CollisionChecker:
             else:
                 d = 0.0
         return d, res
+
+
+_NONE_TRUSTED = np.zeros(0, dtype=bool)
 
 
 def _path_array(path: Sequence[Array] | Array) -> Array:

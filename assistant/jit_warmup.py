@@ -30,6 +30,7 @@ from assistant.clearance_scan import pruned_clearance
 from assistant.dh import _chain_frames_kernel
 from assistant.motion_rows import (
     motion_marks,
+    path_samples,
     rows_before_first_bad,
     rows_inside,
     valid_before_first_bad,
@@ -82,7 +83,7 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            sweep_moves, halve_retries, repin, expand, weighted_distances,
            connected26, successor_costs, successors_into, neighbour_cells_into, search,
            fit_rows, run_sweeps, select_nodes, shape_poses, terminal_round, densify_rows,
-           resample_rows, base_nodes, edge_samples, first_invalid)
+           resample_rows, base_nodes, edge_samples, first_invalid, path_samples)
 
 
 def warm_up() -> float:
@@ -110,6 +111,8 @@ def warm_up() -> float:
     checker.is_valid_batch_margin(np.vstack([q, q + 0.3]))
     checker.min_clearance_along([q[0], q[0] + 0.3])
     checker.check_motion(q[0], q[0] + 0.3)
+    checker.check_path([q[0], q[0] + 0.3], trusted=np.zeros(1, dtype=bool))
+    checker.check_path([q[0], q[0] + 0.3])
     tcp = robot.batch_fk(q).positions
     robot.batch_position_ik(tcp + 0.001, q, q)
     bent = np.array([0.3, 0.2, 0.5, 0.3, 0.1])  # off the J1 axis: the batch answers

@@ -435,3 +435,23 @@ def test_exact_phase_poses_are_einsums_to_the_bit(checker, rv2aj):
     assert len(checker._shape_link) >= 5
     assert np.array_equal(R, T[..., :3, :3]) and np.array_equal(t, T[..., :3, 3])
     assert R.flags.c_contiguous and t.flags.c_contiguous
+
+
+def test_compiled_path_samples_are_the_numpy_ones(checker, rv2aj):
+    """`motion_rows.path_samples` (what `check_path` asks) against the numpy form it
+    replaced: segments, fractions and joints to the bit, trusted segments left out
+    (none, some, the last, all)."""
+    from assistant.motion_rows import path_samples
+
+    rng = np.random.default_rng(4)
+    for n in (2, 3, 7):
+        A = rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper, (n, 5))
+        S0, F0, counts = checker._path_samples(A, None)
+        for trusted in (None, rng.random(n - 1) < 0.5, np.arange(n - 1) == n - 2,
+                        np.ones(n - 1, dtype=bool)):
+            keep = np.ones(len(S0), bool) if trusted is None else ~trusted[S0]
+            S, F = S0[keep], F0[keep]
+            Q = A[S] + F[:, None] * (A[S + 1] - A[S])
+            got = path_samples(A, counts, np.zeros(0, bool) if trusted is None else trusted)
+            assert np.array_equal(got[0], S) and np.array_equal(got[1], F)
+            assert np.array_equal(got[2], Q.reshape(-1, 5))
