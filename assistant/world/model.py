@@ -236,6 +236,17 @@ class WorldModel:
         """Flat leaf id of the TCP at q, -1 outside the octree."""
         return int(self.grid.flat_of_points(self.robot.fk(np.asarray(q, dtype=float))[:3, 3])[0])
 
+    def tcp_cells(self, Q: Array) -> Array:
+        """`tcp_cell` of each row of Q (M, dof) in one batch FK; -1 also for a row that is
+        not all finite (a planning query's start and goal: ~0.03 ms less than one by one)."""
+        Q = np.atleast_2d(np.asarray(Q, dtype=float))
+        finite = np.isfinite(Q).all(axis=1)
+        out = np.full(len(Q), -1, dtype=np.int64)
+        if finite.any():
+            P = np.asarray(self.robot.batch_fk(Q[finite]).positions)
+            out[finite] = self.grid.flat_of_points(P)
+        return out
+
     # ---------------------------------------------------------------- observations
     def _apply(self, source: Source, cells: Array, values: Array | float) -> FusionUpdate:
         codes = self.grid.codes_of_flat(cells).astype(np.int64)

@@ -105,3 +105,19 @@ def test_sensor_observations_go_through_fusion_and_free_cells_refill(world):
     assert freed is not None and freed < 4
     assert world.free().reshape(-1)[cell]
     assert world.occupancy().reshape(-1)[cell] == 0.0
+
+
+def test_tcp_cells_of_several_postures_are_the_cells_one_by_one(world, rv2aj):
+    """`tcp_cells` (one batch FK) equals `tcp_cell` row by row, including a TCP outside the
+    octree, and gives -1 for a posture that is not all finite."""
+    rng = np.random.default_rng(2)
+    Q = rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper, (30, 5))
+    Q[3] = np.nan
+    got = world.tcp_cells(Q)
+    want = [world.tcp_cell(q) if np.isfinite(q).all() else -1 for q in Q]
+    assert got.tolist() == want
+    assert got[3] == -1 and (got >= 0).sum() >= 20
+    small = WorldModel(rv2aj, [], WorldConfig(size=0.3, leaf=0.075, use_cache=False))
+    far = small.tcp_cells(Q[:5])  # the 0.3 m cube misses most TCPs
+    assert far.tolist() == [small.tcp_cell(q) if np.isfinite(q).all() else -1 for q in Q[:5]]
+    assert (far == -1).sum() >= 2
