@@ -93,6 +93,19 @@ def test_batched_edge_check_answers_as_one_check_per_edge(planner, rv2aj):
     assert np.array_equal(Q, ref_Q)
 
 
+def test_checking_at_every_pop_plans_over_the_same_graph(rv2aj):
+    """With no path-first rounds the planner's lazy A* (`astar.lazy_astar`, its expansion
+    over the graph's extra nodes) plans the thesis query: a collision-free path from the
+    start to the goal."""
+    planner = make_planner(rv2aj, RoadmapConfig(budget=SearchBudget(path_rounds=0)))
+    plan = planner.plan(Q_START, Q_GOAL)
+    assert plan.ok, plan.reason
+    assert np.array_equal(plan.joint_path[0], Q_START)
+    assert np.array_equal(plan.joint_path[-1], Q_GOAL)
+    assert len(plan.joint_path) >= 3 and plan.expansions > 0
+    assert planner.checker.check_path(plan.joint_path) is None
+
+
 def test_j6_is_interpolated_between_start_and_goal(planner):
     # the table fixes J6 (it cannot move a straight tool); the path must not jump to that
     # value but turn J6 smoothly from the start's to the goal's
