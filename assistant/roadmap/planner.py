@@ -228,6 +228,7 @@ class RoadmapPlanner:
         self._edge = _EdgeCheck(checker, world)
         #: The search graphs' nodes (`GraphBase`) and the positions array they were made of.
         self._base: tuple[Array, GraphBase] | None = None
+        self._grids: tuple[tuple, Array, Array] | None = None  # `_search_grids`
 
     # ---------------------------------------------------------------- build
     def build(self, progress: Progress | None = None) -> RoadmapBuildReport:
@@ -475,15 +476,12 @@ class RoadmapPlanner:
         the table and a part) is exempt from the rule at once - searching on would only
         exhaust the reachable free space before giving up; `exempt_terminals` exempts both.
         """
-        w = self.world
         t0 = time.perf_counter()
         base = self._graph_base()
-        occ = w.occupancy().reshape(-1)
-        squeeze = (w.occupied() | (w.reachable() & ~w.has_valid())).reshape(-1)
+        squeeze, penalty = self._search_grids()
 
         def build(exempt: Sequence[int]) -> tuple[JointGraph, list[int]]:
-            return JointGraph.over(base, searchable, squeeze,
-                                   self.config.occupancy_penalty * occ, self._weights(),
+            return JointGraph.over(base, searchable, squeeze, penalty, self._weights(),
                                    extra=[(sc, q_s), (gc, q_g)],
                                    max_edge=self.config.max_edge, squeeze_exempt=exempt)
 
@@ -497,6 +495,20 @@ class RoadmapPlanner:
                                progress, heuristic_weight=self.config.heuristic_weight)
         timings["search"] = timings.get("search", 0.0) + time.perf_counter() - t1
         return res, graph
+
+    def _search_grids(self) -> tuple[Array, Array]:
+        """(squeeze_blocked, penalty) flat grids of the searches: occupied or reachable
+        without a valid position; the occupancy penalty. Remembered while the world's
+        occupancy grid, table and position selection and the config stay the same objects
+        (a new occupancy grid or selection is a new array; ~0.03 ms a query otherwise)."""
+        w = self.world
+        key = (w.occupancy(), w.table, w.cell_positions_shared()[2], self.config)
+        if self._grids is None or any(a is not b for a, b in zip(self._grids[0], key,
+                                                                  strict=True)):
+            squeeze = (w.occupied() | (w.reachable() & ~w.has_valid())).reshape(-1)
+            penalty = np.asarray(self.config.occupancy_penalty * key[0].reshape(-1), float)
+            self._grids = (key, squeeze, penalty)
+        return self._grids[1], self._grids[2]
 
     def _graph_base(self) -> GraphBase:
         """The search graphs' nodes: every position of the world's selection, laid out once

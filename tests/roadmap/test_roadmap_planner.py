@@ -167,6 +167,31 @@ def test_goal_walled_in_by_observations_is_in_another_free_region(rv2aj, fallbac
     assert plan.reason == "no path: start and goal are in different free regions"
 
 
+def test_search_grids_follow_every_change_of_the_world(rv2aj):
+    """The remembered squeeze and penalty grids of the searches (`_search_grids`) are those
+    of the world as it is now: after sensor observations (a new occupancy grid) and after a
+    collision indication (also a new selection of positions)."""
+    planner = make_planner(rv2aj)
+    w = planner.world
+
+    def fresh():
+        squeeze = (w.occupied() | (w.reachable() & ~w.has_valid())).reshape(-1)
+        return squeeze, planner.config.occupancy_penalty * w.occupancy().reshape(-1)
+
+    def same_as_fresh() -> bool:
+        got, want = planner._search_grids(), fresh()
+        return np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+
+    assert same_as_fresh()
+    before = planner._search_grids()
+    cells = np.flatnonzero(w.free().reshape(-1))[:40]
+    planner.observe(Source.SENSOR, w.grid.centres_of_ijk(w.grid.ijk_of_flat(cells)), 1.0)
+    assert same_as_fresh() and not np.array_equal(before[1], planner._search_grids()[1])
+    planner.add_collision(np.radians([0.0, 40.0, 70.0, 0.0, 0.0]))
+    assert same_as_fresh()
+    assert planner.plan(Q_START, Q_GOAL).ok
+
+
 def test_collision_indication_updates_roads_locally_and_the_new_plan_avoids_it(rv2aj):
     planner = make_planner(rv2aj)
     before = planner.plan(Q_START, Q_GOAL)
