@@ -38,6 +38,7 @@ from assistant.motion_rows import (
 from assistant.roadmap.astar_kernel import search
 from assistant.roadmap.brushfire import brushfire_region
 from assistant.roadmap.edge_samples import edge_samples, first_invalid
+from assistant.roadmap.free_joints import ramp_free_joints
 from assistant.roadmap.graph_kernel import (
     base_nodes,
     expand,
@@ -83,7 +84,8 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            sweep_moves, halve_retries, repin, expand, weighted_distances,
            connected26, successor_costs, successors_into, neighbour_cells_into, search,
            fit_rows, run_sweeps, select_nodes, shape_poses, terminal_round, densify_rows,
-           resample_rows, base_nodes, edge_samples, first_invalid, path_samples)
+           resample_rows, base_nodes, edge_samples, first_invalid, path_samples,
+           ramp_free_joints)
 
 
 def warm_up() -> float:
@@ -144,6 +146,8 @@ def warm_up() -> float:
     # the roadmap's batched edge check (`planner._EdgeCheck`): samples, first invalid ones
     Q, edge, F = edge_samples(q, q + 0.3, checker.motion_samples_between(q, q + 0.3))
     first_invalid(checker.is_valid_samples(Q, first_only=True), edge, F, 1)
+    # a found path's free joints (J6 here) ramped start to goal (`planner`)
+    ramp_free_joints(np.vstack([q, q + 0.1, q + 0.3]), np.arange(5) == 4, np.ones(5))
     leaf_flags(np.ascontiguousarray(tcp, dtype=float), np.full(3, -1.0), 0.0625, 32,
                np.ones(32 ** 3, dtype=bool))
     # a short net on the RV-2AJ: its compiled move test (`net_kernel`), and the kernel that

@@ -46,6 +46,7 @@ from assistant.roadmap.astar import (
     SearchResult,
 )
 from assistant.roadmap.edge_samples import edge_samples, first_invalid
+from assistant.roadmap.free_joints import ramp_free_joints
 from assistant.roadmap.graph import GraphBase, JointGraph
 from assistant.roadmap.grid_ops import connected26
 from assistant.roadmap.path_first import lazy_path_search
@@ -535,9 +536,6 @@ class RoadmapPlanner:
         free = self._free_joints()
         if not free.any() or len(path) < 3:
             return path
-        P = np.array(path)
-        seg = np.linalg.norm(np.diff(P[:, ~free] * self.world.weights[~free], axis=0), axis=1)
-        s = np.concatenate(([0.0], np.cumsum(seg)))  # np.r_ cost ~20 us a call
-        s = s / s[-1] if s[-1] > 0 else np.linspace(0.0, 1.0, len(P))
-        P[:, free] = P[0, free] + s[:, None] * (P[-1, free] - P[0, free])
-        return [p for p in P]
+        P = np.array(path, dtype=float)
+        ramp_free_joints(P, free, np.ascontiguousarray(self.world.weights, dtype=float))
+        return list(P)

@@ -119,6 +119,33 @@ def test_j6_is_interpolated_between_start_and_goal(planner):
     assert planner.checker.check_path(plan.joint_path) is None
 
 
+def test_compiled_free_joint_ramp_is_the_numpy_one():
+    """`free_joints.ramp_free_joints` against the numpy form it replaced, to the bit: random
+    paths and weights, one or two free joints, a path whose other joints stand still (even
+    fractions)."""
+    from assistant.roadmap.free_joints import ramp_free_joints
+
+    def reference(P, free, weights):
+        P = P.copy()
+        seg = np.linalg.norm(np.diff(P[:, ~free] * weights[~free], axis=0), axis=1)
+        s = np.concatenate(([0.0], np.cumsum(seg)))
+        s = s / s[-1] if s[-1] > 0 else np.linspace(0.0, 1.0, len(P))
+        P[:, free] = P[0, free] + s[:, None] * (P[-1, free] - P[0, free])
+        return P
+
+    rng = np.random.default_rng(8)
+    for m in (3, 4, 9, 30):
+        for free in (np.array([0, 0, 0, 0, 1], bool), np.array([0, 1, 0, 0, 1], bool)):
+            P = rng.uniform(-2.0, 2.0, (m, 5))
+            weights = rng.uniform(0.05, 0.5, 5)
+            still = P.copy()
+            still[:, ~free] = P[0, ~free]
+            for path in (P, still):
+                got = path.copy()
+                ramp_free_joints(got, free, weights)
+                assert np.array_equal(got, reference(path, free, weights))
+
+
 def test_goal_inside_an_obstacle_and_unreachable_goal_are_refused(planner, rv2aj):
     T = np.eye(4)
     T[:3, 3] = [0.28, -0.12, 0.15]  # inside O1
