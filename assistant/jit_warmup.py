@@ -67,6 +67,7 @@ from assistant.trajectory.fit_kernels import (
 )
 from assistant.trajectory.fit_search import fit_rows
 from assistant.trajectory.follow_kernel import slerp_kernel, walk_nearest
+from assistant.trajectory.joint_steps import joint_steps
 from assistant.trajectory.net_forces import propose_moves
 from assistant.trajectory.net_kernel import apply_moves, check_moves
 from assistant.trajectory.net_stage import run_sweeps
@@ -85,7 +86,7 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            connected26, successor_costs, successors_into, neighbour_cells_into, search,
            fit_rows, run_sweeps, select_nodes, shape_poses, terminal_round, densify_rows,
            resample_rows, base_nodes, edge_samples, first_invalid, path_samples,
-           ramp_free_joints)
+           ramp_free_joints, joint_steps)
 
 
 def warm_up() -> float:
@@ -98,6 +99,7 @@ def warm_up() -> float:
     from assistant.roadmap.voronoi import build_voronoi, terminal_labels, update_voronoi
     from assistant.robot_model import CollisionShape, ShapeKind, Tool
     from assistant.rv2aj import RV2AJ, RV2AJConfig
+    from assistant.trajectory.assemble import joint_interpolation
     from assistant.trajectory.cartesian_follow import follow_poses, slerp_rotations
     from assistant.trajectory.elastic_net import ElasticNetParams, run_elastic_net
     from assistant.trajectory.primitives import ArcPrimitive, FitParams, fit_primitives
@@ -115,6 +117,7 @@ def warm_up() -> float:
     checker.check_motion(q[0], q[0] + 0.3)
     checker.check_path([q[0], q[0] + 0.3], trusted=np.zeros(1, dtype=bool))
     checker.check_path([q[0], q[0] + 0.3])
+    joint_interpolation(robot, q[0], q[0] + 0.3, 0.01)  # the assembly's joint moves
     tcp = robot.batch_fk(q).positions
     robot.batch_position_ik(tcp + 0.001, q, q)
     bent = np.array([0.3, 0.2, 0.5, 0.3, 0.1])  # off the J1 axis: the batch answers

@@ -33,6 +33,7 @@ from assistant.trajectory.elastic_net import (
     ElasticNetResult,
     run_elastic_net,
 )
+from assistant.trajectory.joint_steps import joint_steps
 from assistant.trajectory.particles import Particles
 from assistant.trajectory.primitives import (
     FitParams,
@@ -287,7 +288,16 @@ def _joint_splits(robot: Robot, chain: Array, a: int, b: int, verifier: PathVeri
 
 def joint_interpolation(robot: Robot, q0: Array, q1: Array, step: float) -> Array:
     """The straight joint-space move q0 -> q1 sampled so no arm point moves more than `step`."""
-    q0, q1 = np.asarray(q0, dtype=float), np.asarray(q1, dtype=float)
+    q0 = np.ascontiguousarray(q0, dtype=float)
+    q1 = np.ascontiguousarray(q1, dtype=float)
+    if not (np.isfinite(q0).all() and np.isfinite(q1).all()):
+        return _joint_interpolation_numpy(robot, q0, q1, step)
+    return joint_steps(q0, q1, robot.arm_radii(), float(step))  # the numpy form, compiled
+
+
+def _joint_interpolation_numpy(robot: Robot, q0: Array, q1: Array, step: float) -> Array:
+    """`joint_interpolation` as numpy (`joint_steps` gives the same rows to the bit; this
+    form also says what a non-finite joint does)."""
     travel = float(np.sum(robot.arm_radii() * np.abs(q1 - q0)))
     n = max(1, int(np.ceil(travel / step)))
     f = np.linspace(0.0, 1.0, n + 1)[:, None]

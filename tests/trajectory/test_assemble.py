@@ -265,3 +265,21 @@ def test_a_fallbacks_end_joints_are_those_of_the_scalar_ik(rv2aj):
         else:
             assert got is None and why == res.message
     assert turned > 50
+
+
+def test_compiled_joint_interpolation_is_the_numpy_one(rv2aj):
+    """`joint_interpolation` (compiled, `joint_steps`) against its numpy form to the bit:
+    long and short moves (one step), several step sizes, a move that stands still."""
+    from assistant.trajectory.assemble import _joint_interpolation_numpy, joint_interpolation
+
+    rng = np.random.default_rng(6)
+    counts = set()
+    for k in range(300):
+        a = rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper)
+        b = a + rng.normal(0.0, 1.0, 5) * rng.uniform(0.0, 1.0) ** 3 if k else a.copy()
+        step = float(rng.choice([0.002, 0.005, 0.01, 0.05]))
+        got = joint_interpolation(rv2aj, a, b, step)
+        want = _joint_interpolation_numpy(rv2aj, a, b, step)
+        assert got.shape == want.shape and np.array_equal(got, want)
+        counts.add(min(len(got), 3))
+    assert counts == {2, 3}  # one step and several
