@@ -77,9 +77,9 @@ class JointGraph:
         start = base.cell_start
         if k > base.n_extra or any(not searchable[c] and start[c + 1] > start[c]
                                    for c, _ in extra):
-            # `build` leaves out the own positions of an extra's cell that was not
-            # searchable, which the base cannot (and the planner's terminal cells are
-            # searchable or hold no position): the selected graph then
+            # `build` leaves out the positions of an extra's cell that was not searchable,
+            # which a base cannot (a planner's terminal cells are searchable or hold no
+            # position): then `build`'s graph itself
             return JointGraph.build(base.shape, base.cells, base.offsets,
                                     base.node_q[:n_base], searchable, squeeze_blocked,
                                     penalty, weights, extra, max_edge, squeeze_exempt)
@@ -164,6 +164,8 @@ class GraphBase:
            n_extra: int = 2) -> GraphBase:
         """The base over the positions of cell cells[i] (ascending) Q[offsets[i]:offsets[i + 1]]."""
         n_cells = shape[0] * shape[1] * shape[2]
+        if len(cells) > 1 and np.any(np.diff(cells) <= 0):
+            raise ValueError("a graph base needs its cells in ascending order")
         node_q, node_cell, cell_start = base_nodes(
             np.asarray(cells, dtype=np.int64), np.asarray(offsets, dtype=np.int64),
             np.ascontiguousarray(Q, dtype=float), n_cells, n_extra)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
+import pytest
 
 from assistant.roadmap.graph import JointGraph
 
@@ -153,6 +154,8 @@ def test_graph_over_a_base_searches_as_the_selected_graph():
     offsets = np.r_[0, np.cumsum(rng.integers(1, 4, len(cells)))]
     Q = rng.uniform(-1.0, 1.0, (offsets[-1], 5))
     base = GraphBase.of(shape, cells, offsets, Q)
+    with pytest.raises(ValueError, match="ascending"):  # node ids must follow the cells
+        GraphBase.of(shape, cells[::-1], offsets, Q)
     found = fast = 0
     for trial in range(24):
         searchable = rng.random(n_cells) < 0.6
