@@ -89,12 +89,15 @@ def search(start: int, goal: int, nx: int, ny: int, nz: int, searchable: Array,
 
 
 @njit(cache=True, inline="always")
-def _before(heap: Array, a: int, b: int) -> bool:
-    """Row a < row b as Python compares the tuples (f, g, node, parent)."""
-    for j in range(4):
-        if heap[a, j] != heap[b, j]:
-            return heap[a, j] < heap[b, j]
-    return False
+def _before(f: float, g: float, v: float, p: float, heap: Array, b: int) -> bool:
+    """(f, g, v, p) < row b as Python compares the tuples (f, g, node, parent)."""
+    if f != heap[b, 0]:
+        return f < heap[b, 0]
+    if g != heap[b, 1]:
+        return g < heap[b, 1]
+    if v != heap[b, 2]:
+        return v < heap[b, 2]
+    return p < heap[b, 3]
 
 
 @njit(cache=True)
@@ -103,8 +106,7 @@ def _sift_down(heap: Array, start: int, pos: int) -> None:
     f, g, v, p = heap[pos, 0], heap[pos, 1], heap[pos, 2], heap[pos, 3]
     while pos > start:
         up = (pos - 1) >> 1
-        if f < heap[up, 0] or (f == heap[up, 0] and (g < heap[up, 1] or (g == heap[up, 1] and (
-                v < heap[up, 2] or (v == heap[up, 2] and p < heap[up, 3]))))):
+        if _before(f, g, v, p, heap, up):
             heap[pos, 0], heap[pos, 1] = heap[up, 0], heap[up, 1]
             heap[pos, 2], heap[pos, 3] = heap[up, 2], heap[up, 3]
             pos = up
@@ -121,7 +123,8 @@ def _sift_up(heap: Array, end: int) -> None:
     f, g, v, p = heap[0, 0], heap[0, 1], heap[0, 2], heap[0, 3]
     child = 1
     while child < end:
-        if child + 1 < end and not _before(heap, child, child + 1):
+        if child + 1 < end and not _before(heap[child, 0], heap[child, 1], heap[child, 2],
+                                           heap[child, 3], heap, child + 1):
             child += 1
         heap[pos, 0], heap[pos, 1] = heap[child, 0], heap[child, 1]
         heap[pos, 2], heap[pos, 3] = heap[child, 2], heap[child, 3]
