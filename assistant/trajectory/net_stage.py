@@ -4,7 +4,7 @@ Why: a query's net makes ~40 sweeps, and each sweep was five compiled calls from
 (`net_sweep.sweep_moves`, `net_kernel.check_moves` once or twice, `halve_retries`,
 `repin`) plus the stop tests: numba's dispatch of the move test alone (two dozen arguments,
 among them tuples of arrays) and the Python in between cost ~0.6 ms a query. Here the
-sweeps between two progress reports (every fourth sweep, as before) run in one call.
+sweeps between two progress reports (`elastic_net.SWEEPS_PER_REPORT`) run in one call.
 
 The steps are `elastic_net._Net.iterate`'s and `run_stage`'s, in the same order on the same
 arrays: the mean movement E and the taut test's lengths are summed as numpy sums them
