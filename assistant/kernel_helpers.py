@@ -35,11 +35,30 @@ def mm3_into(A: Array, B: Array, out: Array) -> None:
 def axis_angle3(axis: Array, norm: float, angle: float) -> Array:
     """`transforms.axis_angle_batch` of one axis (not necessarily unit) given its norm:
     I + sin(angle) K + (1 - cos(angle)) K^2; the identity for a zero axis."""
+    out = np.empty((3, 3))
+    axis_angle3_into(axis, norm, angle, np.empty((3, 3)), np.empty((3, 3)), out)
+    return out
+
+
+@njit(cache=True, inline="always")
+def axis_angle3_into(axis: Array, norm: float, angle: float, K: Array, KK: Array,
+                     out: Array) -> None:
+    """`axis_angle3` into out (3, 3), K and KK scratch (3, 3): the same operations element
+    for element (I + sin K, then + (1 - cos) K K with `mm3`'s sums), no new arrays."""
     if norm < 1e-15:
-        return np.eye(3)
-    k = axis / norm
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * mm3(K, K)
+        for r in range(3):
+            for c in range(3):
+                out[r, c] = 1.0 if r == c else 0.0
+        return
+    k0, k1, k2 = axis[0] / norm, axis[1] / norm, axis[2] / norm
+    K[0, 0], K[0, 1], K[0, 2] = 0.0, -k2, k1
+    K[1, 0], K[1, 1], K[1, 2] = k2, 0.0, -k0
+    K[2, 0], K[2, 1], K[2, 2] = -k1, k0, 0.0
+    mm3_into(K, K, KK)
+    s, t = np.sin(angle), 1.0 - np.cos(angle)
+    for r in range(3):
+        for c in range(3):
+            out[r, c] = ((1.0 if r == c else 0.0) + s * K[r, c]) + t * KK[r, c]
 
 
 @njit(cache=True, inline="always")

@@ -31,9 +31,11 @@ from assistant.robot_model import (
 )
 from assistant.rv2aj_fk_batch import tcp_poses
 from assistant.rv2aj_pose_batch import (
+    PoseBatchModel,
     PoseCandidates,
     joint_limit_message,
     out_of_reach_message,
+    pose_batch_model,
     pose_candidates,
 )
 from assistant.rv2aj_position_ik import planar_position_ik
@@ -251,8 +253,15 @@ class RV2AJ(Robot):
     def ik_candidates_batch(self, T_base_tool: Array) -> PoseCandidates | None:
         """Every IK branch of many poses at once (see `rv2aj_pose_batch`); None for a tool
         whose TCP is off the flange axis."""
-        return pose_candidates(T_base_tool, self.T_flange_tool, self._T_tool_flange,
-                               self.limits, self.config.plane_tolerance, (L1, L2, L3, L6), _R0)
+        model = self._pose_batch_model
+        return pose_candidates(T_base_tool, model) if model is not None else None
+
+    @functools.cached_property
+    def _pose_batch_model(self) -> PoseBatchModel | None:
+        """`ik_candidates_batch`'s constants, laid out once (the limits and tool, like the
+        robot's other cached constants, are fixed for its lifetime)."""
+        return pose_batch_model(self.T_flange_tool, self._T_tool_flange, self.limits,
+                                self.config.plane_tolerance, (L1, L2, L3, L6), _R0)
 
     def nearest_reachable_orientation(self, T_base_tool: Array) -> Array | None:
         """None if the 5-axis constraint holds; else the closest pose that satisfies it.
