@@ -1,4 +1,4 @@
-"""Per point, a flag of the leaf it lies in (compiled, numba).
+"""Per point, the leaf it lies in or that leaf's flag (compiled, numba).
 
 The elastic net asks "is each proposed TCP point (and its edge midpoints) in a free leaf?"
 once or twice per sweep, a few dozen points at a time; through `OctreeGrid.flat_of_points`
@@ -37,3 +37,21 @@ def leaf_flag(x: float, y: float, z: float, origin: Array, leaf: float, n: int,
     if not (fx >= 0.0 and fx < n and fy >= 0.0 and fy < n and fz >= 0.0 and fz < n):
         return False
     return flags[(int(fx) * n + int(fy)) * n + int(fz)]
+
+
+@njit(cache=True)
+def leaf_indices(points: Array, origin: Array, leaf: float, n: int) -> Array:
+    """Flat C-order leaf index of each point (N, 3), -1 outside the grid or not finite.
+
+    `OctreeGrid.flat_of_points` in one pass: its five numpy calls cost ~12 us even for
+    the two points (a query's start and goal TCP) a planning query asks about."""
+    out = np.empty(len(points), dtype=np.int64)
+    for p in range(len(points)):
+        fx = np.floor((points[p, 0] - origin[0]) / leaf)
+        fy = np.floor((points[p, 1] - origin[1]) / leaf)
+        fz = np.floor((points[p, 2] - origin[2]) / leaf)
+        if fx >= 0.0 and fx < n and fy >= 0.0 and fy < n and fz >= 0.0 and fz < n:
+            out[p] = (int(fx) * n + int(fy)) * n + int(fz)
+        else:
+            out[p] = -1
+    return out
