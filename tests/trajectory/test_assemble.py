@@ -238,11 +238,15 @@ def test_whole_pipeline_from_a_searched_path(rv2aj):
 def test_a_fallbacks_end_joints_are_those_of_the_scalar_ik(rv2aj):
     """The batch answers a joint-move fallback's end pose as `ik` would: the pose, else its
     orientation turned into the arm plane, the solution nearest the reference; poses it
-    cannot answer go through `ik` (position only last)."""
+    cannot answer go through `ik` (position only last). Poses the batch answers with "no
+    solution" go to the position alone at once: `ik` must fail on them as the batch says."""
     rng = np.random.default_rng(11)
-    Q = rv2aj.limits.lower + rng.uniform(0.05, 0.95, (300, 5)) * (
-        rv2aj.limits.upper - rv2aj.limits.lower)
-    turned = 0
+    lo, hi = rv2aj.limits.lower, rv2aj.limits.upper
+    Q = lo + rng.uniform(0.05, 0.95, (400, 5)) * (hi - lo)
+    # a quarter with J3 at its upper limit (where transfers fold the arm): the shifted pose
+    # breaks it in every arm configuration
+    Q[300:, 2] = hi[2] - rng.uniform(0.0, 0.01, 100)
+    turned = none_in_batch = 0
     for q in Q:
         T = rv2aj.fk(q)
         # tilt the orientation a little out of the arm plane half of the time
@@ -264,7 +268,14 @@ def test_a_fallbacks_end_joints_are_those_of_the_scalar_ik(rv2aj):
             assert np.allclose(got, res.best(q_ref), atol=1e-12)
         else:
             assert got is None and why == res.message
-    assert turned > 50
+        cands = rv2aj.ik_candidates_batch(T[None])
+        if cands.exact[0] and not cands.valid[0].any():
+            none_in_batch += 1
+            pose = rv2aj.ik(T, q_ref)
+            assert not pose.ok
+            if pose.nearest_T_base_tool is not None:
+                assert not rv2aj.ik(pose.nearest_T_base_tool, q_ref).ok
+    assert turned > 50 and none_in_batch > 20
 
 
 def test_compiled_joint_interpolation_is_the_numpy_one(rv2aj):
