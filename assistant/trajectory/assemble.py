@@ -26,7 +26,7 @@ from assistant.collision import MotionCheck
 from assistant.motion import Motion, MotionKind, Trajectory, Waypoint
 from assistant.progress import Progress
 from assistant.robot_model import Robot
-from assistant.trajectory.cartesian_follow import follow_poses, poses_from, slerp_rotations
+from assistant.trajectory.cartesian_follow import follow_poses
 from assistant.trajectory.elastic_net import (
     AllowedFn,
     ElasticNetParams,
@@ -41,7 +41,7 @@ from assistant.trajectory.primitives import (
     PrimitiveFit,
     PrimitiveKind,
     fit_primitives,
-    sample_primitive,
+    primitive_poses,
 )
 from assistant.validity import ValidityChecker
 
@@ -215,10 +215,8 @@ def _cartesian_motion(robot: Robot, prim: Primitive, current: Waypoint, R_end: A
     so the fallback follows the net (where the arm was checked) with as few moves as the
     obstacles allow. Verification of the whole trajectory still follows.
     """
-    u, pts = sample_primitive(prim, params.step)
-    R = slerp_rotations(current.T_base_tool[:3, :3], R_end, u)
-    follow = follow_poses(robot, poses_from(pts, R), current.q,
-                          max_joint_step=params.max_joint_step)
+    u, poses = primitive_poses(prim, params.step, current.T_base_tool[:3, :3], R_end)
+    follow = follow_poses(robot, poses, current.q, max_joint_step=params.max_joint_step)
     if follow.ok:
         Q = follow.joints
         Q[0] = current.q  # the move starts where the arm is

@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from assistant.kernel_helpers import axis_angle3, mm3
+from assistant.kernel_helpers import axis_angle3_into, mm3
 
 Array = np.ndarray
 
@@ -67,6 +67,27 @@ def slerp_kernel(R0: Array, R1: Array, u: Array) -> Array:
     angle = 2 atan2(|xyz|, w), stable near 0 and pi; each fraction is then one Rodrigues
     rotation. Through scipy and numpy this was ~0.2 ms per LINEAR/CIRCULAR move.
     """
+    out = np.empty((len(u), 3, 3))
+    slerp_into(R0, R1, u, out)
+    return out
+
+
+@njit(cache=True)
+def slerp_into(R0: Array, R1: Array, u: Array, out: Array) -> None:
+    """`slerp_kernel` into the first three rows and columns of out[n] (M, >= 3, >= 3)."""
+    axis, s, angle = _turn(R0, R1)
+    K, KK, R = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
+    for n in range(len(u)):
+        axis_angle3_into(axis, s, min(max(u[n], 0.0), 1.0) * angle, K, KK, R)
+        for r in range(3):  # `mm3(R0, R)`'s products and sums
+            for c in range(3):
+                out[n, r, c] = R0[r, 0] * R[0, c] + R0[r, 1] * R[1, c] + R0[r, 2] * R[2, c]
+
+
+@njit(cache=True)
+def _turn(R0: Array, R1: Array) -> tuple[Array, float, float]:
+    """The rotation R0^T R1 as (axis x, y, z of its unit quaternion with w >= 0, the axis'
+    norm, angle) (`slerp_kernel`'s docstring)."""
     M = mm3(R0.T, R1)
     tr = M[0, 0] + M[1, 1] + M[2, 2]
     q = np.empty(4)  # x, y, z, w
@@ -86,8 +107,41 @@ def slerp_kernel(R0: Array, R1: Array, u: Array) -> Array:
     if q[3] < 0.0:
         q = -q
     s = np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2])
-    angle = 2.0 * np.arctan2(s, q[3])
-    out = np.empty((len(u), 3, 3))
-    for n in range(len(u)):
-        out[n] = mm3(R0, axis_angle3(q[:3], s, min(max(u[n], 0.0), 1.0) * angle))
-    return out
+    return q[:3].copy(), s, 2.0 * np.arctan2(s, q[3])
+
+
+@njit(cache=True)
+def primitive_pose_rows(is_arc: bool, start: Array, end: Array, centre: Array,
+                        normal: Array, sweep: float, n: int, R0: Array, R1: Array,
+                        ) -> tuple[Array, Array]:
+    """(u, T) of a LINEAR/CIRCULAR move's samples (`primitives.primitive_poses`): the n + 1
+    fractions of `np.linspace(0, 1, n + 1)`, the points of `LinePrimitive.point_at` or
+    `ArcPrimitive.point_at` (start/end resp. start/centre/normal/sweep) and the rotations of
+    `slerp_rotations(R0, R1, u)`, stacked as `poses_from` stacks them - the same
+    operations element for element."""
+    u = np.empty(n + 1)
+    step = 1.0 / n
+    for k in range(n + 1):
+        u[k] = k * step + 0.0  # linspace: arange * step, + start
+    u[n] = 1.0
+    T = np.zeros((n + 1, 4, 4))
+    slerp_into(R0, R1, u, T)
+    if is_arc:
+        r0, r1, r2 = start[0] - centre[0], start[1] - centre[1], start[2] - centre[2]
+        # `primitives._cross(normal, r0)`
+        x0 = normal[1] * r2 - normal[2] * r1
+        x1 = normal[2] * r0 - normal[0] * r2
+        x2 = normal[0] * r1 - normal[1] * r0
+        for k in range(n + 1):
+            a = u[k] * sweep
+            ca, sa = np.cos(a), np.sin(a)
+            T[k, 0, 3] = centre[0] + ca * r0 + sa * x0
+            T[k, 1, 3] = centre[1] + ca * r1 + sa * x1
+            T[k, 2, 3] = centre[2] + ca * r2 + sa * x2
+    else:
+        for k in range(n + 1):
+            for c in range(3):
+                T[k, c, 3] = start[c] + u[k] * (end[c] - start[c])
+    for k in range(n + 1):
+        T[k, 3, 3] = 1.0
+    return u, T

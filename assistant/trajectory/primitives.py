@@ -43,6 +43,7 @@ from assistant.trajectory.fit_kernels import (
     line_distances,
 )
 from assistant.trajectory.fit_search import LINE, fit_rows
+from assistant.trajectory.follow_kernel import primitive_pose_rows
 
 Array = np.ndarray
 
@@ -244,12 +245,33 @@ def _from_row(r: Array) -> Primitive:
 def sample_primitive(prim: Primitive, max_step: float) -> tuple[Array, Array]:
     """Fractions u (0..1, always with 0 and 1; arcs also with 0.5, the via) and TCP points,
     at most `max_step` apart along the primitive."""
+    u = np.linspace(0.0, 1.0, _sample_count(prim, max_step) + 1)
+    return u, np.atleast_2d(prim.point_at(u))
+
+
+def _sample_count(prim: Primitive, max_step: float) -> int:
+    """`sample_primitive`'s number of steps."""
     n = max(1, int(np.ceil(prim.length / max_step)))
     if prim.kind == PrimitiveKind.ARC:
         n += n % 2
         n = max(n, 2)
-    u = np.linspace(0.0, 1.0, n + 1)
-    return u, np.atleast_2d(prim.point_at(u))
+    return n
+
+
+def primitive_poses(prim: Primitive, max_step: float, R0: Array, R1: Array,
+                    ) -> tuple[Array, Array]:
+    """(u, T_base_tool (M, 4, 4)): `sample_primitive`'s fractions and points with the tool
+    turning from R0 to R1 (`slerp_rotations`), as `poses_from` stacks them - what a LINEAR or
+    CIRCULAR move's IK walk is given, in one compiled pass (`follow_kernel`) instead of
+    ~25 us of numpy calls per move; the same numbers to the bit."""
+    n = _sample_count(prim, max_step)
+    if prim.kind == PrimitiveKind.ARC:
+        return primitive_pose_rows(True, _vec(prim.start), _vec(prim.end), _vec(prim.centre),
+                                   _vec(prim.normal), float(prim.sweep), n, _mat(R0),
+                                   _mat(R1))
+    start = _vec(prim.start)  # a line: no centre, normal or sweep
+    return primitive_pose_rows(False, start, _vec(prim.end), start, start, 0.0, n, _mat(R0),
+                               _mat(R1))
 
 
 def circle_through(a: Array, b: Array, c: Array) -> tuple[Array, float, Array]:
@@ -305,6 +327,11 @@ def _unit(v: Array) -> Array:
 def _vec(v: Array) -> Array:
     """A contiguous float64 3-vector, as the kernels are compiled for."""
     return np.ascontiguousarray(v, dtype=np.float64)
+
+
+def _mat(R: Array) -> Array:
+    """A contiguous float64 matrix, as the kernels are compiled for."""
+    return np.ascontiguousarray(R, dtype=np.float64)
 
 
 def _rows(points: Array) -> Array:

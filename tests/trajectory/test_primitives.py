@@ -143,3 +143,35 @@ def test_line_distance_is_to_the_segment():
     line = LinePrimitive(np.zeros(3), np.array([1.0, 0, 0]), 0, 1)
     d = line.distance(np.array([[0.5, 0.2, 0], [2.0, 0, 0], [-1.0, 0, 0]]))
     assert np.allclose(d, [0.2, 1.0, 1.0])
+
+
+def test_primitive_poses_are_the_sampled_points_and_slerped_rotations():
+    """`primitive_poses` (one compiled pass) gives `sample_primitive`'s fractions and
+    points with `slerp_rotations`' turns, stacked as `poses_from` does, to the bit: lines
+    and arcs of many lengths and sweeps, no turn, small turns and half turns."""
+    from assistant.trajectory.cartesian_follow import poses_from, slerp_rotations
+    from assistant.trajectory.primitives import primitive_poses
+    from assistant.transforms import axis_angle
+
+    rng = np.random.default_rng(8)
+    kinds = set()
+    for k in range(300):
+        a, v, b = rng.uniform(-0.5, 0.5, (3, 3)) * rng.uniform(0.01, 1.0)
+        prim = LinePrimitive(a, b, 0, 1) if k % 2 else ArcPrimitive.through(a, v, b, 0, 1)
+        R0 = _rotation(rng)
+        turn = [0.0, 1e-9, rng.uniform(0.0, 1.0), np.pi][k % 4]
+        axis = rng.normal(size=3)
+        R1 = R0 @ axis_angle(axis / np.linalg.norm(axis), turn)
+        step = float(rng.choice([0.002, 0.005, 0.02]))
+        u, T = primitive_poses(prim, step, R0, R1)
+        u_ref, pts = sample_primitive(prim, step)
+        T_ref = poses_from(pts, slerp_rotations(R0, R1, u_ref))
+        assert np.array_equal(u, u_ref) and T.shape == T_ref.shape
+        assert np.array_equal(T, T_ref), k
+        kinds.add((prim.kind, len(u) > 3))
+    assert len(kinds) == 4  # lines and arcs, short and long
+
+
+def _rotation(rng: np.random.Generator) -> np.ndarray:
+    q, _ = np.linalg.qr(rng.normal(size=(3, 3)))
+    return q * np.sign(np.linalg.det(q))
