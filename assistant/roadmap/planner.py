@@ -50,6 +50,7 @@ from assistant.roadmap.free_joints import ramp_free_joints
 from assistant.roadmap.graph import GraphBase, JointGraph
 from assistant.roadmap.grid_ops import connected26
 from assistant.roadmap.path_first import lazy_path_search
+from assistant.roadmap.search_masks import search_masks
 from assistant.roadmap.sources import SourceLabels, label_sources, relabel
 from assistant.roadmap.voronoi import (
     ROAD,
@@ -211,6 +212,18 @@ class _EdgeCheck:
         return [None if f != f else f for f in first.tolist()]  # NaN: no invalid sample
 
 
+@dataclass(frozen=True)
+class _SearchGrids:
+    """Flat grids of the world that every query reads (`RoadmapPlanner._search_grids`)."""
+
+    key: tuple  # (occupancy grid, table, position selection, config) they were made for
+    squeeze: Array  # the no-corner-squeeze rule's blocked cells: occupied, or reachable
+    #                 without a valid position
+    penalty: Array  # the occupancy penalty of entering each cell
+    free: Array  # `WorldModel.free`: a valid position and not occupied
+    offers: Array  # `WorldModel.has_valid`: a valid position, occupied or not
+
+
 class RoadmapPlanner:
     """Plans joint paths through the Voronoi roads of a `WorldModel` (module docstring).
 
@@ -229,7 +242,7 @@ class RoadmapPlanner:
         self._edge = _EdgeCheck(checker, world)
         #: The search graphs' nodes (`GraphBase`) and the positions array they were made of.
         self._base: tuple[Array, GraphBase] | None = None
-        self._grids: tuple[tuple, Array, Array] | None = None  # `_search_grids`
+        self._grids: _SearchGrids | None = None  # `_search_grids`
 
     # ---------------------------------------------------------------- build
     def build(self, progress: Progress | None = None) -> RoadmapBuildReport:
@@ -321,18 +334,18 @@ class RoadmapPlanner:
         s_lab, g_lab = labels.next_label, labels.next_label + 1
         lab = terminal_labels(base, cells, labs, d_min=self.config.terminal_reset).reshape(-1)
         timings["roadmap_update"] = time.perf_counter() - t1
-        # around the goal only CAD leaves (partly filled; FCL checked their positions), around
-        # the start any leaf (the robot is there)
-        cad_leaf = w.object_ids().reshape(-1) > 0
-        offers = w.has_valid()
-        escape = self._escape_cells(sc, offers) | (self._escape_cells(gc, offers) & cad_leaf)
-        free = w.free().reshape(-1) | escape
-        free[[sc, gc]] = True
-        on_roads = (lab == ROAD) | (lab == s_lab) | (lab == g_lab)
-        # The roads first; then any free cell; then also squeezing out of the start's or into
-        # the goal's cell (a point taught next to a part may have no other way out; one the
-        # rule leaves no edge at all is exempt from the first try on, see `_search`).
-        tries = [("roads", (on_roads & free) | escape, False)]
+        # Escape boxes (`RoadmapConfig.terminal_escape`): around the goal only CAD leaves
+        # (partly filled; FCL checked their positions), around the start any leaf (the robot
+        # is there). The roads first: the base map's and the terminals' own regions, among
+        # the free cells and the escapes (`search_masks`).
+        grids = self._search_grids()
+        on_roads, free = search_masks(
+            lab, ROAD, s_lab, g_lab, grids.free, grids.offers, w.cad_leaves(), w.grid.n, sc,
+            gc, self.config.terminal_escape)
+        # Then any free cell; then also squeezing out of the start's or into the goal's cell
+        # (a point taught next to a part may have no other way out; one the rule leaves no
+        # edge at all is exempt from the first try on, see `_search`).
+        tries = [("roads", on_roads, False)]
         if self.config.fallback_to_free_cells:
             tries += [("free cells", free, False), ("free cells", free, True)]
         res = graph = searched = None
@@ -388,19 +401,6 @@ class RoadmapPlanner:
                            PlanFailure.NO_PATH_REGIONS, expansions=res.expansions,
                            edge_checks=res.edge_checks, rejected_edges=res.rejected_edges,
                            timings=timings)
-
-    def _escape_cells(self, cell: int, offers: Array) -> Array:
-        """Flat mask: cells near `cell` that offer joint positions (occupied or not;
-        `offers` is the world's `has_valid` grid)."""
-        w = self.world
-        r = self.config.terminal_escape
-        if r <= 0:
-            return np.zeros(w.grid.n_cells, dtype=bool)
-        _, ny, nz = w.grid.shape
-        i, j, k = cell // (ny * nz), (cell // nz) % ny, cell % nz  # `ijk_of_flat`, as ints
-        out = np.zeros(w.grid.shape, dtype=bool)
-        out[max(0, i - r):i + r + 1, max(0, j - r):j + r + 1, max(0, k - r):k + r + 1] = True
-        return (out & offers).reshape(-1)
 
     def _weighted(self, a: Array, b: Array) -> float:
         return float(np.linalg.norm((b - a) * self._weights()))
@@ -479,7 +479,8 @@ class RoadmapPlanner:
         """
         t0 = time.perf_counter()
         base = self._graph_base()
-        squeeze, penalty = self._search_grids()
+        grids = self._search_grids()
+        squeeze, penalty = grids.squeeze, grids.penalty
 
         def build(exempt: Sequence[int]) -> tuple[JointGraph, list[int]]:
             return JointGraph.over(base, searchable, squeeze, penalty, self._weights(),
@@ -497,19 +498,21 @@ class RoadmapPlanner:
         timings["search"] = timings.get("search", 0.0) + time.perf_counter() - t1
         return res, graph
 
-    def _search_grids(self) -> tuple[Array, Array]:
-        """(squeeze_blocked, penalty) flat grids of the searches: occupied or reachable
-        without a valid position; the occupancy penalty. Remembered while the world's
-        occupancy grid, table and position selection and the config stay the same objects
-        (a new occupancy grid or selection is a new array; ~0.03 ms a query otherwise)."""
+    def _search_grids(self) -> _SearchGrids:
+        """The world's flat grids a query reads (`_SearchGrids`). Remembered while the
+        world's occupancy grid, table and position selection and the config stay the same
+        objects (a new occupancy grid or selection is a new array; ~0.04 ms a query
+        otherwise)."""
         w = self.world
         key = (w.occupancy(), w.table, w.cell_positions_shared()[2], self.config)
-        if self._grids is None or any(a is not b for a, b in zip(self._grids[0], key,
+        if self._grids is None or any(a is not b for a, b in zip(self._grids.key, key,
                                                                   strict=True)):
-            squeeze = (w.occupied() | (w.reachable() & ~w.has_valid())).reshape(-1)
-            penalty = np.asarray(self.config.occupancy_penalty * key[0].reshape(-1), float)
-            self._grids = (key, squeeze, penalty)
-        return self._grids[1], self._grids[2]
+            occupied, offers = w.occupied(), w.has_valid()
+            self._grids = _SearchGrids(
+                key, (occupied | (w.reachable() & ~offers)).reshape(-1),
+                np.asarray(self.config.occupancy_penalty * key[0].reshape(-1), float),
+                (offers & ~occupied).reshape(-1), offers.reshape(-1))
+        return self._grids
 
     def _graph_base(self) -> GraphBase:
         """The search graphs' nodes: every position of the world's selection, laid out once

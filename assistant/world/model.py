@@ -126,6 +126,7 @@ class WorldModel:
         self.collisions: list[RecordedCollision] = []
         self.weights = robot.arm_radii()
         self._object_ids = np.zeros(self.grid.n_cells, dtype=np.int32)
+        self._cad_leaves: tuple[Array, Array] | None = None  # `cad_leaves`
 
     @property
     def built(self) -> bool:
@@ -213,6 +214,16 @@ class WorldModel:
         occ = self.occupied().reshape(-1)
         ids[occ & (ids == 0)] = OBSERVED_ID
         return ids.reshape(self.grid.shape)
+
+    def cad_leaves(self) -> Array:
+        """Flat bool grid: leaves of a CAD object (`object_ids` > 0), read only; the same
+        array until the CAD is rasterised again (a planning query asks every time)."""
+        ids = self._object_ids
+        if self._cad_leaves is None or self._cad_leaves[0] is not ids:
+            leaves = ids > 0
+            leaves.setflags(write=False)
+            self._cad_leaves = (ids, leaves)
+        return self._cad_leaves[1]
 
     def object_names(self) -> list[str]:
         return [ob.name for ob in self.cad]

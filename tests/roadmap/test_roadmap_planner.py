@@ -203,17 +203,21 @@ def test_search_grids_follow_every_change_of_the_world(rv2aj):
 
     def fresh():
         squeeze = (w.occupied() | (w.reachable() & ~w.has_valid())).reshape(-1)
-        return squeeze, planner.config.occupancy_penalty * w.occupancy().reshape(-1)
+        return (squeeze, planner.config.occupancy_penalty * w.occupancy().reshape(-1),
+                w.free().reshape(-1), w.has_valid().reshape(-1))
 
     def same_as_fresh() -> bool:
-        got, want = planner._search_grids(), fresh()
-        return np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+        g = planner._search_grids()
+        got = (g.squeeze, g.penalty, g.free, g.offers)
+        return all(np.array_equal(a, b) for a, b in zip(got, fresh(), strict=True))
 
     assert same_as_fresh()
     before = planner._search_grids()
     cells = np.flatnonzero(w.free().reshape(-1))[:40]
     planner.observe(Source.SENSOR, w.grid.centres_of_ijk(w.grid.ijk_of_flat(cells)), 1.0)
-    assert same_as_fresh() and not np.array_equal(before[1], planner._search_grids()[1])
+    assert same_as_fresh() and not np.array_equal(before.penalty,
+                                                  planner._search_grids().penalty)
+    assert not np.array_equal(before.free, planner._search_grids().free)
     planner.add_collision(np.radians([0.0, 40.0, 70.0, 0.0, 0.0]))
     assert same_as_fresh()
     assert planner.plan(Q_START, Q_GOAL).ok
@@ -314,3 +318,37 @@ def test_a_start_taught_between_the_table_and_a_part_is_left_diagonally(rv2aj, m
         lambda *a, **k: over(*a, **{**k, "squeeze_exempt": ()})))
     cut_off = planner.plan(q_s, q_g)
     assert not cut_off.ok and cut_off.failure == PlanFailure.NO_PATH
+
+
+def test_search_masks_are_the_set_operations_on_the_grids():
+    """The compiled query masks (`search_masks`) against the numpy set logic they replace:
+    random label/free/offers/CAD grids, terminals inside and at the grid's faces and
+    corners, escape radius 0 to 3."""
+    from assistant.roadmap.search_masks import search_masks
+
+    rng = np.random.default_rng(12)
+    n = 12
+    for trial in range(60):
+        lab = rng.integers(-2, 6, n ** 3).astype(np.int32)
+        free, offers, cad = (rng.random((3, n ** 3)) < [[0.5], [0.6], [0.3]])
+        corner = [0, n - 1][trial % 2]
+        sc = int(rng.integers(n ** 3)) if trial % 3 else (corner * n + corner) * n + corner
+        gc = int(rng.integers(n ** 3))
+        r, s_lab, g_lab = trial % 4, 4, 5
+        escape = np.zeros((n, n, n), bool)
+        for cell, only_cad in ((sc, False), (gc, True)):
+            i, j, k = cell // (n * n), (cell // n) % n, cell % n
+            box = np.zeros((n, n, n), bool)
+            if r > 0:
+                box[max(0, i - r):i + r + 1, max(0, j - r):j + r + 1,
+                    max(0, k - r):k + r + 1] = True
+            box = box.reshape(-1) & offers & (cad if only_cad else True)
+            escape |= box.reshape(n, n, n)
+        escape = escape.reshape(-1)
+        want_free = free | escape
+        want_free[[sc, gc]] = True
+        roads = (lab == -1) | (lab == s_lab) | (lab == g_lab)
+        want = (roads & want_free) | escape
+        got, got_free = search_masks(lab, -1, s_lab, g_lab, free, offers, cad, n, sc, gc, r)
+        assert np.array_equal(got, want) and np.array_equal(got_free, want_free)
+        assert want.any() and not want.all()

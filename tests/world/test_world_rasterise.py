@@ -72,6 +72,9 @@ def test_cad_cells_are_occupied_and_owned(world):
         assert len(cells) and occ[cells].all()
         assert np.all((ids[cells] == i + 1) | (ids[cells] > 0))
     assert occ.sum() == len(np.unique(np.concatenate(list(world.cad_cells.values()))))
+    # the planner's flat CAD mask: the same leaves, remembered
+    assert np.array_equal(world.cad_leaves(), ids > 0) and world.cad_leaves().any()
+    assert world.cad_leaves() is world.cad_leaves()
 
 
 def test_invalid_positions_really_collide_and_valid_ones_do_not(world, rv2aj, rng):
