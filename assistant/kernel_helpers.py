@@ -68,3 +68,16 @@ def within_limits(q: Array, lower: Array, upper: Array) -> bool:
         if not (q[j] >= lower[j] - 1e-9 and q[j] <= upper[j] + 1e-9):
             return False
     return True
+
+
+@njit(cache=True, inline="always")
+def wrap_pi(a: float) -> float:
+    """(a + pi) % (2 pi) - pi, Python's float modulo, to the bit: an angle into [-pi, pi).
+
+    The modulo is a libm fmod (~5 ns) and the IK kernels wrap several joints per solution;
+    for a + pi already in [0, 2 pi) it returns a + pi itself (fmod is exact there, and a
+    zero comes out +0 either way), so only other values pay for it."""
+    x = a + np.pi
+    if x >= 0.0 and x < 2.0 * np.pi:
+        return x - np.pi
+    return x % (2.0 * np.pi) - np.pi

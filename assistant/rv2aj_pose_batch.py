@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from numba import njit
 
-from assistant.kernel_helpers import axis_angle3_into, mm3_into, within_limits
+from assistant.kernel_helpers import axis_angle3_into, mm3_into, within_limits, wrap_pi
 from assistant.robot_model import JointLimits
 
 Array = np.ndarray
@@ -232,7 +232,7 @@ def _candidates(T: Array, R_ft: Array, T_tf: Array, lower: Array, upper: Array, 
                 q[0], q[1], q[2], q[3], q[4] = q1, q2, q3, q5, q6
                 reach[i, b] = ok
                 for j in range(5):
-                    q[j] = (q[j] + np.pi) % (2 * np.pi) - np.pi
+                    q[j] = wrap_pi(q[j])
                 for v in range(V):
                     k = b * V + v
                     for j in range(5):

@@ -12,16 +12,17 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from assistant.kernel_helpers import wrap_pi
+
 Array = np.ndarray
 
 _PI = np.pi
-_TWO_PI = 2.0 * np.pi
 
 
 @njit(cache=True)
 def _wrap(a: float) -> float:
-    """Angle into [-pi, pi) (as `rv2aj._wrap`)."""
-    return (a + _PI) % _TWO_PI - _PI
+    """Angle into [-pi, pi) (as `rv2aj._wrap`; `wrap_pi`)."""
+    return wrap_pi(a)
 
 
 @njit(cache=True, inline="always")
