@@ -307,6 +307,38 @@ def certify_samples(frames: Array, ready: Array, F: Array, Q: Array, inside: Arr
 
 
 @njit(cache=True)
+def margin_rows(frames: Array, ready: Array, F: Array, Q: Array, sph_link: Array,
+                sph_local: Array, sph_r: Array, sph_shape: Array, env_lo: Array,
+                env_hi: Array, sp_a: Array, sp_b: Array, sp_pair: Array, n_shapes: int,
+                n_pairs: int, shape_link: Array, seg_a: Array, seg_b: Array, seg_r: Array,
+                box_R: Array, box_c: Array, box_h: Array, pair_a: Array, pair_b: Array,
+                apart: float) -> tuple[Array, Array, Array, Array]:
+    """Every row's broad phase, its gap and its pruning, as one pass: (status FREE or
+    ASK_FCL, gap, env_c, self_c) - `sphere_broad_phase` and `prune_round_pairs` of
+    `CollisionChecker._collide_batch` (rows posed here from the DH chain's fixed parts F
+    unless `ready`), for `CollisionChecker.is_valid_batch_margin`."""
+    n = Q.shape[0]
+    env_c = np.zeros((n, n_shapes, env_lo.shape[0]), dtype=np.bool_)
+    self_c = np.zeros((n, n_pairs), dtype=np.bool_)
+    status = np.zeros(n, dtype=np.int8)
+    gap = np.empty(n)
+    centre = np.empty((sph_r.shape[0], 3))
+    A = np.empty((n_shapes, 3))
+    B = np.empty((n_shapes, 3))
+    la = np.empty(3)
+    lb = np.empty(3)
+    T = np.empty((4, 4))
+    for k in range(n):  # posed in a pass of their own (see `certify_samples`)
+        _pose(frames, ready, Q, F, k, T)
+    for k in range(n):
+        gap[k] = _broad_row(frames, k, sph_link, sph_local, sph_r, sph_shape, env_lo, env_hi,
+                            sp_a, sp_b, sp_pair, centre, env_c, self_c)
+        status[k] = _prune_and_flag(frames, k, env_c, self_c, shape_link, seg_a, seg_b, seg_r,
+                                    box_R, box_c, box_h, pair_a, pair_b, apart, A, B, la, lb)
+    return status, gap, env_c, self_c
+
+
+@njit(cache=True)
 def _prune_and_flag(frames: Array, k: int, env_c: Array, self_c: Array, shape_link: Array,
                     seg_a: Array, seg_b: Array, seg_r: Array, box_R: Array, box_c: Array,
                     box_h: Array, pair_a: Array, pair_b: Array, apart: float, A: Array,

@@ -27,6 +27,7 @@ from assistant.broad_phase import (
     FREE,
     OUTSIDE_LIMITS,
     certify_samples,
+    margin_rows,
     prune_round_pairs,
     sphere_broad_phase,
 )
@@ -425,10 +426,30 @@ class CollisionChecker:
         margin = np.full(len(Q), np.nan)
         todo = ok.copy() if certified is None else ok & ~np.asarray(certified, dtype=bool)
         if todo.any():
-            hit, gap = self._collide_batch(Q[todo], with_gap=True)
+            hit, gap = self._margin_rows(np.ascontiguousarray(Q[todo]))
             ok[todo] = ~hit
             margin[todo] = np.where(hit, np.nan, gap)
         return ok, margin
+
+    def _margin_rows(self, Q: Array) -> tuple[Array, Array]:
+        """`_collide_batch(Q, with_gap=True)` with the posing, broad phase and pruning in
+        one compiled pass (`broad_phase.margin_rows`, the same arithmetic: the elastic net
+        asks this for its particles, where the separate numpy and compiled steps cost
+        about twice as much); FCL for the rows it leaves."""
+        if len(self._sph_r) == 0:
+            return self._collide_batch(Q, with_gap=True)
+        frames, ready, chain = self._frames_to_fill(Q)
+        status, gap, env_c, self_c = margin_rows(
+            frames, ready, chain, Q, self._sph_link, self._sph_local, self._sph_r,
+            self._sph_shape, self._env_lo, self._env_hi, self._sp_a, self._sp_b,
+            self._sp_pair, len(self._rshapes), len(self._self_pairs), self._shape_link,
+            self._seg_a, self._seg_b, self._seg_r, self._env_R, self._env_c, self._env_h,
+            self._pair_a, self._pair_b, self.PRUNE_APART)
+        hit = np.zeros(len(Q), dtype=bool)
+        rows = np.flatnonzero(status == ASK_FCL)
+        if len(rows):
+            hit[rows] = self._first_contacts(frames[rows], env_c[rows], self_c[rows])
+        return hit, gap
 
     def is_valid_samples(self, Q: Array, groups: Array | None = None, *,
                          first_only: bool = False, known_invalid: Array | None = None,

@@ -289,6 +289,20 @@ def test_free_margin_is_a_sound_certificate(checker, rv2aj):
         assert margin[i] <= checker.clearance(Q[i], include_self=True).distance + 1e-9
 
 
+def test_margin_rows_are_the_batch_collision_check_to_the_bit(checker, rv2aj):
+    """`is_valid_batch_margin`'s one-pass rows (`broad_phase.margin_rows`) give the hits and
+    gaps of `_collide_batch(with_gap=True)`, the separate numpy and compiled steps, row for
+    row: free, grazing and colliding configurations (obstacles and the arm itself)."""
+    rng = np.random.default_rng(13)
+    Q = rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper, size=(800, 5))
+    Q[:100, 2] = rv2aj.limits.upper[2] - rng.uniform(0.0, 0.05, 100)  # folded elbows
+    hit, gap = checker._margin_rows(np.ascontiguousarray(Q))
+    want_hit, want_gap = checker._collide_batch(Q, with_gap=True)
+    assert np.array_equal(hit, want_hit)
+    assert np.array_equal(gap.view(np.int64), want_gap.view(np.int64))
+    assert 50 < hit.sum() < 750 and (gap <= 0).sum() > hit.sum()  # near but free, too
+
+
 def test_certified_rows_skip_the_exact_check_but_not_the_limits(checker, rv2aj):
     Q = np.random.default_rng(5).uniform(rv2aj.limits.lower, rv2aj.limits.upper, (200, 5))
     q_hit = Q[checker.in_collision_batch(Q)][0]
