@@ -5,7 +5,8 @@ The kernels (`broad_phase`, `segment_box`, `dh`, `rv2aj_fk_batch`, `rv2aj_positi
 `trajectory.fit_search`, `trajectory.net_forces`, `trajectory.net_kernel`,
 `trajectory.net_sweep`, `trajectory.net_stage`, `trajectory.follow_kernel`,
 `roadmap.brushfire`, `roadmap.voronoi_update`, `roadmap.graph_kernel`,
-`roadmap.astar_kernel`, `roadmap.grid_ops`, `world.leaf_lookup`, `shape_poses`,
+`roadmap.astar_kernel`, `roadmap.grid_ops`, `roadmap.search_masks`, `world.leaf_lookup`,
+`shape_poses`,
 `trajectory.densify_kernel`) compile on their first call and cache the result on disk;
 only the first run after an install pays, ~50 s for all of them on this 2-core machine.
 `cellteach serve` runs `warm_up` in a background thread at start, so that first run does
@@ -23,6 +24,7 @@ import numpy as np
 from assistant.broad_phase import (
     _segment_segment_distance,
     certify_samples,
+    margin_rows,
     prune_round_pairs,
     sphere_broad_phase,
 )
@@ -51,6 +53,7 @@ from assistant.roadmap.graph_kernel import (
     weighted_distances,
 )
 from assistant.roadmap.grid_ops import connected26
+from assistant.roadmap.search_masks import search_masks
 from assistant.roadmap.voronoi_update import terminal_round, update_rounds
 from assistant.rv2aj_fk_batch import tcp_poses
 from assistant.rv2aj_pose_batch import _candidates
@@ -66,13 +69,13 @@ from assistant.trajectory.fit_kernels import (
     line_distances,
 )
 from assistant.trajectory.fit_search import fit_rows
-from assistant.trajectory.follow_kernel import slerp_kernel, walk_nearest
+from assistant.trajectory.follow_kernel import primitive_pose_rows, slerp_kernel, walk_nearest
 from assistant.trajectory.joint_steps import joint_steps
 from assistant.trajectory.net_forces import propose_moves
 from assistant.trajectory.net_kernel import apply_moves, check_moves
 from assistant.trajectory.net_stage import run_sweeps
 from assistant.trajectory.net_sweep import halve_retries, repin, sweep_moves
-from assistant.world.leaf_lookup import leaf_flags
+from assistant.world.leaf_lookup import leaf_flags, leaf_indices
 
 #: Every compiled entry point (the test checks `warm_up` compiles each of them).
 KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
@@ -86,7 +89,8 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            connected26, successor_costs, successors_into, neighbour_cells_into, search,
            fit_rows, run_sweeps, select_nodes, shape_poses, terminal_round, densify_rows,
            resample_rows, base_nodes, edge_samples, first_invalid, path_samples,
-           ramp_free_joints, joint_steps)
+           ramp_free_joints, joint_steps, margin_rows, search_masks, leaf_indices,
+           primitive_pose_rows)
 
 
 def warm_up() -> float:
@@ -102,7 +106,12 @@ def warm_up() -> float:
     from assistant.trajectory.assemble import joint_interpolation
     from assistant.trajectory.cartesian_follow import follow_poses, slerp_rotations
     from assistant.trajectory.elastic_net import ElasticNetParams, run_elastic_net
-    from assistant.trajectory.primitives import ArcPrimitive, FitParams, fit_primitives
+    from assistant.trajectory.primitives import (
+        ArcPrimitive,
+        FitParams,
+        fit_primitives,
+        primitive_poses,
+    )
     from assistant.transforms import make_T
 
     t0 = time.perf_counter()
@@ -112,7 +121,8 @@ def warm_up() -> float:
     # a box at the elbow: the broad phase passes pairs on to the pruning and FCL
     block = Obstacle("warm-up", make_T(p=elbow), (CollisionShape(ShapeKind.BOX, (0.1,) * 3),))
     checker = CollisionChecker(robot, [block])
-    checker.is_valid_batch_margin(np.vstack([q, q + 0.3]))
+    checker.is_valid_batch_margin(np.vstack([q, q + 0.3]))  # the net's starting margins
+    checker.is_valid_batch(np.vstack([q, q + 0.3]))  # the plain batch (and its pruning)
     checker.min_clearance_along([q[0], q[0] + 0.3])
     checker.check_motion(q[0], q[0] + 0.3)
     checker.check_path([q[0], q[0] + 0.3], trusted=np.zeros(1, dtype=bool))
@@ -130,6 +140,7 @@ def warm_up() -> float:
     fit = fit_primitives(np.vstack([arc, run]), FitParams(tolerance=0.001))
     for prim in fit.primitives:
         prim.distance(arc)
+        primitive_poses(prim, 0.01, np.eye(3), robot.fk(bent)[:3, :3])  # a move's poses
     ArcPrimitive.through(arc[0], arc[5], arc[-1])
     source = np.zeros((4, 4, 4), dtype=np.int32)
     source[0, 0, 0], source[3, 3, 3] = 1, 2
@@ -153,6 +164,11 @@ def warm_up() -> float:
     ramp_free_joints(np.vstack([q, q + 0.1, q + 0.3]), np.arange(5) == 4, np.ones(5))
     leaf_flags(np.ascontiguousarray(tcp, dtype=float), np.full(3, -1.0), 0.0625, 32,
                np.ones(32 ** 3, dtype=bool))
+    leaf_indices(np.ascontiguousarray(tcp, dtype=float), np.full(3, -1.0), 0.0625, 32)
+    # a query's searchable cells (`planner`): labels, free / offering / CAD leaves
+    flags, cad = np.ones(4 ** 3, dtype=bool), np.ones(4 ** 3, dtype=bool)
+    cad.setflags(write=False)  # as `WorldModel.cad_leaves` hands it out
+    search_masks(source.reshape(-1), -1, 4, 5, flags, flags, cad, 4, 0, 63, 2)
     # a short net on the RV-2AJ: its compiled move test (`net_kernel`), and the kernel that
     # applies the moves FCL clears, called from Python with no rows
     short = ElasticNetParams.final(stage1_iterations=2, stage2_iterations=1)
