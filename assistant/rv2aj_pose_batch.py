@@ -126,10 +126,9 @@ def pose_batch_model(T_flange_tool: Array, T_tool_flange: Array, limits: JointLi
 def pose_candidates(T_base_tool: Array, model: PoseBatchModel) -> PoseCandidates:
     """All IK branches of the RV-2AJ for the tool poses T_base_tool (M, 4, 4), in the base
     frame (`model`: `pose_batch_model`)."""
-    m = model
     joints, valid, projected, angle, exact, reach = _candidates(
-        np.ascontiguousarray(T_base_tool, dtype=float), m.R_ft, m.T_tf, m.lower, m.upper,
-        m.plane_tolerance, m.lengths, m.R0, m.S)
+        np.ascontiguousarray(T_base_tool, dtype=float), model.R_ft, model.T_tf, model.lower,
+        model.upper, model.plane_tolerance, model.lengths, model.R0, model.S)
     return PoseCandidates(joints, valid, projected, angle, exact, reach)
 
 

@@ -19,12 +19,6 @@ Array = np.ndarray
 _PI = np.pi
 
 
-@njit(cache=True)
-def _wrap(a: float) -> float:
-    """Angle into [-pi, pi) (as `rv2aj._wrap`; `wrap_pi`)."""
-    return wrap_pi(a)
-
-
 @njit(cache=True, inline="always")
 def _planar(tx: float, ty: float, tz: float, seed: tuple, pitch: float, q6: float,
             arm: tuple, tool_length: float, max_jump: float, lower: tuple, upper: tuple,
@@ -40,8 +34,8 @@ def _planar(tx: float, ty: float, tz: float, seed: tuple, pitch: float, q6: floa
     """
     L1, L2, L3, L6 = arm[0], arm[1], arm[2], arm[3]
     face = np.arctan2(ty, tx)
-    a = seed[0] + _wrap(face - seed[0])
-    b = seed[0] + _wrap(face + _PI - seed[0])
+    a = seed[0] + wrap_pi(face - seed[0])
+    b = seed[0] + wrap_pi(face + _PI - seed[0])
     q1 = a if abs(a - seed[0]) <= abs(b - seed[0]) else b  # the seed's side
     r = tx * np.cos(q1) + ty * np.sin(q1)
     le = L6 + tool_length
@@ -52,8 +46,8 @@ def _planar(tx: float, ty: float, tz: float, seed: tuple, pitch: float, q6: floa
     ac = np.arccos(min(max(D, -1.0), 1.0))
     q3 = ac if abs(ac - seed[2]) <= abs(-ac - seed[2]) else -ac
     q2 = np.arctan2(wr, wz) - np.arctan2(L3 * np.sin(q3), L2 + L3 * np.cos(q3))
-    q2 = seed[1] + _wrap(q2 - seed[1])
-    q5 = seed[3] + _wrap(pitch - q2 - q3 - seed[3])
+    q2 = seed[1] + wrap_pi(q2 - seed[1])
+    q5 = seed[3] + wrap_pi(pitch - q2 - q3 - seed[3])
     out[0], out[1], out[2], out[3], out[4] = q1, q2, q3, q5, q6
     ok = reach
     for j in range(5):

@@ -308,9 +308,8 @@ class _Net:
             lengths[0] = polyline_length(self.P)
             n_len = 1
         it = 1
+        per = SWEEPS_PER_REPORT  # a report (and its cancel check) every `per` sweeps
         while it <= budget:
-            # a report (and its cancel check) every SWEEPS_PER_REPORT sweeps
-            per = SWEEPS_PER_REPORT
             if progress is not None and it % per == 1:
                 progress.update((done + it) / total, f"elastic net stage {stage}, iteration {it}")
             if self._kernel is not None and COMPILED_SWEEPS:

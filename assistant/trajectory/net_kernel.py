@@ -25,9 +25,9 @@ from numba import njit
 
 from assistant.broad_phase import FREE, _broad_row, _prune_and_flag
 from assistant.dh import chain_row
-from assistant.kernel_helpers import within_limits
+from assistant.kernel_helpers import within_limits, wrap_pi
 from assistant.rv2aj_fk_batch import tcp_row
-from assistant.rv2aj_position_ik import _wrap, as_tuples, solve_row
+from assistant.rv2aj_position_ik import as_tuples, solve_row
 from assistant.world.leaf_lookup import leaf_flag
 
 Array = np.ndarray
@@ -120,7 +120,7 @@ def check_moves(P: Array, Q: Array, idx: Array, D: Array, trial: Array, grid_ori
         s_seed = seed[1] + seed[2] + seed[3]
         pitch, q6 = s_seed, seed[4]
         if gain > 0.0:
-            pitch = s_seed + gain * _wrap(ref[1] + ref[2] + ref[3] - s_seed)
+            pitch = s_seed + gain * wrap_pi(ref[1] + ref[2] + ref[3] - s_seed)
             q6 = q6 + gain * (ref[4] - q6)
         if not solve_row(x, y, z, seed, pitch, q6, arm_t, tool_length, max_jump, lo, hi,
                          n_steps, step, q):
