@@ -7,6 +7,6 @@ Owns every rule of the domain. Must not import `web` or `viser`: the web page re
 __version__ = "0.1.0"
 
 # Before any kernel module is imported: numba reads its cache folder when a kernel is defined.
-from assistant.kernel_cache import configure as _configure_kernel_cache  # noqa: E402
+from assistant.kernels.cache import configure as _configure_kernel_cache  # noqa: E402
 
 _configure_kernel_cache()

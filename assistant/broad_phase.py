@@ -12,15 +12,78 @@ Python.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from assistant.dh import chain_row
+from assistant.kernels.lazy import kernel
 from assistant.segment_box import segment_box_distance_one
 
 Array = np.ndarray
 
 
-@njit(cache=True)
+def _centres_numpy(frames: Array, sph_link: Array, sph_local: Array) -> Array:
+    """Sphere centres (N, S, 3) of every configuration, base frame."""
+    F = frames[:, sph_link]  # (N, S, 4, 4)
+    return np.einsum("nsij,sj->nsi", F[:, :, :3, :3], sph_local) + F[:, :, :3, 3]
+
+
+def _broad_rows_numpy(frames: Array, sph_link: Array, sph_local: Array, sph_r: Array,
+                      sph_shape: Array, env_lo: Array, env_hi: Array, sp_a: Array,
+                      sp_b: Array, sp_pair: Array, env_c: Array, self_c: Array,
+                      ) -> tuple[Array, Array]:
+    """The broad phase of every row of frames as array expressions: flags into env_c and
+    self_c (rows aligned with frames), returns the gaps and the centres."""
+    n = frames.shape[0]
+    centre = _centres_numpy(frames, sph_link, sph_local)
+    gap = np.full(n, np.inf)
+    moving = np.flatnonzero(sph_link != 0)
+    if moving.size and env_lo.shape[0]:
+        c = centre[:, moving, None, :]  # (N, M, 1, 3)
+        d = c - np.minimum(np.maximum(c, env_lo), env_hi)
+        d2 = np.einsum("nmei,nmei->nme", d, d)
+        r = sph_r[moving][None, :, None]
+        k, m, e = np.nonzero(d2 <= r * r)
+        env_c[k, sph_shape[moving][m], e] = True
+        gap = np.minimum(gap, (np.sqrt(d2) - r).min(axis=(1, 2)))
+    if sp_a.shape[0]:
+        d = centre[:, sp_a] - centre[:, sp_b]
+        d2 = np.einsum("npi,npi->np", d, d)
+        rr = (sph_r[sp_a] + sph_r[sp_b])[None, :]
+        k, j = np.nonzero(d2 <= rr * rr)
+        self_c[k, sp_pair[j]] = True
+        gap = np.minimum(gap, (np.sqrt(d2) - rr).min(axis=1))
+    return gap, centre
+
+
+def _sphere_broad_phase_numpy(frames: Array, sph_link: Array, sph_local: Array, sph_r: Array,
+                              sph_shape: Array, env_lo: Array, env_hi: Array, sp_a: Array,
+                              sp_b: Array, sp_pair: Array, n_shapes: int, n_pairs: int,
+                              ) -> tuple[Array, Array, Array]:
+    """`sphere_broad_phase` as array expressions over all configurations (its fallback until
+    compiled), in chunks that keep the (rows, spheres, boxes) temporaries small."""
+    n = frames.shape[0]
+    env_c = np.zeros((n, n_shapes, env_lo.shape[0]), dtype=np.bool_)
+    self_c = np.zeros((n, n_pairs), dtype=np.bool_)
+    gap = np.full(n, np.inf)
+    chunk = max(1, 2_000_000 // max(1, sph_r.shape[0] * max(1, env_lo.shape[0])))
+    for a in range(0, n, chunk):
+        b = min(n, a + chunk)
+        gap[a:b] = _broad_rows_numpy(frames[a:b], sph_link, sph_local, sph_r, sph_shape,
+                                     env_lo, env_hi, sp_a, sp_b, sp_pair, env_c[a:b],
+                                     self_c[a:b])[0]
+    return env_c, self_c, gap
+
+
+def _broad_row_numpy(frames: Array, k: int, sph_link: Array, sph_local: Array, sph_r: Array,
+                     sph_shape: Array, env_lo: Array, env_hi: Array, sp_a: Array, sp_b: Array,
+                     sp_pair: Array, centre: Array, env_c: Array, self_c: Array) -> float:
+    """`_broad_row` as array expressions (its fallback until compiled)."""
+    gap, c = _broad_rows_numpy(frames[k:k + 1], sph_link, sph_local, sph_r, sph_shape, env_lo,
+                               env_hi, sp_a, sp_b, sp_pair, env_c[k:k + 1], self_c[k:k + 1])
+    centre[:] = c[0]
+    return float(gap[0])
+
+
+@kernel(cache=True, fallback=_sphere_broad_phase_numpy)
 def sphere_broad_phase(frames: Array, sph_link: Array, sph_local: Array, sph_r: Array,
                        sph_shape: Array, env_lo: Array, env_hi: Array, sp_a: Array,
                        sp_b: Array, sp_pair: Array, n_shapes: int, n_pairs: int,
@@ -46,7 +109,7 @@ def sphere_broad_phase(frames: Array, sph_link: Array, sph_local: Array, sph_r: 
     return env_c, self_c, gap
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always", fallback=_broad_row_numpy)
 def _broad_row(frames: Array, k: int, sph_link: Array, sph_local: Array, sph_r: Array,
                sph_shape: Array, env_lo: Array, env_hi: Array, sp_a: Array, sp_b: Array,
                sp_pair: Array, centre: Array, env_c: Array, self_c: Array) -> float:
@@ -78,7 +141,7 @@ def _broad_row(frames: Array, k: int, sph_link: Array, sph_local: Array, sph_r: 
     return g
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def _sphere_centre(frames: Array, k: int, link: int, local: Array, out: Array) -> None:
     """Centre (base frame) of a sphere at `local` in link `link`, configuration k."""
     for a in range(3):
@@ -86,7 +149,7 @@ def _sphere_centre(frames: Array, k: int, link: int, local: Array, out: Array) -
                   + frames[k, link, a, 2] * local[2] + frames[k, link, a, 3])
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def _box_dist2(c: Array, lo: Array, hi: Array) -> float:
     """Squared distance of point c to the axis-aligned box lo..hi (0 inside)."""
     d2 = 0.0
@@ -96,7 +159,7 @@ def _box_dist2(c: Array, lo: Array, hi: Array) -> float:
     return d2
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def _segment_segment_distance(p1: Array, q1: Array, p2: Array, q2: Array) -> float:
     """Distance between the segments p1->q1 and p2->q2 (closest points by clamped
     parameters; exact for parallel and degenerate segments too)."""
@@ -133,7 +196,7 @@ def _segment_segment_distance(p1: Array, q1: Array, p2: Array, q2: Array) -> flo
     return np.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def prune_round_pairs(frames: Array, rows: Array, env_c: Array, self_c: Array,
                       shape_link: Array, seg_a: Array, seg_b: Array, seg_r: Array,
                       box_R: Array, box_c: Array, box_h: Array, pair_a: Array, pair_b: Array,
@@ -156,7 +219,7 @@ def prune_round_pairs(frames: Array, rows: Array, env_c: Array, self_c: Array,
                    box_h, pair_a, pair_b, apart, A, B, la, lb)
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def _prune_row(frames: Array, k: int, env_c: Array, self_c: Array, shape_link: Array,
                seg_a: Array, seg_b: Array, seg_r: Array, box_R: Array, box_c: Array,
                box_h: Array, pair_a: Array, pair_b: Array, apart: float, A: Array, B: Array,
@@ -200,7 +263,7 @@ def _prune_row(frames: Array, k: int, env_c: Array, self_c: Array, shape_link: A
 FREE, OUTSIDE_LIMITS, ASK_FCL, CERTIFIED = 0, 1, 2, 3
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def _pose(frames: Array, ready: Array, Q: Array, F: Array, k: int, T: Array) -> None:
     """Row k's link frames from the DH chain's fixed parts F (`dh.chain_row`), unless
     they are there already."""
@@ -209,7 +272,7 @@ def _pose(frames: Array, ready: Array, Q: Array, F: Array, k: int, T: Array) -> 
         ready[k] = True
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def certify_samples(frames: Array, ready: Array, F: Array, Q: Array, inside: Array,
                     first: Array, last: Array,
                     stride: int, radii: Array, sph_link: Array, sph_local: Array,
@@ -306,7 +369,7 @@ def certify_samples(frames: Array, ready: Array, F: Array, Q: Array, inside: Arr
     return status, env_c, self_c
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def margin_rows(frames: Array, ready: Array, F: Array, Q: Array, sph_link: Array,
                 sph_local: Array, sph_r: Array, sph_shape: Array, env_lo: Array,
                 env_hi: Array, sp_a: Array, sp_b: Array, sp_pair: Array, n_shapes: int,
@@ -338,7 +401,7 @@ def margin_rows(frames: Array, ready: Array, F: Array, Q: Array, sph_link: Array
     return status, gap, env_c, self_c
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def _prune_and_flag(frames: Array, k: int, env_c: Array, self_c: Array, shape_link: Array,
                     seg_a: Array, seg_b: Array, seg_r: Array, box_R: Array, box_c: Array,
                     box_h: Array, pair_a: Array, pair_b: Array, apart: float, A: Array,

@@ -23,9 +23,9 @@ The answer is the minimum of the same exact distances as bounding every sample w
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from assistant.broad_phase import _box_dist2, _pose, _sphere_centre
+from assistant.kernels.lazy import kernel
 from assistant.segment_box import segment_box_distance_one
 
 Array = np.ndarray
@@ -35,7 +35,7 @@ Array = np.ndarray
 TRAVEL_SLACK = 1e-9
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def capsule_box_gap(frames: Array, k: int, s: int, e: int, shape_link: Array, seg_a: Array,
                     seg_b: Array, seg_r: Array, box_R: Array, box_c: Array, box_h: Array,
                     A: Array, B: Array, la: Array, lb: Array) -> float:
@@ -62,7 +62,7 @@ def capsule_box_gap(frames: Array, k: int, s: int, e: int, shape_link: Array, se
     return gap if gap > 0.0 else -np.inf
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def _row_sphere_bounds(frames: Array, k: int, mov_of: Array, has: Array, sph_link: Array,
                        sph_local: Array, sph_r: Array, sph_shape: Array, env_lo: Array,
                        env_hi: Array, out: Array, c: Array) -> float:
@@ -87,7 +87,7 @@ def _row_sphere_bounds(frames: Array, k: int, mov_of: Array, has: Array, sph_lin
     return low
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def _repeats_previous(Q: Array, k: int) -> bool:
     """Whether sample k is sample k - 1 again (its distances are the same, so one of the
     two is enough: the other was visited, or its bound rules both out)."""
@@ -99,7 +99,7 @@ def _repeats_previous(Q: Array, k: int) -> bool:
     return True
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def pruned_clearance(Q: Array, frames: Array, ready: Array, F: Array, travel: Array,
                      stride: int, movable: Array, n_shapes: int, sph_link: Array,
                      sph_local: Array, sph_r: Array, sph_shape: Array, env_lo: Array,

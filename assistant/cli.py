@@ -13,7 +13,6 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -106,10 +105,12 @@ def cmd_serve(args: argparse.Namespace) -> int:
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         print(f"cellteach: WARNING: listening on {args.host}: anyone who can reach this "
               "computer can drive the robot from a browser.", file=sys.stderr)
-    from assistant.jit_warmup import warm_up
+    from assistant.kernels import lazy
     from web.app import serve
 
-    threading.Thread(target=warm_up, name="jit-warm-up", daemon=True).start()
+    if lazy.start():
+        print("cellteach: first run after an install: compiling the fast kernels in the "
+              "background (a few minutes); everything works meanwhile", file=sys.stderr)
     app = serve(session, host=args.host, port=args.port, max_upload_mb=args.max_upload_mb)
     print(f"cellteach: serving {session.sample or 'a session'} at {app.url}", file=sys.stderr)
     print(f"cellteach: session folder {session.folder} (autosaved)", file=sys.stderr)
@@ -133,11 +134,11 @@ def cmd_run(script_path: Path, out: Path) -> int:
         return 2
     out.mkdir(parents=True, exist_ok=True)
     folder = out / "session"
-    # Compile the kernels before any robot link is connected: on the first run after an
-    # install that takes seconds, which inside a link's exchange would look like a lost link.
-    from assistant.jit_warmup import warm_up
+    # No action waits on a compile: on the first run after an install the kernels run their
+    # fallbacks while a background process compiles them into the cache.
+    from assistant.kernels import lazy
 
-    warm_up()
+    lazy.start()
     try:
         if script.cell:
             base = script.path.parent

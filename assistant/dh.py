@@ -10,7 +10,8 @@ import functools
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+
+from assistant.kernels.lazy import kernel
 
 Array = np.ndarray
 
@@ -85,7 +86,30 @@ def batch_chain_frames(chain: DHChain, Q: Array) -> tuple[Array, Array]:
     return frames, frames[:, -1] @ F[-1]
 
 
-@njit(cache=True)
+def _chain_frames_numpy(Q: Array, F: Array) -> Array:
+    """`_chain_frames_kernel` as batched numpy, for the configurations all at once (its
+    fallback until the kernel is compiled: the world build poses ~400 000 configurations)."""
+    N, n = Q.shape
+    out = np.zeros((N, n + 1, 4, 4))
+    T = np.broadcast_to(np.eye(4), (N, 4, 4))
+    out[:, 0] = T
+    c, s = np.cos(Q), np.sin(Q)
+    for i in range(n):
+        Ti = out[:, i + 1]
+        Ti[:, :, 0] = c[:, i, None] * T[:, :, 0] + s[:, i, None] * T[:, :, 1]
+        Ti[:, :, 1] = c[:, i, None] * T[:, :, 1] - s[:, i, None] * T[:, :, 0]
+        Ti[:, :, 2:] = T[:, :, 2:]
+        T = Ti @ F[i]
+    return out
+
+
+def _chain_row_numpy(q: Array, F: Array, out: Array, T: Array) -> None:
+    """`chain_row` in numpy (its fallback until compiled)."""
+    out[:] = _chain_frames_numpy(q.reshape(1, -1), F)[0]
+    T[:] = out[-1] @ F[q.shape[0] - 1] if q.shape[0] else np.eye(4)
+
+
+@kernel(cache=True, fallback=_chain_frames_numpy)
 def _chain_frames_kernel(Q: Array, F: Array) -> Array:
     """frames[k, i + 1] = frames[k, i] F[i - 1] Rz(Q[k, i]) (F[-1] only after), base = I."""
     N, n = Q.shape
@@ -96,7 +120,7 @@ def _chain_frames_kernel(Q: Array, F: Array) -> Array:
     return out
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always", fallback=_chain_row_numpy)
 def chain_row(q: Array, F: Array, out: Array, T: Array) -> None:
     """`_chain_frames_kernel` of one configuration q into out (n+1, 4, 4); T is scratch.
     Also called per row by compiled planners (`trajectory.net_kernel`)."""

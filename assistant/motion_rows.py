@@ -10,14 +10,14 @@ frames are `dh.chain_row`'s, the limit test `JointLimits.contains_batch`'s).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
-from assistant.kernel_helpers import within_limits
+from assistant.kernels.helpers import within_limits
+from assistant.kernels.lazy import kernel
 
 Array = np.ndarray
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def motion_marks(groups: Array) -> tuple[Array, Array, Array]:
     """(first, last, motion) of rows labelled by `groups` (rows of a motion consecutive):
     whether a row starts or ends its motion, and the motion's number 0, 1, ..."""
@@ -35,7 +35,7 @@ def motion_marks(groups: Array) -> tuple[Array, Array, Array]:
     return first, last, motion
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def rows_inside(Q: Array, lower: Array, upper: Array) -> Array:
     """The joint-limit test of each row of Q (`JointLimits.contains_batch`)."""
     inside = np.empty(Q.shape[0], dtype=np.bool_)
@@ -44,7 +44,7 @@ def rows_inside(Q: Array, lower: Array, upper: Array) -> Array:
     return inside
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def rows_before_first_bad(ask: Array, bad: Array, motion: Array) -> tuple[Array, Array]:
     """Rows flagged `ask` that lie before their motion's first `bad` row, and each
     motion's first bad row (n where none)."""
@@ -63,7 +63,7 @@ def rows_before_first_bad(ask: Array, bad: Array, motion: Array) -> tuple[Array,
     return rows[:m], first_bad
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def valid_before_first_bad(ok: Array, rows: Array, hit: Array, motion: Array,
                            first_bad: Array) -> None:
     """Set ok (in place) from FCL's answers `hit` on `rows`: a hit row is invalid and so is
@@ -78,7 +78,7 @@ def valid_before_first_bad(ok: Array, rows: Array, hit: Array, motion: Array,
             ok[k] = False
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def path_samples(A: Array, counts: Array, trusted: Array) -> tuple[Array, Array, Array]:
     """(segment, fraction, joints) of the samples `CollisionChecker.check_path` asks on
     the path A (M, dof), segment i in counts[i] steps: each segment's samples but its end,

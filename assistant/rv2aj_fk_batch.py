@@ -9,12 +9,13 @@ reachability table's 131k-configuration chunks.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from assistant.kernels.lazy import kernel
 
 Array = np.ndarray
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def tcp_poses(Q: Array, arm: Array, BP: Array, BM: Array, BK: Array, v: Array,
               tool_offset: bool) -> tuple[Array, Array]:
     """(positions (N, 3), rotations (N, 3, 3)) of the TCP for joints Q (N, 5).
@@ -32,7 +33,7 @@ def tcp_poses(Q: Array, arm: Array, BP: Array, BM: Array, BK: Array, v: Array,
     return pos, rot
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def tcp_row(q: Array, arm: Array, BP: Array, BM: Array, BK: Array, v: Array,
             tool_offset: bool, pos: Array, rot: Array) -> None:
     """`tcp_poses` of one configuration q (5,) into pos (3,) and rot (3, 3); also called

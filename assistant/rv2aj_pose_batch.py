@@ -15,9 +15,9 @@ import itertools
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
-from assistant.kernel_helpers import axis_angle3_into, mm3_into, within_limits, wrap_pi
+from assistant.kernels.helpers import axis_angle3_into, mm3_into, within_limits, wrap_pi
+from assistant.kernels.lazy import kernel
 from assistant.robot_model import JointLimits
 
 Array = np.ndarray
@@ -132,7 +132,7 @@ def pose_candidates(T_base_tool: Array, model: PoseBatchModel) -> PoseCandidates
     return PoseCandidates(joints, valid, projected, angle, exact, reach)
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def _candidates(T: Array, R_ft: Array, T_tf: Array, lower: Array, upper: Array, tol: float,
                 lengths: Array, R0: Array, S: Array) -> tuple:
     """`pose_candidates` pose by pose, one compiled loop: (joints (M, 4 V, 5), valid,

@@ -10,16 +10,16 @@ costs no per-call array set-up.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
-from assistant.kernel_helpers import wrap_pi
+from assistant.kernels.helpers import wrap_pi
+from assistant.kernels.lazy import kernel
 
 Array = np.ndarray
 
 _PI = np.pi
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def _planar(tx: float, ty: float, tz: float, seed: tuple, pitch: float, q6: float,
             arm: tuple, tool_length: float, max_jump: float, lower: tuple, upper: tuple,
             out: Array) -> bool:
@@ -57,7 +57,7 @@ def _planar(tx: float, ty: float, tz: float, seed: tuple, pitch: float, q6: floa
     return ok
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def planar_position_ik(targets: Array, seeds: Array, pitch: Array, q6: Array, arm: Array,
                        tool_length: float, max_jump: float, lower: Array, upper: Array,
                        n_steps: int, step: float) -> tuple[Array, Array]:
@@ -78,7 +78,7 @@ def planar_position_ik(targets: Array, seeds: Array, pitch: Array, q6: Array, ar
     return Q, ok
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def as_tuples(arm: Array, lower: Array, upper: Array) -> tuple:
     """The arm lengths (L1, L2, L3, L6) and the five joints' limits as tuples, the form
     `solve_row` takes them in."""
@@ -87,7 +87,7 @@ def as_tuples(arm: Array, lower: Array, upper: Array) -> tuple:
             (upper[0], upper[1], upper[2], upper[3], upper[4]))
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def solve_row(tx: float, ty: float, tz: float, seed: tuple, pitch: float, q6: float,
               arm: tuple, tool_length: float, max_jump: float, lower: tuple, upper: tuple,
               n_steps: int, step: float, q: Array) -> bool:

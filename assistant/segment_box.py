@@ -19,8 +19,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from assistant.kernels.lazy import kernel
 from assistant.robot_model import CollisionShape, ShapeKind
 
 Array = np.ndarray
@@ -69,7 +69,7 @@ def axis_segment(shape: CollisionShape) -> tuple[Array, Array, float] | None:
     return None
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def _beyond(a: float, d: float, h: float, mid: float) -> tuple[float, float]:
     """(offset, direction) of the face plane the coordinate a + t d lies beyond at t = mid,
     (0, 0) inside the slab -h..h."""
@@ -81,7 +81,7 @@ def _beyond(a: float, d: float, h: float, mid: float) -> tuple[float, float]:
     return 0.0, 0.0
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def segment_box_distance_one(a: Array, b: Array, half: Array) -> float:
     """Distance from the segment a->b (3,) to the box [-half, half] (3,), in the box's frame;
     0 where they meet.

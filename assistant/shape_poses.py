@@ -11,12 +11,13 @@ the poses, and FCL's answers, are the same to the bit.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from assistant.kernels.lazy import kernel
 
 Array = np.ndarray
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def shape_poses(frames: Array, shape_link: Array, shape_T: Array) -> tuple[Array, Array]:
     """(R (n, r, 3, 3), t (n, r, 3)) of frames[:, shape_link[s]] @ shape_T[s] per row and
     shape s: the rotation and translation parts of each product."""

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from assistant.jit_warmup import warm_up
+from assistant.kernels.warmup import warm_up
 from assistant.robot_model import Tool
 from assistant.rv2aj import RV2AJ, RV2AJConfig
 

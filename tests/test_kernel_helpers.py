@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from assistant.kernel_helpers import axis_angle3, axis_angle3_into, wrap_pi
+from assistant.kernels.helpers import axis_angle3, axis_angle3_into, wrap_pi
 
 
 @njit(cache=False)

@@ -17,8 +17,8 @@ to the heap array itself, `graph_kernel.successors_into`.)
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from assistant.kernels.lazy import kernel
 from assistant.roadmap.graph_kernel import successors_into
 
 Array = np.ndarray
@@ -28,7 +28,7 @@ NO_PATH = 1
 BUDGET = 2
 
 
-@njit(cache=True, nogil=True)
+@kernel(cache=True, nogil=True)
 def search(start: int, goal: int, nx: int, ny: int, nz: int, searchable: Array,
            squeeze_blocked: Array, exempt: Array, cell_start: Array, node_q: Array,
            node_cell: Array, weights: Array, max_edge: float, penalty: Array, dead: Array,
@@ -88,7 +88,7 @@ def search(start: int, goal: int, nx: int, ny: int, nz: int, searchable: Array,
     return NO_PATH, np.zeros(0, dtype=np.int64), np.inf, expansions
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def _before(f: float, g: float, v: float, p: float, heap: Array, b: int) -> bool:
     """(f, g, v, p) < row b as Python compares the tuples (f, g, node, parent)."""
     if f != heap[b, 0]:
@@ -100,7 +100,7 @@ def _before(f: float, g: float, v: float, p: float, heap: Array, b: int) -> bool
     return p < heap[b, 3]
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def _sift_down(heap: Array, start: int, pos: int) -> None:
     """heapq's `_siftdown`: the row at pos moves up towards `start` past larger parents."""
     f, g, v, p = heap[pos, 0], heap[pos, 1], heap[pos, 2], heap[pos, 3]
@@ -115,7 +115,7 @@ def _sift_down(heap: Array, start: int, pos: int) -> None:
     heap[pos, 0], heap[pos, 1], heap[pos, 2], heap[pos, 3] = f, g, v, p
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def _sift_up(heap: Array, end: int) -> None:
     """heapq's `_siftup` from the root over rows [0, end): the smaller child moves up to the
     leaves, then the root's row sifts down from there."""

@@ -10,7 +10,8 @@ both formulations on random grids and incremental updates).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from assistant.kernels.lazy import kernel
 
 Array = np.ndarray
 
@@ -25,7 +26,7 @@ _BIG = 2**30
 _HIST = 64
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def _fixed_by_distance(D: Array, R: Array, max_fixed: int, py: int, pz: int,
                        start: Array) -> Array:
     """The padded ids of the cells outside R with a finite distance, sorted by it
@@ -49,7 +50,7 @@ def _fixed_by_distance(D: Array, R: Array, max_fixed: int, py: int, pz: int,
     return out
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def brushfire_region(D: Array, T: Array, L: Array, S: Array, reach: Array, R: Array) -> None:
     """Recompute dist D, tentative label T and label L (int32, in place) inside region R
     with the values outside held fixed. S: source labels (> 0), reach: reachable cells.

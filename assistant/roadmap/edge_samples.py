@@ -10,12 +10,13 @@ numpy form's, number for number: a + (k / n) (b - a), k = 0..n.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from assistant.kernels.lazy import kernel
 
 Array = np.ndarray
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def edge_samples(Q0: Array, Q1: Array, ns: Array) -> tuple[Array, Array, Array]:
     """(samples, edge of each, its fraction k / n) of the edges Q0[i] -> Q1[i], edge i in
     ns[i] steps (ns[i] + 1 samples, both ends included), edge after edge."""
@@ -37,7 +38,7 @@ def edge_samples(Q0: Array, Q1: Array, ns: Array) -> tuple[Array, Array, Array]:
     return Q, edge, F
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def first_invalid(ok: Array, edge: Array, F: Array, n_edges: int) -> Array:
     """Per edge the fraction of its first sample with ok False, NaN if all are valid."""
     out = np.full(n_edges, np.nan)

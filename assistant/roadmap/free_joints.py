@@ -13,12 +13,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from assistant.kernels.lazy import kernel
 
 Array = np.ndarray
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def ramp_free_joints(P: Array, free: Array, weights: Array) -> None:
     """Set P's free joints (in place) to their start-to-goal ramp along the path P (M, dof),
     M >= 2, parametrised by the weighted arc length of the other joints."""

@@ -10,12 +10,13 @@ exempt cells) and their nodes took ~15 numpy calls, ~40 us. The rules are those 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from assistant.kernels.lazy import kernel
 
 Array = np.ndarray
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def neighbour_cells(cell: int, nx: int, ny: int, nz: int, searchable: Array,
                     squeeze_blocked: Array, exempt: Array) -> Array:
     """Searchable cells one step from `cell` (itself included), the squeeze rule applied: a
@@ -27,7 +28,7 @@ def neighbour_cells(cell: int, nx: int, ny: int, nz: int, searchable: Array,
     return out[:n].copy()
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def neighbour_cells_into(cell: int, nx: int, ny: int, nz: int, searchable: Array,
                          squeeze_blocked: Array, exempt: Array, out: Array) -> int:
     """`neighbour_cells` written into `out` (27 long); returns how many. The A* asks this
@@ -65,7 +66,7 @@ def neighbour_cells_into(cell: int, nx: int, ny: int, nz: int, searchable: Array
     return n_out
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def neighbour_nodes(u: int, cell: int, nx: int, ny: int, nz: int, searchable: Array,
                     squeeze_blocked: Array, exempt: Array, cell_start: Array,
                     extra_cell: Array) -> Array:
@@ -90,7 +91,7 @@ def neighbour_nodes(u: int, cell: int, nx: int, ny: int, nz: int, searchable: Ar
     return out[:n_out]
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def node_of(t: int, c: int, hi: int, n_base: int, extra_cell: Array) -> int:
     """The t-th node of cell c, counting from its first node (`cell_start[c]`) on through
     its own (up to hi = `cell_start[c + 1]`) and then over the graph's extra nodes (ids
@@ -101,13 +102,13 @@ def node_of(t: int, c: int, hi: int, n_base: int, extra_cell: Array) -> int:
     return n_base + e if extra_cell[e] == c else -1
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def _contains(sorted_ids: Array, x: int) -> bool:
     p = np.searchsorted(sorted_ids, x)
     return p < len(sorted_ids) and sorted_ids[p] == x
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def weighted_distance(a: Array, b: Array, w: Array) -> float:
     """||W (b - a)||, the squares summed in two lanes (even and odd joints, then the two
     lanes): the order numpy's einsum takes on this kind of machine, fixed here so the
@@ -122,7 +123,7 @@ def weighted_distance(a: Array, b: Array, w: Array) -> float:
     return np.sqrt(even + odd)
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def weighted_distances(q: Array, Q: Array, w: Array) -> Array:
     """`weighted_distance` from q to each row of Q."""
     out = np.empty(Q.shape[0])
@@ -131,7 +132,7 @@ def weighted_distances(q: Array, Q: Array, w: Array) -> Array:
     return out
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def successor_costs(u: int, nx: int, ny: int, nz: int, searchable: Array,
                     squeeze_blocked: Array, exempt: Array, cell_start: Array, node_q: Array,
                     node_cell: Array, weights: Array, max_edge: float, penalty: Array,
@@ -152,7 +153,7 @@ def successor_costs(u: int, nx: int, ny: int, nz: int, searchable: Array,
     return out[:n], cost[:n]
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def expand(u: int, gu: float, nx: int, ny: int, nz: int, searchable: Array,
            squeeze_blocked: Array, exempt: Array, cell_start: Array, node_q: Array,
            node_cell: Array, weights: Array, max_edge: float, penalty: Array, closed: Array,
@@ -169,7 +170,7 @@ def expand(u: int, gu: float, nx: int, ny: int, nz: int, searchable: Array,
     return rows[:n, 0].copy(), rows[:n, 1].copy(), rows[:n, 2].astype(np.int64)
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def successors_into(u: int, gu: float, nx: int, ny: int, nz: int, searchable: Array,
                     squeeze_blocked: Array, exempt: Array, cell_start: Array, node_q: Array,
                     node_cell: Array, weights: Array, max_edge: float, penalty: Array,
@@ -217,7 +218,7 @@ def successors_into(u: int, gu: float, nx: int, ny: int, nz: int, searchable: Ar
     return rows, size
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def select_nodes(cells: Array, offsets: Array, Q: Array, searchable: Array,
                  extra_cells: Array, extra_q: Array, n_cells: int,
                  ) -> tuple[Array, Array, Array, Array]:
@@ -257,7 +258,7 @@ def select_nodes(cells: Array, offsets: Array, Q: Array, searchable: Array,
     return node_q, node_cell, cell_start, ids
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def base_nodes(cells: Array, offsets: Array, Q: Array, n_cells: int, n_extra: int,
                ) -> tuple[Array, Array, Array]:
     """(node_q, node_cell, cell_start) of every cell's positions (`JointGraph.over`'s base):

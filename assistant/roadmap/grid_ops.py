@@ -9,8 +9,9 @@ from __future__ import annotations
 import itertools
 
 import numpy as np
-from numba import njit
 from scipy import ndimage
+
+from assistant.kernels.lazy import kernel
 
 Array = np.ndarray
 
@@ -72,7 +73,7 @@ def components26(mask: Array) -> tuple[Array, int]:
     return lab.astype(np.int32), int(n)
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def connected26(mask: Array, a: int, b: int) -> bool:
     """Whether flat cells a and b of the 3-D mask (both True) are in one component
     (26-connectivity): a search from a that stops when it reaches b. A query needs only

@@ -9,12 +9,13 @@ each part means; this is the same set logic cell by cell.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from assistant.kernels.lazy import kernel
 
 Array = np.ndarray
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def search_masks(lab: Array, road: int, s_lab: int, g_lab: int, free: Array, offers: Array,
                  cad: Array, n: int, sc: int, gc: int, r: int) -> tuple[Array, Array]:
     """(searchable, free') over the flat (n, n, n) grid.

@@ -10,14 +10,14 @@ query); here each step touches only the bounding box of what it works on. The lo
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from assistant.kernels.lazy import kernel
 from assistant.roadmap.brushfire import brushfire_region
 
 Array = np.ndarray
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def _box(mask: Array, margin: int) -> tuple[int, int, int, int, int, int]:
     """Bounding box of the True cells grown by margin, clipped; lo > hi if none."""
     nx, ny, nz = mask.shape
@@ -35,7 +35,7 @@ def _box(mask: Array, margin: int) -> tuple[int, int, int, int, int, int]:
             min(nx - 1, hi0 + margin), min(ny - 1, hi1 + margin), min(nz - 1, hi2 + margin))
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def _grow(box: tuple[int, int, int, int, int, int], r: int, shape: tuple[int, int, int],
           ) -> tuple[int, int, int, int, int, int]:
     a0, a1, a2, b0, b1, b2 = box
@@ -43,7 +43,7 @@ def _grow(box: tuple[int, int, int, int, int, int], r: int, shape: tuple[int, in
             min(shape[1] - 1, b1 + r), min(shape[2] - 1, b2 + r))
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def _dilate(mask: Array, radius: int, box: tuple[int, int, int, int, int, int]) -> Array:
     """Cells within Chebyshev distance `radius` of a True cell (`grid_ops.dilate`), the
     True cells lying in `box` (inclusive): the cube is separable, three running maxima
@@ -66,7 +66,7 @@ def _dilate(mask: Array, radius: int, box: tuple[int, int, int, int, int, int]) 
     return out
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def _max_along_last(src: Array, dst: Array, radius: int) -> None:
     """dst = running maximum (any True) of src over +-radius along the last axis."""
     nx, ny, nz = src.shape
@@ -81,7 +81,7 @@ def _max_along_last(src: Array, dst: Array, radius: int) -> None:
                 dst[i, j, k] = v
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def update_rounds(D0: Array, T0: Array, L0: Array, S: Array, reach: Array, changed: Array,
                   d_min: int, max_rounds: int,
                   ) -> tuple[Array, Array, Array, Array, int, int, bool]:
@@ -144,7 +144,7 @@ def update_rounds(D0: Array, T0: Array, L0: Array, S: Array, reach: Array, chang
     return D, T, L, diff, 0, max_rounds, False
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def terminal_round(D0: Array, T0: Array, L0: Array, S0: Array, reach: Array, cells: Array,
                    labels: Array, d_min: int) -> tuple[Array, bool]:
     """The label grid of the map (D0, T0, L0) with sources `labels` put on the flat `cells`

@@ -16,14 +16,14 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from assistant.kernels.lazy import kernel
 from assistant.rv2aj_fk_batch import tcp_row
 
 Array = np.ndarray
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def _positions(Q: Array, arm: Array, BP: Array, BM: Array, BK: Array, v: Array,
                tool_offset: bool) -> Array:
     """`tcp_poses`' positions alone: its (N, 3, 3) rotations, unused here, cost the
@@ -36,7 +36,7 @@ def _positions(Q: Array, arm: Array, BP: Array, BM: Array, BK: Array, v: Array,
     return P
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def densify_rows(Q: Array, max_tcp_step: float, passes: int, arm: Array, BP: Array,
                  BM: Array, BK: Array, v: Array, tool_offset: bool) -> tuple[Array, Array]:
     """(joints, TCP points) of the path Q (M, dof) subdivided linearly, up to `passes`
@@ -70,7 +70,7 @@ def densify_rows(Q: Array, max_tcp_step: float, passes: int, arm: Array, BP: Arr
     return Q, P
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def resample_rows(Q: Array, P: Array, spacing: float, arm: Array, BP: Array, BM: Array,
                   BK: Array, v: Array, tool_offset: bool) -> tuple[Array, Array]:
     """(joints, TCP points) of particles about `spacing` apart along the densified path

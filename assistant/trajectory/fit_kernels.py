@@ -22,7 +22,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from assistant.kernels.lazy import kernel
 
 Array = np.ndarray
 
@@ -30,12 +31,12 @@ _JIT = {"cache": True, "error_model": "numpy"}
 _INLINE = {**_JIT, "inline": "always"}
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _dot(a: Array, b: Array) -> float:
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _cross(a: Array, b: Array) -> Array:
     out = np.empty(3)
     out[0] = a[1] * b[2] - a[2] * b[1]
@@ -44,13 +45,13 @@ def _cross(a: Array, b: Array) -> Array:
     return out
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _unit(v: Array) -> Array:
     n = math.sqrt(_dot(v, v))
     return v / n if n > 1e-15 else v * 0.0
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _unit3(v0: float, v1: float, v2: float) -> tuple[float, float, float]:
     """`_unit` of (v0, v1, v2), as scalars."""
     n = math.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
@@ -59,7 +60,7 @@ def _unit3(v0: float, v1: float, v2: float) -> tuple[float, float, float]:
     return v0 * 0.0, v1 * 0.0, v2 * 0.0
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _put_guess(O: Array, t0: Array, w0: float, w1: float, w2: float, c: Array,
                n: Array) -> None:
     """A tangent circle guess: centre O + w into c, normal _unit(t0 x w) into n."""
@@ -68,14 +69,14 @@ def _put_guess(O: Array, t0: Array, w0: float, w1: float, w2: float, c: Array,
                               t0[0] * w1 - t0[1] * w0)
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _rotate_radius(r0: Array, normal: Array, angle: float) -> Array:
     """r0 turned by `angle` about `normal` (r0 perpendicular to it). The vector form:
     the fitter uses `put_on_arc`; the tests compare the two to the bit."""
     return math.cos(angle) * r0 + math.sin(angle) * _cross(normal, r0)
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def put_on_arc(centre: Array, r0: Array, normal: Array, angle: float, out: Array,
                at: int) -> None:
     """centre + `_rotate_radius`(r0, normal, angle) into out[at:at + 3], as scalars (the
@@ -89,7 +90,7 @@ def put_on_arc(centre: Array, r0: Array, normal: Array, angle: float, out: Array
     out[at + 2] = centre[2] + (c * r0[2] + s * x2)
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _gram(X: Array) -> Array:
     """X^T X of the rows (m, 3): its eigenvectors are X's right singular vectors."""
     M = np.zeros((3, 3))
@@ -105,7 +106,7 @@ def _gram(X: Array) -> Array:
     return M
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def sym3_eigvec(M: Array, largest: bool) -> Array:
     """Unit eigenvector of the symmetric 3x3 M for its largest (else smallest) eigenvalue,
     by cyclic Jacobi rotations.
@@ -149,7 +150,7 @@ def sym3_eigvec(M: Array, largest: bool) -> Array:
     return v / math.sqrt(_dot(v, v))
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def sym2_major(a: float, b: float, c: float) -> tuple[float, float]:
     """Unit eigenvector of [[a, b], [b, c]] for its larger eigenvalue (closed form: the
     major axis is at half the angle atan2(2 b, a - c))."""
@@ -157,7 +158,7 @@ def sym2_major(a: float, b: float, c: float) -> tuple[float, float]:
     return math.cos(half), math.sin(half)
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def circle_through_kernel(a: Array, b: Array, c: Array) -> tuple[bool, Array, float, Array]:
     """(ok, centre, radius, unit normal a->b->c right-handed); ok False if collinear."""
     ab, ac = b - a, c - a
@@ -170,7 +171,7 @@ def circle_through_kernel(a: Array, b: Array, c: Array) -> tuple[bool, Array, fl
     return True, centre, math.sqrt(_dot(d, d)), n / math.sqrt(nn)
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def line_distances(start: Array, end: Array, points: Array) -> Array:
     """Distance of each point (m, 3) to the segment start-end. Scalars, not 3-vectors, per
     point: the fitter asks this ~80 times a transfer, and an array per intermediate was an
@@ -184,7 +185,7 @@ def line_distances(start: Array, end: Array, points: Array) -> Array:
     return out
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def line_deviation(start: Array, end: Array, points: Array) -> float:
     """`_max_or_nan(line_distances(...))` without the array of distances."""
     s0, s1, s2 = start[0], start[1], start[2]
@@ -198,7 +199,7 @@ def line_deviation(start: Array, end: Array, points: Array) -> float:
     return worst
 
 
-@njit(**_INLINE)
+@kernel(**_INLINE)
 def _line_point(x0: float, x1: float, x2: float, d0: float, d1: float, d2: float) -> float:
     """Distance of start + x to the segment start -> start + d (scalars; `line_distances`
     and `line_deviation` share it)."""
@@ -210,7 +211,7 @@ def _line_point(x0: float, x1: float, x2: float, d0: float, d1: float, d2: float
     return math.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def arc_distances(start: Array, end: Array, centre: Array, radius: float, normal: Array,
                   sweep: float, points: Array) -> Array:
     """Distance of each point (m, 3) to the arc (not the full circle): to the circle where
@@ -223,7 +224,7 @@ def arc_distances(start: Array, end: Array, centre: Array, radius: float, normal
     return out
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def arc_deviation(start: Array, end: Array, centre: Array, radius: float, normal: Array,
                   sweep: float, points: Array) -> float:
     """`_max_or_nan(arc_distances(...))` without the array of distances."""
@@ -237,7 +238,7 @@ def arc_deviation(start: Array, end: Array, centre: Array, radius: float, normal
     return worst
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _arc_point(p0: float, p1: float, p2: float, start: Array, end: Array, centre: Array,
                radius: float, normal: Array, sweep: float) -> float:
     """Distance of the point p to the arc (`arc_distances` and `arc_deviation` share it;
@@ -259,7 +260,7 @@ def _arc_point(p0: float, p1: float, p2: float, start: Array, end: Array, centre
     return min(math.sqrt(s0 * s0 + s1 * s1 + s2 * s2), math.sqrt(e0 * e0 + e1 * e1 + e2 * e2))
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _max_or_nan(values: Array) -> float:
     """The largest value; NaN if any is NaN (so a `<= tol` test fails). The fitter asks
     `line_deviation`/`arc_deviation`, which keep this rule without the array; the tests
@@ -272,7 +273,7 @@ def _max_or_nan(values: Array) -> float:
     return m
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _within_cone(d: Array, axis: Array, angle: float) -> Array:
     """d, or the closest direction to it within `angle` of `axis`."""
     c = min(max(_dot(d, axis), -1.0), 1.0)
@@ -284,7 +285,7 @@ def _within_cone(d: Array, axis: Array, angle: float) -> Array:
     return math.cos(angle) * axis + math.sin(angle) * perp
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def fit_line(O: Array, t0: Array, has_t0: bool, pts: Array, tol: float, slack: float,
              ) -> tuple[bool, Array]:
     """(found, end) of a line from O covering the nodes `pts` (m, 3) within `tol`.
@@ -328,7 +329,7 @@ def fit_line(O: Array, t0: Array, has_t0: bool, pts: Array, tol: float, slack: f
     return False, np.zeros(3)
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _free_candidates(O: Array, X: Array, C: Array, N: Array, k: int) -> int:
     """Circle guesses without a tangent: the least-squares circle in the nodes' best-fit
     plane, and the circle through O, the middle and the last node. Appended to C, N at k;
@@ -367,7 +368,7 @@ def _free_candidates(O: Array, X: Array, C: Array, N: Array, k: int) -> int:
     return k
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _tangent_candidates(O: Array, t0: Array, X: Array, C: Array, N: Array, k: int) -> int:
     """Circle guesses tangent to t0 at O: in the plane through O containing t0 whose normal
     is the least-variance direction of the nodes across t0 (and the one through the last
@@ -422,7 +423,7 @@ def _tangent_candidates(O: Array, t0: Array, X: Array, C: Array, N: Array, k: in
     return k
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _on_circle(O: Array, C: Array, N: Array, pts: Array, r_min: float, r_max: float,
                tol: float) -> Array:
     """Indices of the guesses whose circle through O passes within tol of every node with
@@ -456,7 +457,7 @@ def _on_circle(O: Array, C: Array, N: Array, pts: Array, r_min: float, r_max: fl
     return keep[:nk]
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _arc_from(O: Array, centre: Array, normal: Array, pts: Array, t0: Array, has_t0: bool,
               tol: float, slack: float, max_sweep: float, out: Array) -> float:
     """The arc about `centre` from O over the nodes: writes normal, via, end, radius, sweep
@@ -510,7 +511,7 @@ def _arc_from(O: Array, centre: Array, normal: Array, pts: Array, t0: Array, has
     return dev
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def fit_arc(O: Array, t0: Array, has_t0: bool, pts: Array, tol: float, slack: float,
             r_min: float, r_max: float, max_sweep: float, first_feasible: bool,
             ) -> tuple[bool, Array]:

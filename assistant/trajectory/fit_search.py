@@ -21,8 +21,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
+from assistant.kernels.lazy import kernel
 from assistant.trajectory.fit_kernels import (
     _dot,
     _unit3,
@@ -48,7 +48,7 @@ _YES, _NO = np.bool_(True), np.bool_(False)
 _INLINE = {**_JIT, "inline": "always"}
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _line(O: Array, end: Array, s: int, e: int) -> Array:
     p = np.zeros(N_FIELDS)
     p[_KIND] = LINE
@@ -58,7 +58,7 @@ def _line(O: Array, end: Array, s: int, e: int) -> Array:
     return p
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _arc(O: Array, r: Array, s: int, e: int) -> Array:
     """From `fit_arc`'s answer: centre r[0:3], normal r[3:6], via r[6:9], end r[9:12],
     radius r[12], sweep r[13]."""
@@ -75,7 +75,7 @@ def _arc(O: Array, r: Array, s: int, e: int) -> Array:
     return p
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _tangent_end(p: Array) -> Array:
     """Unit direction of the primitive at its end: as scalars into one array (the same
     operations as `d / max(|d|, 1e-15)` for a line, `_unit(normal x (end - centre))` for an
@@ -93,7 +93,7 @@ def _tangent_end(p: Array) -> Array:
     return t
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _max_distance(p: Array, pts: Array) -> float:
     """Largest distance of the points to the primitive; NaN if any is (as numpy's max)."""
     if p[_KIND] == LINE:
@@ -102,7 +102,7 @@ def _max_distance(p: Array, pts: Array) -> float:
                          p[_RADIUS], p[_NORMAL:_NORMAL + 3], p[_SWEEP], pts)
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _shift_end(p: Array, delta: float) -> tuple[bool, Array]:
     """The same primitive with its end moved `delta` metres along it (False if degenerate)."""
     start = p[_START:_START + 3]
@@ -126,19 +126,19 @@ def _shift_end(p: Array, delta: float) -> tuple[bool, Array]:
     return True, q
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _min_nodes(kind: int) -> int:
     return 1 if kind == LINE else 2
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _score(reach: int, line_gets_there: bool, e: int, is_line: bool, n: int) -> int:
     """The tuple (reach, line_gets_there, e, is_line) as one integer of the same order
     (reach <= n, e < n + 1)."""
     return ((reach * 2 + int(line_gets_there)) * (n + 1) + e) * 2 + int(is_line)
 
 
-@njit(**_INLINE)
+@kernel(**_INLINE)
 def _fit(kind: int, O: Array, has_t0: bool, t0: Array, s: int, e: int, first_feasible: bool,
          nodes: Array, par: Array) -> tuple[bool, Array]:
     """The primitive from O covering nodes s+1..e within tolerance (`_Fitter.fit`)."""
@@ -151,7 +151,7 @@ def _fit(kind: int, O: Array, has_t0: bool, t0: Array, s: int, e: int, first_fea
     return ok, _arc(O.copy(), r, s, e)
 
 
-@njit(**_INLINE)
+@kernel(**_INLINE)
 def _gallop(kind: int, O: Array, has_t0: bool, t0: Array, s: int, nodes: Array,
             par: Array) -> int:
     n = nodes.shape[0]
@@ -177,7 +177,7 @@ def _gallop(kind: int, O: Array, has_t0: bool, t0: Array, s: int, nodes: Array,
     return good
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _new_memo(n: int, lookahead: int) -> tuple[Array, Array, Array, Array, Array]:
     """Room for every reach a fit of n nodes can remember: (head (2, n + 1): each (kind,
     start node)'s latest entry or -1, and in head[0, n] the entries used; next entry of the
@@ -193,7 +193,7 @@ def _new_memo(n: int, lookahead: int) -> tuple[Array, Array, Array, Array, Array
             np.empty(cap, dtype=np.int64))
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _find(memo, kind: int, s: int, O: Array, has_t0: bool, t0: Array) -> int:
     """Index of the reach remembered for (kind, s, O, t0), or -1: the exact start point and
     tangent, as the Python fitter's dict keyed by their bytes."""
@@ -208,7 +208,7 @@ def _find(memo, kind: int, s: int, O: Array, has_t0: bool, t0: Array) -> int:
     return -1
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _remember(memo, kind: int, s: int, O: Array, has_t0: bool, t0: Array,
               value: int) -> None:
     head, nxt, pts, tan, val = memo
@@ -223,7 +223,7 @@ def _remember(memo, kind: int, s: int, O: Array, has_t0: bool, t0: Array,
     val[i] = value
 
 
-@njit(**_INLINE)
+@kernel(**_INLINE)
 def _reach(kind: int, O: Array, has_t0: bool, t0: Array, s: int, nodes: Array, par: Array,
            memo) -> int:
     """Largest end node a primitive from O covers nodes s+1.. to (-1: none), remembered."""
@@ -235,13 +235,13 @@ def _reach(kind: int, O: Array, has_t0: bool, t0: Array, s: int, nodes: Array, p
     return v
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _constraint(prev: int, kind: int) -> bool:
     """Whether a primitive of `kind` after one of `prev` (-1: none) must start tangent."""
     return not (prev < 0 or (prev == LINE and kind == LINE))
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _next_reach(p: Array, nodes: Array, par: Array, memo) -> tuple[int, bool]:
     n = nodes.shape[0]
     e = int(p[_LAST])
@@ -259,7 +259,7 @@ def _next_reach(p: Array, nodes: Array, par: Array, memo) -> tuple[int, bool]:
     return best, r[LINE] == best
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _may_reach(p: Array, line_to: int, arc_to: int, nodes: Array, par: Array, memo) -> bool:
     """Whether the line after p may reach `line_to`, or the arc `arc_to` (`_Fitter`)."""
     n = nodes.shape[0]
@@ -288,7 +288,7 @@ def _may_reach(p: Array, line_to: int, arc_to: int, nodes: Array, par: Array, me
     return False
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _refine_end(p: Array, reach: int, line_gets_there: bool, nodes: Array, par: Array,
                 memo) -> Array:
     """Slide the junction point along the primitive (`_Fitter.refine_end`)."""
@@ -319,7 +319,7 @@ def _refine_end(p: Array, reach: int, line_gets_there: bool, nodes: Array, par: 
     return best
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _choose(s: int, O: Array, t_in: Array, prev: int, nodes: Array, par: Array,
             lookahead: int, memo) -> tuple[bool, Array]:
     """The primitive from O at node s whose successor reaches farthest (`_Fitter.choose`)."""
@@ -354,7 +354,7 @@ def _choose(s: int, O: Array, t_in: Array, prev: int, nodes: Array, par: Array,
     return True, _refine_end(best, b_r, b_l, nodes, par, memo)
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def fit_rows(nodes: Array, par: Array, lookahead: int) -> tuple[Array, int]:
     """Primitives (m, N_FIELDS) through the nodes (n >= 2, C-contiguous (n, 3)) and the
     number of corners made where nothing tangent fitted. par = (tolerance, r_min, r_max,

@@ -12,14 +12,14 @@ jump.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
-from assistant.kernel_helpers import axis_angle3_into, mm3
+from assistant.kernels.helpers import axis_angle3_into, mm3
+from assistant.kernels.lazy import kernel
 
 Array = np.ndarray
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def walk_nearest(joints: Array, valid: Array, usable: Array, q_prev: Array,
                  max_joint_step: float, first: int, out: Array) -> tuple[int, int]:
     """Walk poses first.. writing each one's nearest valid branch to `out` (M, dof).
@@ -58,7 +58,7 @@ def walk_nearest(joints: Array, valid: Array, usable: Array, q_prev: Array,
     return m, -1
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def slerp_kernel(R0: Array, R1: Array, u: Array) -> Array:
     """Rotations (M, 3, 3) from R0 to R1 at fractions u in [0, 1] (`slerp_rotations`).
 
@@ -72,7 +72,7 @@ def slerp_kernel(R0: Array, R1: Array, u: Array) -> Array:
     return out
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def slerp_into(R0: Array, R1: Array, u: Array, out: Array) -> None:
     """`slerp_kernel` into the first three rows and columns of out[n] (M, >= 3, >= 3)."""
     axis, s, angle = _turn(R0, R1)
@@ -84,7 +84,7 @@ def slerp_into(R0: Array, R1: Array, u: Array, out: Array) -> None:
                 out[n, r, c] = R0[r, 0] * R[0, c] + R0[r, 1] * R[1, c] + R0[r, 2] * R[2, c]
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def _turn(R0: Array, R1: Array) -> tuple[Array, float, float]:
     """The rotation R0^T R1 as (axis x, y, z of its unit quaternion with w >= 0, the axis'
     norm, angle) (`slerp_kernel`'s docstring)."""
@@ -110,7 +110,7 @@ def _turn(R0: Array, R1: Array) -> tuple[Array, float, float]:
     return q[:3].copy(), s, 2.0 * np.arctan2(s, q[3])
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def primitive_pose_rows(is_arc: bool, start: Array, end: Array, centre: Array,
                         normal: Array, sweep: float, n: int, R0: Array, R1: Array,
                         ) -> tuple[Array, Array]:

@@ -12,12 +12,13 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from assistant.kernels.lazy import kernel
 
 Array = np.ndarray
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def joint_steps(q0: Array, q1: Array, radii: Array, step: float) -> Array:
     """The move q0 -> q1 sampled so no arm point (radii: `Robot.arm_radii`) moves more than
     `step` between samples: (n + 1, dof), both ends included."""

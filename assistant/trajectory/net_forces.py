@@ -13,14 +13,15 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+
+from assistant.kernels.lazy import kernel
 
 Array = np.ndarray
 
 _JIT = {"cache": True, "error_model": "numpy"}
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _turn(P: Array, j: int) -> tuple[float, float, float, float]:
     """Turn angle at interior particle j and its unit curvature direction (the component of
     P[j-1] + P[j+1] - 2 P[j] across the chord, 0 if none); 0 at the ends."""
@@ -49,7 +50,7 @@ def _turn(P: Array, j: int) -> tuple[float, float, float, float]:
     return gam, 0.0, 0.0, 0.0
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def _polygon_turn(side: float, radius: float) -> float:
     """Turn angle of a regular polygon with this side inscribed in a circle of this radius."""
     if radius <= 0.0:
@@ -57,7 +58,7 @@ def _polygon_turn(side: float, radius: float) -> float:
     return 2.0 * math.asin(min(1.0, side / (2.0 * radius)))
 
 
-@njit(**_JIT)
+@kernel(**_JIT)
 def propose_moves(P: Array, stage: int, lam: float, c_eq: float, c_rot: float, c_sh: float,
                   c_line: float, stage1_shrink: float, r_max: float, r_min: float,
                   max_move: float) -> tuple[Array, Array, Array]:

@@ -21,11 +21,11 @@ from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from assistant.broad_phase import FREE, _broad_row, _prune_and_flag
 from assistant.dh import chain_row
-from assistant.kernel_helpers import within_limits, wrap_pi
+from assistant.kernels.helpers import within_limits, wrap_pi
+from assistant.kernels.lazy import kernel
 from assistant.rv2aj_fk_batch import tcp_row
 from assistant.rv2aj_position_ik import as_tuples, solve_row
 from assistant.world.leaf_lookup import leaf_flag
@@ -60,7 +60,7 @@ class NetKernelModel:
     grid: tuple | None
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def check_moves(P: Array, Q: Array, idx: Array, D: Array, trial: Array, grid_origin: Array,
                 leaf: float, n_grid: int, free: Array, use_grid: bool, check_mid: bool,
                 robot: tuple, checker: tuple, rec_q: Array, rec_half: Array, gain: float,
@@ -169,7 +169,7 @@ def check_moves(P: Array, Q: Array, idx: Array, D: Array, trial: Array, grid_ori
     return status, Qn, Pn, margin, gap, frames, env_c, self_c, certified
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def apply_moves(P: Array, Q: Array, idx: Array, rows: Array, Qn: Array, Pn: Array,
                 margin: Array, gap: Array, ref_Q: Array, ref_margin: Array,
                 gap_lb: Array) -> None:
@@ -187,7 +187,7 @@ def apply_moves(P: Array, Q: Array, idx: Array, rows: Array, Qn: Array, Pn: Arra
         P[k] = Pn[i]
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def _midpoints_free(x: float, y: float, z: float, k: int, P: Array, trial: Array,
                     origin: Array, leaf: float, n: int, free: Array) -> bool:
     """The midpoints of particle k's two edges, to each neighbour's old and tentative
@@ -200,7 +200,7 @@ def _midpoints_free(x: float, y: float, z: float, k: int, P: Array, trial: Array
     return True
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def _near_recorded(q: Array, rec_q: Array, rec_half: Array) -> bool:
     """Inside the posture box of a recorded collision (`indications.near_posture`)."""
     for r in range(rec_q.shape[0]):

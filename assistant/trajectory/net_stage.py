@@ -17,8 +17,8 @@ copied first) and handed to Python, which runs it the old way and then calls in 
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from assistant.kernels.lazy import kernel
 from assistant.trajectory.net_kernel import ACCEPTED, ASK_FCL, check_moves
 from assistant.trajectory.net_sweep import halve_retries, repin, sweep_moves
 
@@ -30,7 +30,7 @@ RAN, NEEDS_FCL = 5, 6
 STOPS = ("converged", "settled", "taut", "blocked", "iteration_cap")
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def _block_sum(a: Array, lo: int, n: int) -> float:
     """numpy's sum of up to 128 float64s: eight running sums, then the rest in order."""
     if n < 8:
@@ -51,7 +51,7 @@ def _block_sum(a: Array, lo: int, n: int) -> float:
     return res
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def _np_sum(a: Array, lo: int, n: int) -> float:
     """a[lo:lo + n].sum() as numpy adds a float64 array: blocks of up to 128 (`_block_sum`),
     longer runs split in two halves (rounded to eights) added left + right. numpy recurses;
@@ -88,7 +88,7 @@ def _np_sum(a: Array, lo: int, n: int) -> float:
             return ret
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def _norm_sum(X: Array, rows: Array) -> float:
     """`row_norms(X[rows]).sum()` (`particles.row_norms`: squares summed in order)."""
     norms = np.empty(rows.shape[0])
@@ -98,14 +98,14 @@ def _norm_sum(X: Array, rows: Array) -> float:
     return _np_sum(norms, 0, norms.shape[0])
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def polyline_length(P: Array) -> float:
     """`particles.polyline_length`, to the bit."""
     D = P[1:] - P[:-1]
     return _norm_sum(D, np.arange(D.shape[0]))
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def run_sweeps(P: Array, Q: Array, pinned: Array, ref_Q: Array, ref_margin: Array,
                gap_lb: Array, counts: Array, lengths: Array, n_len: int, E: float,
                first: int, last: int, taut: bool, stage: int, forces: Array, stops: Array,

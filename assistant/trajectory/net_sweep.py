@@ -11,14 +11,14 @@ reference and compares the particles to the bit).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from assistant.kernels.lazy import kernel
 from assistant.trajectory.net_forces import propose_moves
 
 Array = np.ndarray
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def sweep_moves(P: Array, pinned: Array, stage: int, lam: float, c_eq: float, c_rot: float,
                 c_sh: float, c_line: float, stage1_shrink: float, r_max: float, r_min: float,
                 max_move: float) -> tuple[Array, Array, Array, Array]:
@@ -53,7 +53,7 @@ def sweep_moves(P: Array, pinned: Array, stage: int, lam: float, c_eq: float, c_
     return idx, D, trial, pin
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def halve_retries(ok: Array, pin: Array, idx: Array, D: Array, trial: Array, P: Array,
                   ) -> Array:
     """Rows refused at full length and not pinned: their moves (and tentative positions)
@@ -72,7 +72,7 @@ def halve_retries(ok: Array, pin: Array, idx: Array, D: Array, trial: Array, P: 
     return rows[:n]
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def repin(ok: Array, pin: Array, retry: Array, ok2: Array, idx: Array, pinned: Array,
           ) -> int:
     """Merge the retries' answers into ok and pin (in place) the particles refused at

@@ -9,12 +9,13 @@ leaf index floor((p - origin) / leaf) per axis, outside the cube (or NaN) -> Fal
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from assistant.kernels.lazy import kernel
 
 Array = np.ndarray
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def leaf_flags(points: Array, origin: Array, leaf: float, n: int, flags: Array) -> Array:
     """flags[flat leaf of each point] for points (N, 3), False outside the grid.
 
@@ -26,7 +27,7 @@ def leaf_flags(points: Array, origin: Array, leaf: float, n: int, flags: Array) 
     return out
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def leaf_flag(x: float, y: float, z: float, origin: Array, leaf: float, n: int,
               flags: Array) -> bool:
     """`leaf_flags` of one point; also called per point by compiled planners
@@ -39,7 +40,7 @@ def leaf_flag(x: float, y: float, z: float, origin: Array, leaf: float, n: int,
     return flags[(int(fx) * n + int(fy)) * n + int(fz)]
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def leaf_indices(points: Array, origin: Array, leaf: float, n: int) -> Array:
     """Flat C-order leaf index of each point (N, 3), -1 outside the grid or not finite.
 

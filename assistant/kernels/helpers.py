@@ -8,12 +8,13 @@ their small products out; these are the ones more than one kernel needs
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from assistant.kernels.lazy import kernel
 
 Array = np.ndarray
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def mm3(A: Array, B: Array) -> Array:
     """A (3, 3) @ B (3, k) as plain loops."""
     out = np.zeros((3, B.shape[1]))
@@ -23,7 +24,7 @@ def mm3(A: Array, B: Array) -> Array:
     return out
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def mm3_into(A: Array, B: Array, out: Array) -> None:
     """`mm3` into out (3, k): the same products and sums, no new array."""
     for r in range(3):
@@ -31,7 +32,7 @@ def mm3_into(A: Array, B: Array, out: Array) -> None:
             out[r, c] = A[r, 0] * B[0, c] + A[r, 1] * B[1, c] + A[r, 2] * B[2, c]
 
 
-@njit(cache=True)
+@kernel(cache=True)
 def axis_angle3(axis: Array, norm: float, angle: float) -> Array:
     """`transforms.axis_angle_batch` of one axis (not necessarily unit) given its norm:
     I + sin(angle) K + (1 - cos(angle)) K^2; the identity for a zero axis."""
@@ -40,7 +41,7 @@ def axis_angle3(axis: Array, norm: float, angle: float) -> Array:
     return out
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def axis_angle3_into(axis: Array, norm: float, angle: float, K: Array, KK: Array,
                      out: Array) -> None:
     """`axis_angle3` into out (3, 3), K and KK scratch (3, 3): the same operations element
@@ -61,7 +62,7 @@ def axis_angle3_into(axis: Array, norm: float, angle: float, K: Array, KK: Array
             out[r, c] = ((1.0 if r == c else 0.0) + s * K[r, c]) + t * KK[r, c]
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def within_limits(q: Array, lower: Array, upper: Array) -> bool:
     """`JointLimits.contains_batch` of one row (tolerance 1e-9)."""
     for j in range(q.shape[0]):  # noqa: SIM110 - a loop numba compiles, not a generator
@@ -70,7 +71,7 @@ def within_limits(q: Array, lower: Array, upper: Array) -> bool:
     return True
 
 
-@njit(cache=True, inline="always")
+@kernel(cache=True, inline="always")
 def wrap_pi(a: float) -> float:
     """(a + pi) % (2 pi) - pi, Python's float modulo, to the bit: an angle into [-pi, pi).
 

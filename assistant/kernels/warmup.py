@@ -8,16 +8,16 @@ The kernels (`broad_phase`, `segment_box`, `dh`, `rv2aj_fk_batch`, `rv2aj_positi
 `roadmap.astar_kernel`, `roadmap.grid_ops`, `roadmap.search_masks`, `world.leaf_lookup`,
 `shape_poses`,
 `trajectory.densify_kernel`) compile on their first call and cache the result on disk;
-only the first run after an install pays, ~50 s for all of them on this 2-core machine.
-`cellteach serve` runs `warm_up` in a background thread at start, so that first run does
-not stall the operator's first world build or plan (a compile reports no progress);
-`cellteach run` and the tests call it before anything else, so no compile happens inside a
-robot link's exchange, where seconds look like a lost link.
+only the first run after an install pays, ~2 minutes of one core for all of them. The CLI
+runs these steps in a background process (`lazy.start`, `compile`) while the kernels run
+their fallbacks; the tests call `warm_up` before anything else, so no compile happens
+inside a robot link's exchange, where seconds look like a lost link.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
 
 import numpy as np
 
@@ -94,8 +94,22 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
 
 
 def warm_up() -> float:
-    """Call each kernel through the real API, with the argument types it gets in use;
-    returns the seconds it took (compiling or loading the cache)."""
+    """Compile (or load from the cache) every kernel in this process, as plain njit: call each
+    through the real API with the argument types it gets in use; returns the seconds it took.
+    The tests call it; the CLI compiles in the background instead (`lazy.start`)."""
+    from assistant.kernels.lazy import set_pending
+
+    set_pending(False)
+    t0 = time.perf_counter()
+    for _ in warm_steps():
+        pass
+    return time.perf_counter() - t0
+
+
+def warm_steps() -> Iterator[None]:
+    """`warm_up` in steps, in the order a first run needs them (the collision checker and the
+    world's kernels, the roadmap's, then the trajectory's); yields after each, when the
+    kernels it compiled are in the cache (`compile` reports them then)."""
     from assistant.collision import CollisionChecker, Obstacle
     from assistant.roadmap.astar import lazy_astar
     from assistant.roadmap.graph import GraphBase, JointGraph
@@ -114,47 +128,38 @@ def warm_up() -> float:
     )
     from assistant.transforms import make_T
 
-    t0 = time.perf_counter()
     robot = RV2AJ(RV2AJConfig(tool=Tool.straight(0.1)))
     q = np.zeros((1, robot.dof))
     elbow = robot.link_poses(q[0])[3][:3, 3]
     # a box at the elbow: the broad phase passes pairs on to the pruning and FCL
     block = Obstacle("warm-up", make_T(p=elbow), (CollisionShape(ShapeKind.BOX, (0.1,) * 3),))
     checker = CollisionChecker(robot, [block])
-    checker.is_valid_batch_margin(np.vstack([q, q + 0.3]))  # the net's starting margins
     checker.is_valid_batch(np.vstack([q, q + 0.3]))  # the plain batch (and its pruning)
     checker.min_clearance_along([q[0], q[0] + 0.3])
+    tcp = robot.batch_fk(q).positions
+    leaf_flags(np.ascontiguousarray(tcp, dtype=float), np.full(3, -1.0), 0.0625, 32,
+               np.ones(32 ** 3, dtype=bool))
+    leaf_indices(np.ascontiguousarray(tcp, dtype=float), np.full(3, -1.0), 0.0625, 32)
+    yield  # the world build's checks
+    checker.is_valid_batch_margin(np.vstack([q, q + 0.3]))  # the net's starting margins
     checker.check_motion(q[0], q[0] + 0.3)
     checker.check_path([q[0], q[0] + 0.3], trusted=np.zeros(1, dtype=bool))
     checker.check_path([q[0], q[0] + 0.3])
-    joint_interpolation(robot, q[0], q[0] + 0.3, 0.01)  # the assembly's joint moves
-    tcp = robot.batch_fk(q).positions
-    robot.batch_position_ik(tcp + 0.001, q, q)
-    bent = np.array([0.3, 0.2, 0.5, 0.3, 0.1])  # off the J1 axis: the batch answers
-    follow_poses(robot, np.stack([robot.fk(bent), robot.fk(bent + 0.01)]), bent)
-    slerp_rotations(robot.fk(bent)[:3, :3], robot.fk(bent + 0.01)[:3, :3], np.linspace(0, 1, 3))
-    # a quarter circle then a straight run: lines, arcs (free and tangent) and their ends
-    a = np.linspace(0.0, np.pi / 2, 12)
-    arc = np.stack([0.1 * np.cos(a), 0.1 * np.sin(a), np.zeros_like(a)], axis=1)
-    run = arc[-1] + np.outer(np.linspace(0.02, 0.2, 10), [-1.0, 0.0, 0.0])
-    fit = fit_primitives(np.vstack([arc, run]), FitParams(tolerance=0.001))
-    for prim in fit.primitives:
-        prim.distance(arc)
-        primitive_poses(prim, 0.01, np.eye(3), robot.fk(bent)[:3, :3])  # a move's poses
-    ArcPrimitive.through(arc[0], arc[5], arc[-1])
+    yield  # motion checks
     source = np.zeros((4, 4, 4), dtype=np.int32)
     source[0, 0, 0], source[3, 3, 3] = 1, 2
     vmap = build_voronoi(source)
     source[0, 3, 0] = 3  # a query's terminal: the incremental update
     update_voronoi(vmap, source)
     terminal_labels(vmap, np.array([21, 42]), np.array([4, 5]))  # a query's start and goal
+    connected26(source > 0, 0, 63)
+    yield  # the roads
     cells = np.arange(8, dtype=np.int64)
     graph, _ = JointGraph.build((2, 2, 2), cells, np.arange(9), np.zeros((8, 5)),
                                 np.ones(8, bool), np.zeros(8, bool), np.zeros(8), np.ones(5))
     graph.successors(0)
     GraphBase.of((2, 2, 2), cells, np.arange(9), np.zeros((8, 5)))  # the planner's graphs
     graph.distance(graph.node_q[0], graph.node_q)  # the A*'s repair of a rejected edge
-    connected26(source > 0, 0, 63)
     lazy_astar(graph, 0, 7, _AllFree())  # its expansion kernel
     lazy_path_search(graph, 0, 7, _AllFree())  # the compiled search
     # the roadmap's batched edge check (`planner._EdgeCheck`): samples, first invalid ones
@@ -162,13 +167,20 @@ def warm_up() -> float:
     first_invalid(checker.is_valid_samples(Q, first_only=True), edge, F, 1)
     # a found path's free joints (J6 here) ramped start to goal (`planner`)
     ramp_free_joints(np.vstack([q, q + 0.1, q + 0.3]), np.arange(5) == 4, np.ones(5))
-    leaf_flags(np.ascontiguousarray(tcp, dtype=float), np.full(3, -1.0), 0.0625, 32,
-               np.ones(32 ** 3, dtype=bool))
-    leaf_indices(np.ascontiguousarray(tcp, dtype=float), np.full(3, -1.0), 0.0625, 32)
     # a query's searchable cells (`planner`): labels, free / offering / CAD leaves
     flags, cad = np.ones(4 ** 3, dtype=bool), np.ones(4 ** 3, dtype=bool)
     cad.setflags(write=False)  # as `WorldModel.cad_leaves` hands it out
     search_masks(source.reshape(-1), -1, 4, 5, flags, flags, cad, 4, 0, 63, 2)
+    yield  # the search
+    joint_interpolation(robot, q[0], q[0] + 0.3, 0.01)  # the assembly's joint moves
+    robot.batch_position_ik(tcp + 0.001, q, q)
+    bent = np.array([0.3, 0.2, 0.5, 0.3, 0.1])  # off the J1 axis: the batch answers
+    follow_poses(robot, np.stack([robot.fk(bent), robot.fk(bent + 0.01)]), bent)
+    slerp_rotations(robot.fk(bent)[:3, :3], robot.fk(bent + 0.01)[:3, :3], np.linspace(0, 1, 3))
+    yield  # joint and Cartesian moves
+    # a quarter circle then a straight run: lines, arcs (free and tangent) and their ends
+    a = np.linspace(0.0, np.pi / 2, 12)
+    arc = np.stack([0.1 * np.cos(a), 0.1 * np.sin(a), np.zeros_like(a)], axis=1)
     # a short net on the RV-2AJ: its compiled move test (`net_kernel`), and the kernel that
     # applies the moves FCL clears, called from Python with no rows
     short = ElasticNetParams.final(stage1_iterations=2, stage2_iterations=1)
@@ -181,8 +193,14 @@ def warm_up() -> float:
     for stage in (1, 2):
         propose_moves(arc, stage, 0.5, net.c_equidistance, net.c_rotation, net.c_shrink,
                       net.c_line_shrink, net.stage1_shrink, net.r_max, net.r_min, net.max_move)
-    return time.perf_counter() - t0
-
+    yield  # the elastic net
+    run = arc[-1] + np.outer(np.linspace(0.02, 0.2, 10), [-1.0, 0.0, 0.0])
+    fit = fit_primitives(np.vstack([arc, run]), FitParams(tolerance=0.001))
+    for prim in fit.primitives:
+        prim.distance(arc)
+        primitive_poses(prim, 0.01, np.eye(3), robot.fk(bent)[:3, :3])  # a move's poses
+    ArcPrimitive.through(arc[0], arc[5], arc[-1])
+    yield  # the line and arc fit
 
 class _AllFree:
     """An edge checker that finds every edge free (the warm-up's search)."""

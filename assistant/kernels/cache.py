@@ -5,7 +5,7 @@ it calls changes in another file (a documented limit of its cache). After an upd
 stale machine code would keep the old callee's behaviour, or call it with an old layout -
 and compiled code that goes wrong crashes the process rather than raising. Keying the
 folder by a hash of every kernel module's source makes any change recompile all kernels
-once (~75 s on the 2-core machine, in `warm_up`), and never mixes versions.
+once (in the background: `lazy.start`), and never mixes versions.
 
 The folder is `$CELLTEACH_CACHE/numba/<hash>` (default `~/.cache/cellteach`), unless
 `NUMBA_CACHE_DIR` is set, which always wins (the tests use it for an empty cache).
@@ -18,15 +18,16 @@ import os
 import sys
 from pathlib import Path
 
-_PACKAGE = Path(__file__).resolve().parent
+_PACKAGE = Path(__file__).resolve().parent.parent  # the assistant package
 
 
 def kernel_source_hash(package: Path = _PACKAGE) -> str:
-    """Hash of every module of the package that defines numba kernels (path and text)."""
+    """Hash of every module of the package that defines numba kernels (path and text):
+    those that use `kernel` (or numba's njit directly)."""
     h = hashlib.sha256()
     for path in sorted(package.rglob("*.py")):
         text = path.read_bytes()
-        if b"njit" in text:
+        if b"@kernel" in text or b"njit" in text:
             h.update(path.relative_to(package).as_posix().encode())
             h.update(text)
     return h.hexdigest()[:16]

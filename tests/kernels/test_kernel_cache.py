@@ -9,7 +9,7 @@ import os
 import subprocess
 import sys
 
-from assistant.kernel_cache import kernel_source_hash
+from assistant.kernels.cache import kernel_source_hash
 
 
 def test_hash_follows_kernel_modules_only(tmp_path):
