@@ -30,7 +30,8 @@ from assistant.cell import ObjectRole
 from assistant.links.settings import LinkSettings
 from assistant.motion import ToolAction, ToolActionKind
 from assistant.robot_catalog import RobotSpec, ToolSpec
-from assistant.session.session import HiddenObstacle, Session
+from assistant.session.session import Session
+from assistant.session.types import HiddenObstacle
 from assistant.transforms import pose_from_mm_deg
 
 Array = np.ndarray

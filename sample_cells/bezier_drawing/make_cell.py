@@ -44,7 +44,7 @@ from assistant.cell import Cell, CellObject, ObjectRole  # noqa: E402
 from assistant.cell_io import save_cell  # noqa: E402
 from assistant.mission import Location, LocationSource, Mission  # noqa: E402
 from assistant.robot_catalog import RobotSpec, ToolSpec  # noqa: E402
-from assistant.session.session import _drawing_control, drawing_path  # noqa: E402
+from assistant.session.frames import _drawing_control, drawing_path  # noqa: E402
 from assistant.transforms import make_T, pose_from_mm_deg, stored_pose  # noqa: E402
 
 URDF_NAME = "kr3r540.urdf"
@@ -237,7 +237,7 @@ def make_cell(out: Path = HERE) -> Cell:
 
 
 def make_mission() -> Mission:
-    from assistant.session.session import sample_robot_spec
+    from assistant.session.types import sample_robot_spec
 
     q = np.radians(np.array(HOME_Q_DEG))
     robot = sample_robot_spec(robot_spec(), HERE).build()

@@ -108,7 +108,7 @@ def make_cell(out: Path = HERE) -> Cell:
 
 def _taught(name: str, q_deg: tuple[float, ...]) -> Location:
     """A location taught from the robot pose."""
-    from assistant.session.session import sample_robot_spec
+    from assistant.session.types import sample_robot_spec
 
     robot = sample_robot_spec(robot_spec(), HERE).build()
     q = np.radians(np.array(q_deg))

@@ -13,8 +13,9 @@ from assistant.mission import SegmentKind
 from assistant.robot_catalog import RobotSpec
 from assistant.session import Session, SessionError
 from assistant.session.events import Notice
+from assistant.session.frames import frame_from_three_points
 from assistant.session.script import parse_script, run_action
-from assistant.session.session import frame_from_three_points, sample_robot_spec
+from assistant.session.types import sample_robot_spec
 from assistant.trajectory.application import BezierMode
 from assistant.transforms import pose_from_mm_deg
 

@@ -1,0 +1,137 @@
+"""Steps 2 and 3: CAD import, primitives, object roles, placement and measured frames.
+
+A part of `Session` (mixed into it): its methods run on the Session's state, under
+its lock and workflow, exactly as if written in the Session class."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from assistant.cad import CadImport, load_cad
+from assistant.cell import CellObject, ObjectRole, PrimitiveKind, PrimitiveSpec
+from assistant.placement import PoseFit, fit_pose
+from assistant.session.events import (
+    Notice,
+)
+from assistant.session.frames import (
+    FrameCalibration,
+    frame_from_three_points,
+)
+from assistant.session.types import (
+    EDIT_CELL,
+    EDIT_PLACEMENT,
+    SessionError,
+    _safe_name,
+)
+
+Array = np.ndarray
+
+
+class CellActions:
+    """Steps 2 and 3: CAD import, primitives, object roles, placement and measured frames."""
+
+    # ================================================================== 2. CAD
+    def import_cad(self, data: bytes, filename: str, *, name: str | None = None,
+                   units: str | None = None, dxf_extrude_height: float | None = None,
+                   role: ObjectRole | str = ObjectRole.OBSTACLE,
+                   T_world_object: Array | None = None) -> tuple[CellObject, CadImport]:
+        """Import a CAD file (bytes as uploaded); the part lands at the world origin or at T."""
+        with self._action(f"import {filename}", EDIT_CELL, scene="objects"):
+            cad = load_cad(data, filename, units=units, dxf_extrude_height=dxf_extrude_height)
+            base = name or Path(filename).stem
+            obj_name = self.cell.unique_name(_safe_name(base)) if name is None else name
+            obj = CellObject.from_cad(obj_name, cad, T_world_object, role=role)
+            self.cell.add_object(obj)
+            for w in cad.warnings:
+                self.bus.emit(Notice(f"{filename}: {w}"))
+        return obj, cad
+
+    def import_cad_path(self, path: str | Path, **kw: Any) -> tuple[CellObject, CadImport]:
+        p = Path(path)
+        try:
+            data = p.read_bytes()
+        except OSError as exc:
+            raise SessionError(f"cannot read {p}: {exc.strerror}") from None
+        return self.import_cad(data, p.name, **kw)
+
+    def add_primitive(self, kind: str, size: tuple[float, ...], *, name: str | None = None,
+                      role: ObjectRole | str = ObjectRole.OBSTACLE,
+                      T_world_object: Array | None = None) -> CellObject:
+        """A box (x, y, z), cylinder (radius, height) or sphere (radius,), metres."""
+        with self._action(f"add a {kind}", EDIT_CELL, scene="objects"):
+            spec = PrimitiveSpec(PrimitiveKind(kind), tuple(float(v) for v in size))
+            obj = CellObject.from_primitive(name or self.cell.unique_name(kind), spec,
+                                            T_world_object, role=role)
+            self.cell.add_object(obj)
+        return obj
+
+    def remove_object(self, name: str) -> None:
+        with self._action(f"remove {name}", EDIT_CELL + ("teach", "plan"), scene="objects"):
+            self.cell.remove_object(name)
+
+    def set_object_role(self, name: str, role: ObjectRole | str) -> None:
+        from dataclasses import replace
+
+        with self._action(f"change the role of {name}", EDIT_CELL, scene="objects"):
+            obj = self.cell.get_object(name)
+            role = ObjectRole(role)
+            self.cell.objects[name] = replace(obj, role=role, color=None)
+
+    # ================================================================== 3. placement
+    def place_object(self, name: str, T_world_object: Array) -> CellObject:
+        with self._action(f"place {name}", EDIT_PLACEMENT, scene="objects"):
+            obj = self.cell.set_object_pose(name, np.asarray(T_world_object, dtype=float))
+        return obj
+
+    def fit_object_pose(self, name: str, model_points: Array, measured_points: Array) -> PoseFit:
+        """N-point placement: model points (object frame) vs the same points measured."""
+        with self._action(f"place {name} by points", EDIT_PLACEMENT, scene="objects"):
+            self.cell.get_object(name)
+            fit = fit_pose(np.asarray(model_points, float), np.asarray(measured_points, float))
+            self.cell.set_object_pose(name, fit.T_world_object)
+            for w in fit.warnings:
+                self.bus.emit(Notice(w))
+        return fit
+
+    def measure_with_robot(self) -> Array:
+        """The robot TCP position (world frame) - touch a point of the part with the tool."""
+        return self.tcp_world()[:3, 3].copy()
+
+    def calibrate_frame(self, name: str, origin: Array | str, x_point: Array | str,
+                        xy_point: Array | str) -> FrameCalibration:
+        """A named frame from three measured points (the controllers' 3-point base method):
+        its origin, a point on its +x axis and a point in its XY plane on the +y side. Each
+        point is a position (world, metres) or the name of a taught location (e.g. the tip
+        of the tool touched to the pallet and taught from the robot pose). Re-calibrating an
+        existing frame replaces it."""
+        with self._action(f"calibrate the frame {name}", EDIT_PLACEMENT, scene="frames"):
+            pts = [self._point_of(p) for p in (origin, x_point, xy_point)]
+            cal = frame_from_three_points(name, *pts)
+            self.cell.add_frame(name, cal.T_world_frame, replace_existing=True)
+            self.bus.emit(Notice(cal.describe()))
+        return cal
+
+    def place_object_in_frame(self, name: str, frame: str, T_frame_object: Array) -> CellObject:
+        """Place an object relative to a named (e.g. calibrated) frame."""
+        with self._action(f"place {name} on {frame}", EDIT_PLACEMENT, scene="objects"):
+            T_world_frame = self._frame(frame)
+            obj = self.cell.set_object_pose(name, T_world_frame @ np.asarray(T_frame_object,
+                                                                             dtype=float))
+        return obj
+
+    def _point_of(self, p: Array | str) -> Array:
+        if isinstance(p, str):
+            return self._loc(p).position.copy()
+        a = np.asarray(p, dtype=float)
+        if a.shape != (3,) or not np.all(np.isfinite(a)):
+            raise SessionError("a measured point needs 3 finite coordinates")
+        return a
+
+    def _frame(self, name: str) -> Array:
+        if name not in self.cell.frames:
+            known = ", ".join(self.cell.frames) or "none yet"
+            raise SessionError(f"no frame named {name!r} (frames: {known}); calibrate it first")
+        return np.asarray(self.cell.frames[name], dtype=float)

@@ -1,0 +1,60 @@
+"""Step 7: the program in a dialect, and its upload to the robot.
+
+A part of `Session` (mixed into it): its methods run on the Session's state, under
+its lock and workflow, exactly as if written in the Session class."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from assistant.session.events import (
+    Notice,
+    ProgramReady,
+)
+from assistant.session.types import (
+    SessionError,
+)
+
+Array = np.ndarray
+
+
+class ExportActions:
+    """Step 7: the program in a dialect, and its upload to the robot."""
+
+    # ================================================================== 7. export
+    def export(self, dialect: str | None = None, *, name: str | None = None,
+               frame: str | None = None) -> Any:
+        """Write the planned mission as a robot program; returns the files (and a zip).
+        With `frame` (a named, e.g. calibrated, frame) the targets are written in that frame
+        (KRL $BASE, RAPID wobj, URScript pose_trans, ...) instead of the robot base."""
+        from assistant.export import export_files, get_dialect, program_from_trajectory
+        from assistant.export.program import Frame
+
+        with self._action("export the program", ("export", "plan"), undoable=False,
+                          scene="program"):
+            if self.trajectory is None:
+                raise SessionError("Plan the mission first: there is no verified trajectory yet")
+            d = get_dialect(dialect or self.export_dialect)
+            work = None
+            if frame is not None:
+                self._frame(frame)
+                work = Frame(frame, self.cell.T_base_frame(frame))
+            program = program_from_trajectory(self.trajectory, self.robot,
+                                              name=name or "MISSION", work=work)
+            result = export_files(program, d, self.robot)
+            self.export_dialect = d.name
+            self.program = result
+        self.bus.emit(ProgramReady(d.name, tuple(f.name for f in result.files)))
+        return result
+
+    def upload_program(self) -> str:
+        """Send the exported program to the robot controller; returns its name there."""
+        with self._action("upload the program", ("export",), undoable=False):
+            if self.program is None:
+                raise SessionError("Export the program first")
+            files = {f.name: f.data for f in self.program.files}
+            name = self.link().upload_program(self.program.files[0].name.split(".")[0], files)
+        self.bus.emit(Notice(f"program uploaded to the robot as {name}"))
+        return name

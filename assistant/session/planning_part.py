@@ -1,0 +1,292 @@
+"""Steps 5 and 6: the world model, exploration, planning and execution.
+
+A part of `Session` (mixed into it): its methods run on the Session's state, under
+its lock and workflow, exactly as if written in the Session class."""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from concurrent.futures import Future
+from typing import Any
+
+import numpy as np
+
+from assistant.collision import CollisionChecker
+from assistant.progress import Cancelled, Progress
+from assistant.robot_link import RobotLink
+from assistant.session.events import (
+    ExecutionFinished,
+    Notice,
+    PlanReady,
+    SceneChanged,
+)
+from assistant.session.types import (
+    EDIT_MISSION,
+    OccupiedCells,
+    SessionError,
+    _Backend,
+    _report_json,
+    hint_for,
+)
+
+Array = np.ndarray
+
+
+class PlanningActions:
+    """Steps 5 and 6: the world model, exploration, planning and execution."""
+
+    # ================================================================== 5. explore / world
+    def _run_busy(self, task: str, fn: Callable[[Progress], Any],
+                  steps: tuple[str, ...] | None = None, *, moving: bool = False) -> Future:
+        """Run long work on the worker: the machine is busy (or moving) until it ends."""
+        with self._lock:
+            if steps is not None:
+                self.machine.require(steps, task)
+            if moving:
+                self.machine.begin_moving()
+            else:
+                self.machine.begin_busy(task)
+        self._emit_state()
+
+        def done(fut: Future) -> None:
+            with self._lock:
+                self.machine.end_mode()
+                exc = fut.exception()
+                if exc is not None and not isinstance(exc, Cancelled):
+                    self._error(f"{task}: {exc}", hint_for(exc))
+                elif isinstance(exc, Cancelled):
+                    self.bus.emit(Notice(f"{task} cancelled; nothing was lost"))
+                self._autosave()
+            self._emit_state()
+
+        try:
+            return self.worker.submit(task, fn, done)
+        except RuntimeError:
+            with self._lock:
+                self.machine.end_mode()
+            self._emit_state()
+            raise
+
+    def start_build_world(self) -> Future:
+        """Reachability table (cached on disk), CAD rasterisation and the Voronoi roadmap."""
+        return self._run_busy("build the world model", self._build_world,
+                              ("explore", "plan", "teach", "place"))
+
+    def build_world(self) -> dict:
+        return self.start_build_world().result()
+
+    def _build_world(self, progress: Progress) -> dict:
+        from assistant.roadmap.planner import RoadmapPlanner
+        from assistant.world.model import WorldConfig, WorldModel
+
+        t0 = time.perf_counter()
+        robot = self.robot
+        obstacles = self.cell.collision_objects_in_base()
+        key = self._obstacles_key()
+        world = WorldModel(robot, obstacles, WorldConfig())
+        checker = CollisionChecker(robot, obstacles)
+        roadmap = RoadmapPlanner(robot, checker, world)
+        report = roadmap.build(progress.sub(0.0, 0.9))
+        for q in self.recorded_collisions:  # what the operator taught us stays known
+            progress.check()
+            roadmap.add_collision(q)
+        backend = _Backend(world, roadmap, checker)
+        with self._lock:
+            self._world, self._world_key = backend, key
+        self.bus.emit(SceneChanged("world"))
+        return {"seconds": time.perf_counter() - t0,
+                "table_from_cache": report.world.table_from_cache,
+                "road_cells": report.road_cells, "regions": report.regions,
+                "free_cells": report.world.leaves_free}
+
+    def _backend(self, progress: Progress | None = None) -> _Backend:
+        """The world model for the current obstacles, (re)built if stale."""
+        if not self.world_ready:
+            self._build_world(progress or Progress())
+        assert self._world is not None
+        return self._world
+
+    def _mission_planner(self, backend: _Backend) -> Any:
+        from assistant.planning import MissionPlanner
+
+        config = self._planner_config()
+        if backend.planner is None or backend.planner.config != config:
+            backend.planner = MissionPlanner(self.robot, self.cell.collision_objects_in_base(),
+                                             backend.world, backend.roadmap, backend.checker,
+                                             config)
+        return backend.planner
+
+    def _planner_config(self) -> Any:
+        """The planner's defaults; Bezier chains become SPLINE moves when the export dialect
+        writes splines (KRL SPLINE ... ENDSPLINE), else linear moves within the tolerance."""
+        from dataclasses import replace
+
+        from assistant.export import get_dialect
+        from assistant.planning.config import MissionPlannerConfig
+        from assistant.trajectory.application import BezierMode
+
+        config = MissionPlannerConfig()
+        try:
+            splines = bool(getattr(get_dialect(self.export_dialect), "spline", False))
+        except (KeyError, ValueError):
+            splines = False
+        if splines:
+            config = replace(config, application=replace(config.application,
+                                                         bezier_mode=BezierMode.SPLINE))
+        return config
+
+    # ================================================================== 6. plan & execute
+    def start_plan(self) -> Future:
+        """Plan the mission in the known world (CAD + recorded collisions)."""
+        return self._run_busy("plan the mission", self._plan, ("plan", "explore", "export"))
+
+    def plan(self) -> dict:
+        return self.start_plan().result()
+
+    def _plan(self, progress: Progress) -> dict:
+        t0 = time.perf_counter()
+        backend = self._backend(progress.sub(0.0, 0.3, "world model"))
+        planner = self._mission_planner(backend)
+        plan = planner.plan_mission(self.mission, self.T_world_base(), self.current_joints(),
+                                    progress.sub(0.3, 1.0, "plan"))
+        with self._lock:
+            self.counters.planning_time_s += time.perf_counter() - t0
+            if not plan.ok:
+                self.trajectory, self.plan_report, self.program = None, None, None
+                raise SessionError(f"no plan: {plan.reason}")
+            self.trajectory = plan.trajectory
+            self.plan_report = _report_json(plan.report)
+            self.program = None
+        self.bus.emit(PlanReady(dict(self.plan_report)))
+        return dict(self.plan_report)
+
+    def start_execute(self) -> Future:
+        """Drive the mission on the robot; collisions (button or hidden obstacle) are learnt,
+        the plan repaired and resumed. Ends with a verified final plan ready to export."""
+        return self._run_busy("execute the mission", self._execute, ("plan",), moving=True)
+
+    def execute(self) -> dict:
+        return self.start_execute().result()
+
+    def resume_execution(self) -> Future:
+        """Continue after a lost link or a stop, re-planning from where the robot is."""
+        return self._run_busy("resume the mission", self._resume, ("plan",), moving=True)
+
+    def _executor(self, backend: _Backend, link: RobotLink) -> Any:
+        from assistant.planning import MissionExecutor
+
+        ex = backend.executor
+        if ex is None or ex.link is not link:
+            if ex is not None:
+                ex.detach()
+            ex = MissionExecutor(self._mission_planner(backend), link)
+            backend.executor = ex
+        return ex
+
+    def _execute(self, progress: Progress) -> dict:
+        backend = self._backend(progress.sub(0.0, 0.1, "world model"))
+        link = self.link()
+        ex = self._executor(backend, link)
+        t0 = time.perf_counter()
+        report = ex.run(self.mission, self.T_world_base(), progress.sub(0.1, 1.0, "execute"))
+        return self._after_execution(report, time.perf_counter() - t0)
+
+    def _resume(self, progress: Progress) -> dict:
+        backend = self._backend(progress.sub(0.0, 0.1, "world model"))
+        ex = self._executor(backend, self.link())
+        t0 = time.perf_counter()
+        report = ex.resume(progress.sub(0.1, 1.0, "resume"))
+        return self._after_execution(report, time.perf_counter() - t0)
+
+    def _after_execution(self, report: Any, seconds: float) -> dict:
+        with self._lock:
+            self.counters.replans += report.replans
+            self.counters.replan_times_s += list(report.replan_seconds)
+            self.counters.planning_time_s += sum(report.replan_seconds)
+            final = report.final_plan
+            if report.ok and final is not None and final.ok:
+                self.trajectory = final.trajectory
+                self.plan_report = _report_json(final.report)
+                self.program = None
+        summary = {"ok": report.ok, "end": report.end.value if report.end else None,
+                   "reason": report.reason, "collision_indications":
+                   report.collision_indications, "replans": report.replans,
+                   "backoffs": report.backoffs, "executed_tcp_length_m":
+                   report.executed_tcp_length, "median_replan_s": report.median_replan_seconds,
+                   "seconds": seconds, "resumable": report.resumable}
+        self.bus.emit(ExecutionFinished(report.ok, dict(summary), report.resumable))
+        if report.ok and self.plan_report is not None:
+            self.bus.emit(PlanReady(dict(self.plan_report)))
+        elif not report.ok:
+            raise SessionError(f"execution ended: {report.reason}" + (
+                " - press Resume to continue" if report.resumable else ""))
+        return summary
+
+    def start_explore(self, mode: str = "random", moves: int = 5, *, seed: int = 0) -> Future:
+        """Explore the workspace with the robot: random moves, replay the plan, or the roads."""
+        if mode not in ("random", "replay", "roads"):
+            raise SessionError(f"unknown exploration mode {mode!r} (random, replay, roads)")
+        return self._run_busy(f"explore ({mode})",
+                              lambda p: self._explore(p, mode, moves, seed),
+                              ("explore", "plan"), moving=True)
+
+    def explore(self, mode: str = "random", moves: int = 5, *, seed: int = 0) -> dict:
+        return self.start_explore(mode, moves, seed=seed).result()
+
+    def _explore(self, progress: Progress, mode: str, moves: int, seed: int) -> dict:
+        from assistant.planning import Explorer
+
+        backend = self._backend(progress.sub(0.0, 0.2, "world model"))
+        link = self.link()
+        if backend.explorer is None or backend.explorer.link is not link:
+            if backend.explorer is not None:
+                backend.explorer.detach()
+            backend.explorer = Explorer(self._mission_planner(backend), link)
+        ex = backend.explorer
+        sub = progress.sub(0.2, 1.0, "explore")
+        if mode == "random":
+            rep = ex.random_moves(moves, seed=seed, progress=sub)
+        elif mode == "roads":
+            rep = ex.follow_roads(max_targets=moves, progress=sub)
+        else:
+            if self.trajectory is None:
+                raise SessionError("nothing to replay: plan the mission first")
+            rep = ex.replay(self.trajectory, progress=sub)
+        return {"ok": rep.ok, "description": rep.describe()}
+
+    def order_mission(self) -> list[str]:
+        """Order the application paths (shortest transfers) - shown, and used by Plan."""
+        from dataclasses import replace
+
+        from assistant.trajectory.ordering import order_mission
+
+        with self._action("order the mission", EDIT_MISSION, scene="mission"):
+            if self.mission.start is None or self.mission.goal is None:
+                raise SessionError("The mission needs a start and a goal")
+            ordering = order_mission(self.mission)
+            self.mission = replace(self.mission, order=list(ordering.order))
+        return [self.mission.paths[i].name for i in ordering.order]
+
+    def occupancy_cells(self, min_p: float = 0.05) -> OccupiedCells | None:
+        """Octree leaves with occupancy >= min_p, in the world frame."""
+        b = self._world
+        if b is None:
+            return None
+        occ = np.asarray(b.world.occupancy())
+        ijk = np.argwhere(occ >= min_p)
+        grid = b.world.grid
+        centres = grid.centres_of_ijk(ijk)
+        T = self.T_world_base()
+        return OccupiedCells(centres @ T[:3, :3].T + T[:3, 3], occ[tuple(ijk.T)].astype(float),
+                             float(grid.leaf), T[:3, :3].copy())
+
+    def road_cells(self) -> tuple[Array, float] | None:
+        """Centres (world frame) of the Voronoi road cells and the leaf size."""
+        b = self._world
+        if b is None or b.roadmap.voronoi is None:
+            return None
+        ijk = np.argwhere(b.roadmap.voronoi.roads())
+        grid = b.world.grid
+        T = self.T_world_base()
+        return grid.centres_of_ijk(ijk) @ T[:3, :3].T + T[:3, 3], float(grid.leaf)

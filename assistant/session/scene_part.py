@@ -1,0 +1,71 @@
+"""What the web page draws: objects, robot visuals, taught paths, the plan.
+
+A part of `Session` (mixed into it): its methods run on the Session's state, under
+its lock and workflow, exactly as if written in the Session class."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from assistant.cell import CellObject
+from assistant.mission import (
+    SegmentKind,
+)
+from assistant.session.types import (
+    _arc_points,
+)
+
+Array = np.ndarray
+
+
+class SceneQueries:
+    """What the web page draws: objects, robot visuals, taught paths, the plan."""
+
+    # ================================================================== scene for the UI
+    def scene_objects(self) -> list[CellObject]:
+        """Placed objects (display mesh in object frame, `T_world_object`, colour, role)."""
+        return list(self.cell.objects.values())
+
+    def robot_visuals(self) -> list[tuple[str, Any, tuple[int, int, int]]]:
+        """(link name, trimesh in link frame, colour) for every robot link with a visual."""
+        return [(lk.name, lk.visual, lk.color) for lk in self.robot.links if lk.visual is not None]
+
+    def link_poses_world(self, q: Array | None = None) -> Array:
+        """T_world_link for every robot link at q (default: where the robot is now)."""
+        q = self.current_joints() if q is None else np.asarray(q, float)
+        return self.T_world_base()[None] @ self.robot.link_poses(q)
+
+    def path_polylines(self, tol: float = 0.0005) -> list[tuple[str, Array]]:
+        """Each application path as points (world frame) for drawing."""
+        from assistant.export.bezier import CubicBezier, sample_bezier_chain
+
+        out = []
+        for p in self.mission.paths:
+            pts: list[Array] = []
+            for seg in p.segments:
+                if seg.kind == SegmentKind.LINE:
+                    pts += [seg.start, seg.end]
+                elif seg.kind == SegmentKind.ARC:
+                    pts += list(_arc_points(*seg.points))
+                else:
+                    samp = sample_bezier_chain([CubicBezier(*seg.points)], tol)
+                    pts += list(samp.points)
+            out.append((p.name, np.array(pts)))
+        return out
+
+    def plan_polylines(self) -> list[tuple[str, Array]]:
+        """The planned trajectory per motion: (kind, TCP points in the world frame)."""
+        if self.trajectory is None:
+            return []
+        T_wb = self.T_world_base()
+        out = []
+        prev_q = self.trajectory.start.q
+        for m in self.trajectory.motions:
+            Q = m.joint_path if m.joint_path is not None and len(m.joint_path) else \
+                np.array([prev_q, m.target.q])
+            P = self.robot.batch_fk(np.asarray(Q, float)).positions
+            out.append((m.kind.value, P @ T_wb[:3, :3].T + T_wb[:3, 3]))
+            prev_q = m.target.q
+        return out

@@ -1,0 +1,116 @@
+"""Step 1, set-up: the robot, its tool, the link to it, the hidden obstacles of a simulation.
+
+A part of `Session` (mixed into it): its methods run on the Session's state, under
+its lock and workflow, exactly as if written in the Session class."""
+
+from __future__ import annotations
+
+import contextlib
+
+import numpy as np
+
+from assistant.collision import Obstacle
+from assistant.links.settings import LinkSettings, make_link
+from assistant.robot_catalog import RobotSpec, ToolSpec
+from assistant.robot_link import LinkEvent, LinkEventKind, RobotLink
+from assistant.robot_model import Robot
+from assistant.session.events import (
+    CollisionRecorded,
+    RobotMoved,
+)
+from assistant.session.types import (
+    HiddenObstacle,
+)
+from assistant.transforms import inv_T
+
+Array = np.ndarray
+
+
+class SetupActions:
+    """Step 1, set-up: the robot, its tool, the link to it, the hidden obstacles of a simulation."""
+
+    # ================================================================== 1. set-up
+    def choose_robot(self, spec: RobotSpec) -> Robot:
+        """Pick the robot (built-in RV-2AJ or a URDF) and its tool."""
+        with self._action("choose the robot", ("setup",), scene="robot"):
+            robot = spec.build()  # errors (missing URDF, bad mesh) before anything changes
+            self.cell.robot_spec = spec
+            self._q_sim = None
+            self._drop_link()
+            self._world = None
+        return robot
+
+    def set_tool(self, tool: ToolSpec) -> Robot:
+        from dataclasses import replace
+
+        return self.choose_robot(replace(self.cell.robot_spec, tool=tool))
+
+    def set_link(self, settings: LinkSettings) -> None:
+        """Choose how the assistant talks to the robot (simulated, MELFA, KUKA REST)."""
+        with self._action("choose the robot link", ("setup",), undoable=False, scene="link"):
+            self._drop_link()
+            self.link_settings = settings
+
+    def set_hidden_obstacles(self, hidden: list[HiddenObstacle]) -> None:
+        """Obstacles only the simulated robot knows (they stand in for reality)."""
+        with self._action("set the simulated world", None, undoable=False, scene="hidden"):
+            self.hidden = list(hidden)
+            self._drop_link()
+
+    def link(self) -> RobotLink:
+        """The connected link, connecting on first use."""
+        with self._lock:
+            if self._link is None:
+                hidden = [Obstacle(h.name, inv_T(self.T_world_base()) @ h.T_world_object,
+                                   (h.primitive().collision_shape(),)) for h in self.hidden]
+                link = make_link(self.link_settings, self.robot, hidden)
+                if self._q_sim is not None and hasattr(link, "set_joints"):
+                    link.set_joints(self._q_sim)  # type: ignore[attr-defined]
+                link.subscribe(self._on_link_event)
+                self._link = link
+            if not self._link.connected:
+                self._link.connect()
+            return self._link
+
+    def _drop_link(self) -> None:
+        if self._link is not None:
+            with contextlib.suppress(Exception):
+                self._q_sim = np.asarray(self._link.current_joints(), dtype=float)
+            with contextlib.suppress(Exception):
+                self._link.close()
+            self._link = None
+
+    def _on_link_event(self, ev: LinkEvent) -> None:
+        if ev.q is not None:
+            self._q_sim = np.asarray(ev.q, dtype=float)
+            self.bus.emit(RobotMoved(self._q_sim.copy()))
+        if ev.kind == LinkEventKind.COLLISION_INDICATED and ev.q is not None:
+            # The executor/explorer feeds the world model; the session keeps the posture so a
+            # reloaded session knows it too.
+            with self._lock:
+                self.recorded_collisions.append(np.asarray(ev.q, float).copy())
+                self.counters.collision_indications += 1
+            self.bus.emit(CollisionRecorded(np.asarray(ev.q, float).copy(),
+                                            self.counters.collision_indications,
+                                            "operator" if "operator" in ev.message else "robot"))
+        if ev.kind == LinkEventKind.LINK_LOST:
+            self.machine.enter_error(f"robot link lost: {ev.message}")
+            self._error(f"robot link lost: {ev.message}",
+                        "Check the cable/network, then press Reconnect; the plan is kept.")
+            self._emit_state()
+
+    def reconnect_link(self) -> None:
+        with self._lock:
+            link = self._link
+        if link is None:
+            self.link()
+        else:
+            link.connect()
+        with self._lock:
+            self.machine.clear_error()
+        self._emit_state()
+
+    def acknowledge_error(self) -> None:
+        with self._lock:
+            self.machine.clear_error()
+        self._emit_state()

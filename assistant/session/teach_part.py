@@ -1,0 +1,354 @@
+"""Step 4: locations (typed, robot, CAD click, marker pointer), start/goal, application paths.
+
+A part of `Session` (mixed into it): its methods run on the Session's state, under
+its lock and workflow, exactly as if written in the Session class."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from assistant.mission import (
+    ApplicationPath,
+    Location,
+    LocationSource,
+    SegmentKind,
+)
+from assistant.motion import ToolAction
+from assistant.robot_model import IKResult, UnreachableError
+from assistant.session.events import (
+    Notice,
+)
+from assistant.session.frames import (
+    _drawing_control,
+    drawing_path,
+)
+from assistant.session.types import (
+    EDIT_MISSION,
+    TEACH_STEPS,
+    SessionError,
+    _angle,
+    _check_identifier,
+    _segments,
+    _tool_frame_along,
+)
+from assistant.transforms import inv_T
+
+Array = np.ndarray
+
+
+class TeachActions:
+    """Step 4: locations (typed, robot, CAD click, marker pointer), start/goal, paths."""
+
+    # ================================================================== 4. teach
+    def teach(self, name: str, T_world_tool: Array, *,
+              source: LocationSource = LocationSource.TYPED, q_hint: Array | None = None,
+              uncertainty_m: float = 0.0, replace_existing: bool = True) -> Location:
+        """Store a location. Out-of-reach poses are refused; a 5-axis robot's orientation is
+        projected into its arm plane (the operator is told by how much)."""
+        with self._action(f"teach {name}", TEACH_STEPS, scene="locations"):
+            loc = self._make_location(name, np.asarray(T_world_tool, float), source, q_hint,
+                                      uncertainty_m)
+            if name in self.locations and not replace_existing:
+                raise SessionError(f"a location named {name!r} exists already")
+            self.locations[name] = loc
+            self._relink_mission(name)
+        return self.locations[name]
+
+    def _make_location(self, name: str, T_world_tool: Array, source: LocationSource,
+                       q_hint: Array | None, uncertainty_m: float) -> Location:
+        _check_identifier(name, "location")
+        T_base_world = inv_T(self.T_world_base())
+        T_base = T_base_world @ T_world_tool
+        seed = q_hint if q_hint is not None else self.current_joints()
+        res: IKResult = self.robot.ik(T_base, seed=seed)
+        if not res.ok and res.nearest_T_base_tool is not None and \
+                res.failure is not None and res.failure.value == "orientation":
+            near = res.nearest_T_base_tool
+            res2 = self.robot.ik(near, seed=seed)
+            if res2.ok:
+                ang = np.degrees(_angle(near[:3, :3], T_base[:3, :3]))
+                self.bus.emit(Notice(f"{name}: {res.message}; the orientation was turned by "
+                                     f"{ang:.1f} deg into the arm plane"))
+                T_base, res = near, res2
+        if not res.ok:
+            raise UnreachableError(f"{name}: {res.message}", res)
+        q = res.best(seed)
+        return Location(name, self.T_world_base() @ T_base, source, q, uncertainty_m)
+
+    def teach_from_robot(self, name: str) -> Location:
+        q = self.current_joints()
+        return self.teach(name, self.tcp_world(q), source=LocationSource.ROBOT_POSE, q_hint=q)
+
+    def teach_from_cad_click(self, name: str, point_world: Array,
+                             normal_world: Array | None = None,
+                             approach_distance: float = 0.0) -> Location:
+        """A point clicked on a part: the tool points against the surface normal (or down)."""
+        p = np.asarray(point_world, float)
+        n = np.array([0.0, 0.0, 1.0]) if normal_world is None else np.asarray(normal_world, float)
+        n = n / np.linalg.norm(n)
+        T = np.eye(4)
+        T[:3, :3] = _tool_frame_along(-n)
+        T[:3, 3] = p + approach_distance * n
+        return self.teach(name, T, source=LocationSource.CAD_CLICK)
+
+    def teach_from_pointer(self, name: str, point_world: Array, uncertainty_m: float = 0.0,
+                           R_world_tool: Array | None = None) -> Location:
+        """A point measured by the marker pointer (dwell); tool down unless told otherwise."""
+        T = np.eye(4)
+        T[:3, :3] = _tool_frame_along(np.array([0.0, 0.0, -1.0])) if R_world_tool is None \
+            else np.asarray(R_world_tool, float)
+        T[:3, 3] = np.asarray(point_world, float)
+        return self.teach(name, T, source=LocationSource.POINTER, uncertainty_m=uncertainty_m)
+
+    def teach_by_pointer_dwell(self, name: str, point_world: Array, *, seed: int = 0) -> Location:
+        """Synthetic camera: the pointer is brought to `point_world` and held still; the point
+        the vision pipeline measures (with its error) is taught. Deterministic for a seed, so
+        the web page and a script teaching the same point get the same location."""
+        tp = self.simulate_pointer_dwell(point_world, seed=seed)
+        return self.teach_from_pointer(name, np.asarray(tp.position_world),
+                                       uncertainty_m=float(tp.uncertainty))
+
+    def simulate_pointer_dwell(self, point_world: Array, *, seed: int = 0) -> Any:
+        """Scripted sessions: the synthetic pointer moves to `point_world` and holds still; the
+        real vision pipeline measures it. Returns the taught point (measured, not the truth)."""
+        from vision.scripted import simulate_dwell
+
+        return simulate_dwell(self.camera_models(), np.asarray(point_world, float), seed=seed)
+
+    # -- live pointer (UI) ------------------------------------------------------------------
+    def start_pointer(self) -> None:
+        """Run the pointer pipeline in the background (synthetic cameras by default)."""
+        from assistant.session.pointer_live import LivePointer
+        from vision.color import ColorProfile
+
+        with self._lock:
+            if self._pointer is not None and self._pointer.running:
+                return
+            self._pointer = LivePointer(self.camera_models(), on_state=self._on_pointer,
+                                        seed=int(self.pointer_config.get("seed", 0)))
+            prof = self.pointer_config.get("profile")
+            if prof:
+                self._pointer.system.profile = ColorProfile.from_dict(prof)
+            self._pointer.start()
+
+    def stop_pointer(self) -> None:
+        with self._lock:
+            p, self._pointer = self._pointer, None
+        if p is not None:
+            p.stop()
+
+    def pointer_move_to(self, point_world: Array | None) -> None:
+        """Synthetic camera only: the simulated hand brings the ball to a point (None: away)."""
+        if self._pointer is None:
+            self.start_pointer()
+        assert self._pointer is not None
+        self._pointer.hand.move_to(None if point_world is None else np.asarray(point_world, float))
+
+    def _on_pointer(self, state: Any) -> None:
+        from assistant.session.events import PointerUpdated
+
+        pos = None if state.position_world is None else np.asarray(state.position_world)
+        std = float(np.sqrt(np.trace(state.covariance))) if pos is not None else 0.0
+        self.bus.emit(PointerUpdated(pos, std, state.mode))
+        if state.taught is not None:
+            self.pending_point = state.taught
+            p = np.asarray(state.taught.position_world) * 1000
+            self.bus.emit(Notice(f"pointer held still: point measured at "
+                                 f"({p[0]:.1f}, {p[1]:.1f}, {p[2]:.1f}) mm "
+                                 f"+- {state.taught.uncertainty * 1000:.1f} mm"))
+
+    def pointer_state(self) -> Any:
+        """The last `vision.PointerState` of the live pointer (None when it is not running):
+        camera views with frames and detections for the UI."""
+        p = self._pointer
+        return None if p is None else p.last_state
+
+    def teach_pending_point(self, name: str) -> Location:
+        """Teach the last point the pointer dwell produced."""
+        tp = self.pending_point
+        if tp is None:
+            raise SessionError("no pointer point yet: hold the pointer still at the spot")
+        loc = self.teach_from_pointer(name, np.asarray(tp.position_world),
+                                      uncertainty_m=float(tp.uncertainty))
+        self.pending_point = None
+        return loc
+
+    def calibrate_pointer_color(self, camera_index: int, center_px: tuple[float, float],
+                                axes_px: tuple[float, float], angle_deg: float = 0.0) -> Any:
+        """Colour calibration: the ellipse the operator drew over the ball in a live view."""
+        from vision.color import calibrate_from_ellipse
+
+        with self._action("calibrate the pointer colour", None, undoable=False):
+            if self._pointer is None or self._pointer.last_state is None:
+                raise SessionError("start the cameras first (the live view needs a frame)")
+            views = list(self._pointer.last_state.cameras.values())
+            if not 0 <= camera_index < len(views) or views[camera_index].frame is None:
+                raise SessionError(f"no live frame from camera {camera_index}")
+            frame = views[camera_index].frame
+            prof = calibrate_from_ellipse(frame.image, center_px, axes_px, angle_deg)
+            self._pointer.system.profile = prof
+            self.pointer_config["profile"] = prof.to_dict()
+        return prof
+
+    def camera_models(self) -> list:
+        from vision.camera_model import CameraModel
+        from vision.rigs import default_stereo_rig
+
+        cams = self.pointer_config.get("cameras")
+        if cams:
+            return [CameraModel.from_dict(c) for c in cams]
+        return default_stereo_rig()
+
+    def remove_location(self, name: str) -> None:
+        with self._action(f"delete {name}", TEACH_STEPS, scene="locations"):
+            if name not in self.locations:
+                raise SessionError(f"no location named {name!r}")
+            used = self._location_uses(name)
+            if used:
+                raise SessionError(f"{name} is used by {', '.join(used)}; change that first")
+            del self.locations[name]
+
+    def _location_uses(self, name: str) -> list[str]:
+        uses = []
+        m = self.mission
+        if m.start is not None and m.start.name == name:
+            uses.append("the mission start")
+        if m.goal is not None and m.goal.name == name:
+            uses.append("the mission goal")
+        return uses
+
+    def _relink_mission(self, name: str) -> None:
+        """A re-taught location updates the mission's start/goal that refer to it."""
+        from dataclasses import replace
+
+        loc = self.locations[name]
+        if self.mission.start is not None and self.mission.start.name == name:
+            self.mission = replace(self.mission, start=loc)
+        if self.mission.goal is not None and self.mission.goal.name == name:
+            self.mission = replace(self.mission, goal=loc)
+
+    def set_start(self, name: str) -> None:
+        from dataclasses import replace
+
+        with self._action("set the mission start", EDIT_MISSION, scene="mission"):
+            self.mission = replace(self.mission, start=self._loc(name), order=None)
+
+    def set_goal(self, name: str) -> None:
+        from dataclasses import replace
+
+        with self._action("set the mission goal", EDIT_MISSION, scene="mission"):
+            self.mission = replace(self.mission, goal=self._loc(name), order=None)
+
+    def _loc(self, name: str) -> Location:
+        if name not in self.locations:
+            known = ", ".join(self.locations) or "none yet"
+            raise SessionError(f"no location named {name!r} (taught: {known})")
+        return self.locations[name]
+
+    def add_path(self, name: str, kind: str, points: list[str | Array], *,
+                 before: list[ToolAction] = (), after: list[ToolAction] = (),
+                 speed: float = 0.05, reversible: bool = False,
+                 R_world_tool: Array | None = None) -> ApplicationPath:
+        """An application path: a line (2 points), arc (3) or Bezier chain (1 + 3k control
+        points) through taught locations (by name) or points; the tool orientation is that of
+        the first named location unless given."""
+        from dataclasses import replace
+
+        with self._action(f"add the path {name}", EDIT_MISSION, scene="mission"):
+            _check_identifier(name, "path")
+            if any(p.name == name for p in self.mission.paths):
+                raise SessionError(f"a path named {name!r} exists already")
+            pts, R = self._path_points(points)
+            segs = _segments(SegmentKind(kind), pts)
+            R_tool = np.asarray(R_world_tool, float) if R_world_tool is not None else (
+                R if R is not None else _tool_frame_along(np.array([0.0, 0.0, -1.0])))
+            path = ApplicationPath(name, segs, R_tool, list(before), list(after), float(speed),
+                                   bool(reversible))
+            self.mission = replace(self.mission, paths=[*self.mission.paths, path], order=None)
+        return path
+
+    def _path_points(self, points: list[str | Array]) -> tuple[list[Array], Array | None]:
+        out: list[Array] = []
+        R: Array | None = None
+        for p in points:
+            if isinstance(p, str):
+                loc = self._loc(p)
+                out.append(loc.position.copy())
+                if R is None:
+                    R = loc.T_world_tool[:3, :3]
+            else:
+                out.append(np.asarray(p, float))
+        return out, R
+
+    def remove_path(self, name: str) -> None:
+        from dataclasses import replace
+
+        with self._action(f"delete the path {name}", EDIT_MISSION, scene="mission"):
+            paths = [p for p in self.mission.paths if p.name != name]
+            if len(paths) == len(self.mission.paths):
+                raise SessionError(f"no path named {name!r}")
+            self.mission = replace(self.mission, paths=paths, order=None)
+
+    def move_path(self, name: str, index: int) -> None:
+        """Reorder the mission's paths (the operator's order; the planner may reorder)."""
+        from dataclasses import replace
+
+        with self._action(f"move the path {name}", EDIT_MISSION, scene="mission"):
+            paths = list(self.mission.paths)
+            i = next((k for k, p in enumerate(paths) if p.name == name), None)
+            if i is None:
+                raise SessionError(f"no path named {name!r}")
+            p = paths.pop(i)
+            paths.insert(max(0, min(index, len(paths))), p)
+            self.mission = replace(self.mission, paths=paths, order=None)
+
+    def add_drawing(self, name: str, frame: str, drawing: int | Array, *,
+                    at: tuple[float, float] = (0.0, 0.0), angle: float = 0.0,
+                    lift: float = 0.03, before: list[ToolAction] = (),
+                    after: list[ToolAction] = (), speed: float = 0.05,
+                    reversible: bool = False, tool_angle: float = 0.0) -> ApplicationPath:
+        """A pen drawing on a frame's XY plane as one application path: a line down to the
+        paper (`lift` metres along the frame's -z), the chained cubic Bezier segments, a line
+        back up; the pen stays perpendicular to the paper (tool z = -frame z).
+
+        Args:
+            name: the path's name (a controller identifier).
+            frame: a named frame, e.g. the pallet calibrated from three points.
+            drawing: one of the cell's drawings 1..9 (source 000: frames 1-3, keyboards 4-6,
+                screens 7-9) or control points (1 + 3k, metres, 2-D in the frame).
+            at: where the drawing's origin goes on the frame's XY plane (metres).
+            angle: rotation of the drawing about the frame's z axis (rad).
+            lift: approach and retreat height above the paper (m, > 0).
+            tool_angle: the pen's turn about its own axis (rad; 0: tool x along the
+                drawing's x). A pen draws the same either way; the wrist may not (e.g. a
+                6-axis arm's last joint near its limit).
+        """
+        from dataclasses import replace
+
+        with self._action(f"add the drawing {name}", EDIT_MISSION, scene="mission"):
+            _check_identifier(name, "path")
+            if any(p.name == name for p in self.mission.paths):
+                raise SessionError(f"a path named {name!r} exists already")
+            path = drawing_path(name, self._frame(frame), _drawing_control(drawing),
+                                at=at, angle=angle, lift=lift, before=before, after=after,
+                                speed=speed, reversible=reversible, tool_angle=tool_angle)
+            self.mission = replace(self.mission, paths=[*self.mission.paths, path], order=None)
+        return path
+
+    def set_path_actions(self, name: str, before: list[ToolAction],
+                         after: list[ToolAction]) -> None:
+        from dataclasses import replace
+
+        with self._action(f"change the tool actions of {name}", EDIT_MISSION, scene="mission"):
+            paths = []
+            found = False
+            for p in self.mission.paths:
+                if p.name == name:
+                    p = replace(p, actions_before=list(before), actions_after=list(after))
+                    found = True
+                paths.append(p)
+            if not found:
+                raise SessionError(f"no path named {name!r}")
+            self.mission = replace(self.mission, paths=paths)
