@@ -63,7 +63,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def cmd_cells() -> int:
-    from assistant.samples import list_samples, samples_root
+    from assistant.cell.samples import list_samples, samples_root
 
     samples = list_samples()
     if not samples:
@@ -82,7 +82,7 @@ def _default_session_dir() -> Path:
 
 def open_session(cell: str | None, folder: Path | None, empty: bool):
     """Resume `folder` if it holds a session, else start one on the sample cell."""
-    from assistant.samples import DEFAULT_SAMPLE
+    from assistant.cell.samples import DEFAULT_SAMPLE
     from assistant.session import Session
     from assistant.session.store import SESSION_JSON
 
@@ -94,7 +94,7 @@ def open_session(cell: str | None, folder: Path | None, empty: bool):
 
 
 def cmd_serve(args: argparse.Namespace) -> int:
-    from assistant.samples import SampleError
+    from assistant.cell.samples import SampleError
     from assistant.session.store import SessionFileError
 
     try:

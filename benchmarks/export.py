@@ -42,8 +42,8 @@ from assistant.export.samples import (  # noqa: E402
     thesis_trajectory,
 )
 from assistant.export.simulate import simulate  # noqa: E402
-from assistant.robot_model import Tool  # noqa: E402
-from assistant.rv2aj import RV2AJ, RV2AJConfig  # noqa: E402
+from assistant.robots.model import Tool  # noqa: E402
+from assistant.robots.rv2aj import RV2AJ, RV2AJConfig  # noqa: E402
 
 TABLE7_STEPS = (0.5, 0.25, 0.1, 0.05, 0.02)
 TOLERANCE = 1e-4

@@ -32,11 +32,11 @@ import pinocchio as pin  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from assistant.robot_catalog import installed_robot_urdf  # noqa: E402
-from assistant.robot_model import BatchPoses, Tool  # noqa: E402
-from assistant.rv2aj import RV2AJ  # noqa: E402
+from assistant.robots.catalog import installed_robot_urdf  # noqa: E402
+from assistant.robots.model import BatchPoses, Tool  # noqa: E402
+from assistant.robots.rv2aj import RV2AJ  # noqa: E402
+from assistant.robots.urdf_robot import URDFRobot  # noqa: E402
 from assistant.transforms import rotation_angle  # noqa: E402
-from assistant.urdf_robot import URDFRobot  # noqa: E402
 
 TARGET_CONFIGS_PER_S = 5e6
 

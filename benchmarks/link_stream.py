@@ -33,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from assistant.links import melfa_protocol as mp  # noqa: E402
 from assistant.links.melfa import MelfaLink  # noqa: E402
 from assistant.links.timing import time_parametrize  # noqa: E402
-from assistant.rv2aj import RV2AJ  # noqa: E402
+from assistant.robots.rv2aj import RV2AJ  # noqa: E402
 
 CYCLE_S = 0.0071
 

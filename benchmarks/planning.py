@@ -48,13 +48,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
-from assistant.collision import CollisionChecker, Obstacle  # noqa: E402
+from assistant.collision.checker import CollisionChecker, Obstacle  # noqa: E402
 from assistant.links.simulated import SimulatedRobot  # noqa: E402
 from assistant.links.timing import VirtualClock  # noqa: E402
 from assistant.planning import MissionExecutor, MissionPlanner, load_scenario  # noqa: E402
 from assistant.roadmap.planner import RoadmapPlanner  # noqa: E402
-from assistant.robot_model import CollisionShape, Robot, ShapeKind, Tool  # noqa: E402
-from assistant.rv2aj import RV2AJ, RV2AJConfig  # noqa: E402
+from assistant.robots.model import CollisionShape, Robot, ShapeKind, Tool  # noqa: E402
+from assistant.robots.rv2aj import RV2AJ, RV2AJConfig  # noqa: E402
 from assistant.trajectory.assemble import joint_interpolation  # noqa: E402
 from assistant.transforms import make_T, rot_z  # noqa: E402
 from assistant.world.model import WorldConfig, WorldModel  # noqa: E402

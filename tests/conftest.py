@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from assistant.kernels.warmup import warm_up
-from assistant.robot_model import Tool
-from assistant.rv2aj import RV2AJ, RV2AJConfig
+from assistant.robots.model import Tool
+from assistant.robots.rv2aj import RV2AJ, RV2AJConfig
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -18,17 +18,17 @@ import pytest
 from numba import njit
 from scipy.spatial.transform import Rotation
 
-from assistant.broad_phase import (
+from assistant.collision.broad_phase import (
     _segment_segment_distance,
     prune_round_pairs,
     sphere_broad_phase,
 )
-from assistant.clearance_scan import _row_sphere_bounds
-from assistant.collision import CollisionChecker, Obstacle
-from assistant.dh import batch_chain_frames, chain_frames, flange_frame
-from assistant.fcl_shapes import fcl_transform
-from assistant.robot_model import CollisionShape, ShapeKind
-from assistant.segment_box import segment_box_distance_one
+from assistant.collision.checker import CollisionChecker, Obstacle
+from assistant.collision.clearance_scan import _row_sphere_bounds
+from assistant.collision.fcl_shapes import fcl_transform
+from assistant.collision.segment_box import segment_box_distance_one
+from assistant.robots.dh import batch_chain_frames, chain_frames, flange_frame
+from assistant.robots.model import CollisionShape, ShapeKind
 from assistant.transforms import make_T
 
 
@@ -84,6 +84,8 @@ def test_broad_phase_matches_the_numpy_formulation(crowded, rv2aj):
     frames = rv2aj.batch_link_poses(Q)
     env_c, self_c, gap = crowded._candidates(frames, with_gap=True)
     ref_env, ref_self, ref_gap = _reference(crowded, frames)
+    # Booleans of random configurations: a last-bit difference could only flip a sphere
+    # pair lying within ~1e-15 m of touching, which a random sample never holds.
     assert np.array_equal(env_c, ref_env)
     assert np.array_equal(self_c, ref_self)
     np.testing.assert_allclose(gap, ref_gap, rtol=0, atol=1e-12)
@@ -149,6 +151,7 @@ def test_clearance_bounds_match_the_numpy_formulation(crowded, rv2aj):
     frames = rv2aj.batch_link_poses(Q)
     got = _sphere_bounds(crowded, frames)
     ref = _reference_bounds(crowded, frames)
+    # -inf marks a sphere reaching its box (a bound <= 0): random postures, no exact ties
     assert np.array_equal(np.isinf(got), np.isinf(ref))
     np.testing.assert_allclose(got[np.isfinite(ref)], ref[np.isfinite(ref)], rtol=0,
                                atol=1e-12)
@@ -272,6 +275,7 @@ def test_pruned_pairs_keep_fcls_answers(crowded, rv2aj):
         hit = np.where(m[:, None], mid, hit)
         free = np.where(m[:, None], free, mid)
     near = np.concatenate([free, hit])
+    # 30 bisections leave the pairs ~1e-9 rad apart, far above last-bit differences
     assert np.array_equal(crowded.in_collision_batch(near),
                           np.array([crowded.in_collision_naive(q) for q in near]))
 

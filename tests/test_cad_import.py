@@ -19,8 +19,8 @@ import pytest
 import trimesh
 from trimesh.exchange.gltf import export_gltf
 
-from assistant.cad import CadImportError, load_cad, load_cad_path
-from assistant.robot_model import ShapeKind
+from assistant.cell.cad import CadImportError, load_cad, load_cad_path
+from assistant.robots.model import ShapeKind
 
 DATA = Path(__file__).parent / "data" / "cad"
 

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 import trimesh
 
-from assistant.cad import load_cad
-from assistant.cell import (
+from assistant.cell.cad import load_cad
+from assistant.cell.model import (
     DEFAULT_COLORS,
     Cell,
     CellError,
@@ -16,8 +16,8 @@ from assistant.cell import (
     PrimitiveKind,
     PrimitiveSpec,
 )
-from assistant.robot_catalog import RobotSpec, ToolSpec
-from assistant.robot_model import ShapeKind
+from assistant.robots.catalog import RobotSpec, ToolSpec
+from assistant.robots.model import ShapeKind
 from assistant.transforms import make_T, pose_from_mm_deg, rot_z
 
 
@@ -165,10 +165,10 @@ def test_cell_constructor_validates_its_contents():
 
 
 def test_the_collision_checker_consumes_the_cell_view():
-    # The contract with assistant.collision: a box over the arm's stretched-up flange
+    # The contract with assistant.collision.checker: a box over the arm's stretched-up flange
     # (0, 0, 782 mm in the base frame) collides; the same box moved aside does not. The base is
     # moved and turned in the world so that the world -> base conversion matters.
-    from assistant.collision import CollisionChecker
+    from assistant.collision.checker import CollisionChecker
 
     T_world_base = _T(1.0, 2.0, 0.5, 90.0)
     cell = Cell(T_world_base=T_world_base)

@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 import trimesh
 
-from assistant import cell_io
-from assistant.cad import load_cad, load_cad_path
-from assistant.cell import Cell, CellObject
-from assistant.cell_io import CellFileError, load_cell, save_cell
-from assistant.robot_catalog import RobotSpec, ToolSpec
+from assistant.cell.cad import load_cad, load_cad_path
+from assistant.cell.model import Cell, CellObject
+from assistant.cell import storage as cell_io
+from assistant.cell.storage import CellFileError, load_cell, save_cell
+from assistant.robots.catalog import RobotSpec, ToolSpec
 from assistant.transforms import pose_from_mm_deg
 
 STEP_FIXTURE = Path(__file__).parent / "data" / "cad" / "two_blocks_mm.step"
@@ -141,7 +141,7 @@ def test_folder_save_drops_files_of_removed_objects(tmp_path, sample_cell):
 def test_object_without_a_source_cannot_be_saved(tmp_path):
     cell = Cell()
     mesh = trimesh.creation.box()
-    from assistant.robot_model import CollisionShape, ShapeKind
+    from assistant.robots.model import CollisionShape, ShapeKind
     cell.add_object(CellObject("bare", "obstacle", np.eye(4), mesh,
                                (CollisionShape(ShapeKind.MESH, mesh=mesh),)))
     with pytest.raises(CellFileError, match="'bare' has neither a primitive nor an original CAD"):

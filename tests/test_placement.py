@@ -8,8 +8,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
-from assistant.cell import Cell, CellError, CellObject
-from assistant.placement import (
+from assistant.cell.model import Cell, CellError, CellObject
+from assistant.cell.placement import (
     PlacementError,
     fit_pose,
     place_by_points,

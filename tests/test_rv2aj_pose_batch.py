@@ -8,8 +8,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from assistant.robot_model import Tool
-from assistant.rv2aj import RV2AJ, RV2AJConfig
+from assistant.robots.model import Tool
+from assistant.robots.rv2aj import RV2AJ, RV2AJConfig
 from assistant.trajectory.cartesian_follow import follow_poses, poses_from, slerp_rotations
 from assistant.transforms import (
     axis_angle,

@@ -5,14 +5,14 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from assistant.clearance_scan import pruned_clearance
-from assistant.collision import CollisionChecker, Obstacle
-from assistant.fcl_shapes import fcl_transform
-from assistant.robot_catalog import installed_robot_urdf
-from assistant.robot_model import CollisionShape, ShapeKind
-from assistant.segment_box import oriented_bounds, segment_box_distance_one
+from assistant.collision.checker import CollisionChecker, Obstacle
+from assistant.collision.clearance_scan import pruned_clearance
+from assistant.collision.fcl_shapes import fcl_transform
+from assistant.collision.segment_box import oriented_bounds, segment_box_distance_one
+from assistant.robots.catalog import installed_robot_urdf
+from assistant.robots.model import CollisionShape, ShapeKind
+from assistant.robots.urdf_robot import URDFRobot
 from assistant.transforms import make_T, pose_from_xyz_rpy, rot_z
-from assistant.urdf_robot import URDFRobot
 
 
 def _ternary_distance(a, b, half, iterations=120):

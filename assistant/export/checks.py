@@ -21,7 +21,7 @@ from assistant.export.program import (
     Wait,
 )
 from assistant.export.simulate import Simulation, simulate
-from assistant.robot_model import Robot
+from assistant.robots.model import Robot
 
 #: A joint solution must put the TCP this close to its Cartesian target (m, rad).
 POSE_TOLERANCE = 1e-5

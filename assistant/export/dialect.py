@@ -19,7 +19,7 @@ import numpy as np
 from assistant.export.errors import ExportError
 from assistant.export.program import Instruction, Move, MoveKind, NeutralProgram, Position
 from assistant.export.rules import DialectRules
-from assistant.robot_model import Robot
+from assistant.robots.model import Robot
 from assistant.transforms import inv_T
 
 Array = np.ndarray

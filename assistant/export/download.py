@@ -21,7 +21,7 @@ from assistant.export.errors import ExportError
 from assistant.export.program import NeutralProgram
 from assistant.export.registry import get_dialect
 from assistant.export.simulate import target_pose
-from assistant.robot_model import Robot
+from assistant.robots.model import Robot
 
 #: Read-back positions must agree with the plan within the coarsest number format we write.
 VERIFY_POSITION = 1e-5  # m (MELFA: 0.005 mm rounding)

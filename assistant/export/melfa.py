@@ -77,7 +77,7 @@ from assistant.export.rules import (
     format_fixed,
     parse_number,
 )
-from assistant.robot_model import Robot
+from assistant.robots.model import Robot
 from assistant.transforms import matrix_to_rpy, rpy_to_matrix
 
 Array = np.ndarray

@@ -19,8 +19,8 @@ import numpy as np
 
 from assistant.export.configuration import ArmConfig
 from assistant.export.errors import ExportError
-from assistant.motion import MotionKind, ToolAction, ToolActionKind, Trajectory, Waypoint
-from assistant.robot_model import Robot
+from assistant.mission.motion import MotionKind, ToolAction, ToolActionKind, Trajectory, Waypoint
+from assistant.robots.model import Robot
 
 Array = np.ndarray
 

@@ -69,7 +69,7 @@ from assistant.export.rules import (
     format_fixed,
     parse_number,
 )
-from assistant.robot_model import Robot
+from assistant.robots.model import Robot
 
 Array = np.ndarray
 

@@ -18,7 +18,7 @@ from assistant.export.errors import ExportError
 from assistant.export.program import Comment, Move, NeutralProgram
 from assistant.export.registry import get_dialect
 from assistant.export.simulate import simulate
-from assistant.robot_model import Robot
+from assistant.robots.model import Robot
 
 
 @dataclass(frozen=True)

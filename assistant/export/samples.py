@@ -21,7 +21,7 @@ from dataclasses import replace
 import numpy as np
 
 from assistant.export.bezier import BezierChain, fit_primitives, sample_bezier_chain
-from assistant.motion import (
+from assistant.mission.motion import (
     Motion,
     MotionKind,
     ToolAction,
@@ -29,7 +29,7 @@ from assistant.motion import (
     Trajectory,
     Waypoint,
 )
-from assistant.robot_model import Robot, UnreachableError
+from assistant.robots.model import Robot, UnreachableError
 from assistant.transforms import make_T, rot_x
 
 Array = np.ndarray

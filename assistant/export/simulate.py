@@ -21,7 +21,7 @@ from scipy.spatial.transform import Rotation, Slerp
 from assistant.export.configuration import ArmConfig
 from assistant.export.errors import ExportError
 from assistant.export.program import Move, MoveKind, NeutralProgram, Position
-from assistant.robot_model import IKFailure, Robot
+from assistant.robots.model import IKFailure, Robot
 
 Array = np.ndarray
 

@@ -59,7 +59,7 @@ from assistant.export.rules import (
     format_fixed,
     parse_number,
 )
-from assistant.robot_model import Robot
+from assistant.robots.model import Robot
 from assistant.transforms import rotation_vector
 
 Array = np.ndarray

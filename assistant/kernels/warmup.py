@@ -21,22 +21,23 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from assistant.broad_phase import (
+from assistant.collision.broad_phase import (
     _segment_segment_distance,
     certify_samples,
     margin_rows,
     prune_round_pairs,
     sphere_broad_phase,
 )
-from assistant.clearance_scan import pruned_clearance
-from assistant.dh import _chain_frames_kernel
-from assistant.motion_rows import (
+from assistant.collision.clearance_scan import pruned_clearance
+from assistant.collision.motion_rows import (
     motion_marks,
     path_samples,
     rows_before_first_bad,
     rows_inside,
     valid_before_first_bad,
 )
+from assistant.collision.segment_box import segment_box_distance_one
+from assistant.collision.shape_poses import shape_poses
 from assistant.roadmap.astar_kernel import search
 from assistant.roadmap.brushfire import brushfire_region
 from assistant.roadmap.edge_samples import edge_samples, first_invalid
@@ -55,11 +56,10 @@ from assistant.roadmap.graph_kernel import (
 from assistant.roadmap.grid_ops import connected26
 from assistant.roadmap.search_masks import search_masks
 from assistant.roadmap.voronoi_update import terminal_round, update_rounds
-from assistant.rv2aj_fk_batch import tcp_poses
-from assistant.rv2aj_pose_batch import _candidates
-from assistant.rv2aj_position_ik import planar_position_ik
-from assistant.segment_box import segment_box_distance_one
-from assistant.shape_poses import shape_poses
+from assistant.robots.dh import _chain_frames_kernel
+from assistant.robots.rv2aj_fk_batch import tcp_poses
+from assistant.robots.rv2aj_pose_batch import _candidates
+from assistant.robots.rv2aj_position_ik import planar_position_ik
 from assistant.trajectory.densify_kernel import densify_rows, resample_rows
 from assistant.trajectory.fit_kernels import (
     arc_distances,
@@ -110,13 +110,13 @@ def warm_steps() -> Iterator[None]:
     """`warm_up` in steps, in the order a first run needs them (the collision checker and the
     world's kernels, the roadmap's, then the trajectory's); yields after each, when the
     kernels it compiled are in the cache (`compile` reports them then)."""
-    from assistant.collision import CollisionChecker, Obstacle
+    from assistant.collision.checker import CollisionChecker, Obstacle
     from assistant.roadmap.astar import lazy_astar
     from assistant.roadmap.graph import GraphBase, JointGraph
     from assistant.roadmap.path_first import lazy_path_search
     from assistant.roadmap.voronoi import build_voronoi, terminal_labels, update_voronoi
-    from assistant.robot_model import CollisionShape, ShapeKind, Tool
-    from assistant.rv2aj import RV2AJ, RV2AJConfig
+    from assistant.robots.model import CollisionShape, ShapeKind, Tool
+    from assistant.robots.rv2aj import RV2AJ, RV2AJConfig
     from assistant.trajectory.assemble import joint_interpolation
     from assistant.trajectory.cartesian_follow import follow_poses, slerp_rotations
     from assistant.trajectory.elastic_net import ElasticNetParams, run_elastic_net

@@ -1,6 +1,6 @@
 """Robot links: the simulated robot, a Mitsubishi MELFA controller and a KUKA REST bridge.
 
-Everything here implements `assistant.robot_link.RobotLink`; `settings.make_link` builds the
+Everything here implements `assistant.links.link.RobotLink`; `settings.make_link` builds the
 one a session chose. `emulators/` holds TCP/HTTP peers driven by our kinematic model so the
 real client code is tested against a real socket. Must not import viser, workflow or web.
 Metres and radians inside; millimetres and degrees only in the wire formats.

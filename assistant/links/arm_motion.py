@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from assistant.collision import CollisionChecker, MotionCheck
+from assistant.collision.checker import CollisionChecker, MotionCheck
 from assistant.links.timing import TimedPath
 
 Array = np.ndarray

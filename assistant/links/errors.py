@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from assistant.robot_link import LinkError
+from assistant.links.link import LinkError
 
 
 class ControllerRefused(LinkError):

@@ -36,10 +36,10 @@ from assistant.links.arm_config import arm_config, status_bits, turn_bits
 from assistant.links.decimate import decimate_joint_path
 from assistant.links.errors import ControllerRefused, ProtocolError
 from assistant.links.kuka_protocol import BridgeReply
+from assistant.links.link import LinkError, LinkEvent, LinkEventKind, LinkLost, RobotLink
 from assistant.links.operator_button import OperatorButton
 from assistant.links.timing import time_parametrize, validate_path
-from assistant.robot_link import LinkError, LinkEvent, LinkEventKind, LinkLost, RobotLink
-from assistant.robot_model import Robot
+from assistant.robots.model import Robot
 
 Array = np.ndarray
 _upload_seq = itertools.count(1)

@@ -39,11 +39,11 @@ import numpy as np
 
 from assistant.links import melfa_protocol as mp
 from assistant.links.errors import ControllerRefused, ProtocolError
+from assistant.links.link import LinkError, LinkEvent, LinkEventKind, LinkLost, RobotLink
 from assistant.links.melfa_protocol import DState, MelfaPose, Reply
 from assistant.links.operator_button import OperatorButton
 from assistant.links.timing import time_parametrize, validate_path
-from assistant.robot_link import LinkError, LinkEvent, LinkEventKind, LinkLost, RobotLink
-from assistant.robot_model import Robot
+from assistant.robots.model import Robot
 
 Array = np.ndarray
 

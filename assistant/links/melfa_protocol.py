@@ -25,7 +25,7 @@ import numpy as np
 
 from assistant.links.arm_config import arm_config, melfa_fl1, melfa_fl2
 from assistant.links.errors import ControllerRefused, ProtocolError
-from assistant.robot_model import Robot
+from assistant.robots.model import Robot
 from assistant.transforms import rot_x, rot_y, rot_z
 
 Array = np.ndarray

@@ -13,7 +13,7 @@ import time
 
 import numpy as np
 
-from assistant.robot_link import LinkEvent, LinkEventKind
+from assistant.links.link import LinkEvent, LinkEventKind
 
 
 class OperatorButton:

@@ -12,9 +12,9 @@ from collections.abc import Iterable
 from dataclasses import asdict, dataclass, fields
 from typing import Any, Literal
 
-from assistant.collision import ObstacleView
-from assistant.robot_link import RobotLink
-from assistant.robot_model import Robot
+from assistant.collision.checker import ObstacleView
+from assistant.links.link import RobotLink
+from assistant.robots.model import Robot
 
 LinkKind = Literal["simulated", "melfa", "kuka_rest"]
 KINDS: tuple[str, ...] = ("simulated", "melfa", "kuka_rest")

@@ -19,11 +19,11 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from assistant.collision import CollisionChecker, ObstacleView
+from assistant.collision.checker import CollisionChecker, ObstacleView
 from assistant.links.arm_motion import PathFollower
+from assistant.links.link import LinkError, LinkEvent, LinkEventKind, RobotLink
 from assistant.links.timing import Clock, RealClock, time_parametrize, validate_path
-from assistant.robot_link import LinkError, LinkEvent, LinkEventKind, RobotLink
-from assistant.robot_model import Robot
+from assistant.robots.model import Robot
 
 Array = np.ndarray
 

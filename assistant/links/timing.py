@@ -18,8 +18,8 @@ from typing import Protocol
 
 import numpy as np
 
-from assistant.robot_link import LinkError
-from assistant.robot_model import Robot
+from assistant.links.link import LinkError
+from assistant.robots.model import Robot
 
 Array = np.ndarray
 

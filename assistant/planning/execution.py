@@ -34,13 +34,13 @@ from enum import Enum
 
 import numpy as np
 
-from assistant.mission import Mission
+from assistant.links.link import LinkError, LinkEvent, LinkEventKind, LinkLost, RobotLink
+from assistant.mission.model import Mission
 from assistant.planning.backoff import retreat_index, splice
 from assistant.planning.config import ExecutionConfig
 from assistant.planning.mission_planner import MissionPlan, MissionPlanner, TransferResult
 from assistant.planning.pieces import PieceKind, PlanPiece
 from assistant.progress import Cancelled, Progress
-from assistant.robot_link import LinkError, LinkEvent, LinkEventKind, LinkLost, RobotLink
 
 Array = np.ndarray
 

@@ -24,14 +24,14 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from assistant.motion import Trajectory
+from assistant.links.link import LinkError, LinkEvent, LinkEventKind, LinkLost, RobotLink
+from assistant.mission.motion import Trajectory
 from assistant.planning.backoff import retreat_index
 from assistant.planning.execution import EndReason
 from assistant.planning.known_world import KnownValidity, WorldAllowed
 from assistant.planning.mission_planner import MissionPlanner
 from assistant.progress import Cancelled, Progress
 from assistant.roadmap.voronoi import ROAD
-from assistant.robot_link import LinkError, LinkEvent, LinkEventKind, LinkLost, RobotLink
 from assistant.trajectory.assemble import joint_interpolation
 
 Array = np.ndarray

@@ -15,9 +15,9 @@ from enum import Enum
 
 import numpy as np
 
-from assistant.collision import CollisionChecker
-from assistant.mission import Location, LocationSource
-from assistant.robot_model import IKFailure, Robot
+from assistant.collision.checker import CollisionChecker
+from assistant.mission.model import Location, LocationSource
+from assistant.robots.model import IKFailure, Robot
 from assistant.transforms import inv_T
 
 Array = np.ndarray

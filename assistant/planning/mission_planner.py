@@ -36,9 +36,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from assistant.collision import CollisionChecker, ObstacleView
-from assistant.mission import Location, Mission
-from assistant.motion import Motion, MotionKind, Trajectory, Waypoint
+from assistant.collision.checker import CollisionChecker, ObstacleView
+from assistant.mission.model import Location, Mission
+from assistant.mission.motion import Motion, MotionKind, Trajectory, Waypoint
 from assistant.planning.config import MissionPlannerConfig
 from assistant.planning.known_world import KnownValidity, KnownVerifier, WorldAllowed
 from assistant.planning.locations import (
@@ -53,7 +53,7 @@ from assistant.planning.report import MissionPlanReport, PieceReport
 from assistant.planning.shortcut import shortcut_joint_path
 from assistant.progress import Progress
 from assistant.roadmap.planner import PlanFailure, RoadmapPlan, RoadmapPlanner
-from assistant.robot_model import Robot
+from assistant.robots.model import Robot
 from assistant.trajectory.application import (
     ApplicationMotions,
     application_motions,

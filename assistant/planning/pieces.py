@@ -14,7 +14,7 @@ from enum import Enum
 
 import numpy as np
 
-from assistant.motion import Trajectory, Waypoint
+from assistant.mission.motion import Trajectory, Waypoint
 from assistant.trajectory.assemble import TrajectoryReport
 
 Array = np.ndarray

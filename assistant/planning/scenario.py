@@ -14,10 +14,10 @@ from pathlib import Path
 
 import numpy as np
 
-from assistant.cell import Cell, PrimitiveSpec, check_transform
-from assistant.cell_io import load_cell
-from assistant.collision import Obstacle
-from assistant.mission import Mission
+from assistant.cell.model import Cell, PrimitiveSpec, check_transform
+from assistant.cell.storage import load_cell
+from assistant.collision.checker import Obstacle
+from assistant.mission.model import Mission
 from assistant.transforms import inv_T
 
 #: The product's default cell (the thesis experiment).

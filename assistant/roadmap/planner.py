@@ -37,6 +37,7 @@ from enum import Enum
 
 import numpy as np
 
+from assistant.collision.validity import ValidityChecker
 from assistant.progress import Progress
 from assistant.roadmap.astar import (
     REASON_BUDGET,
@@ -59,8 +60,7 @@ from assistant.roadmap.voronoi import (
     terminal_labels,
     update_voronoi,
 )
-from assistant.robot_model import Robot
-from assistant.validity import ValidityChecker
+from assistant.robots.model import Robot
 from assistant.world.fusion import Source
 from assistant.world.model import WorldBuildReport, WorldChange, WorldModel
 

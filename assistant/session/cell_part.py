@@ -10,9 +10,9 @@ from typing import Any
 
 import numpy as np
 
-from assistant.cad import CadImport, load_cad
-from assistant.cell import CellObject, ObjectRole, PrimitiveKind, PrimitiveSpec
-from assistant.placement import PoseFit, fit_pose
+from assistant.cell.cad import CadImport, load_cad
+from assistant.cell.model import CellObject, ObjectRole, PrimitiveKind, PrimitiveSpec
+from assistant.cell.placement import PoseFit, fit_pose
 from assistant.session.events import (
     Notice,
 )

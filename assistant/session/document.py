@@ -11,8 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from assistant.cell import Cell, CellObject
-from assistant.mission import Location, Mission
+from assistant.cell.model import Cell, CellObject
+from assistant.mission.model import Location, Mission
 
 Array = np.ndarray
 

@@ -6,12 +6,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from assistant.mission import (
+from assistant.mission.model import (
     ApplicationPath,
     PathSegment,
     SegmentKind,
 )
-from assistant.motion import ToolAction
+from assistant.mission.motion import ToolAction
 from assistant.session.types import SessionError
 
 Array = np.ndarray

@@ -11,9 +11,9 @@ from typing import Any
 
 import numpy as np
 
-from assistant.collision import CollisionChecker
+from assistant.collision.checker import CollisionChecker
 from assistant.progress import Cancelled, Progress
-from assistant.robot_model import UnreachableError
+from assistant.robots.model import UnreachableError
 from assistant.session.events import (
     CollisionRecorded,
     Notice,

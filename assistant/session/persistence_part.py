@@ -11,14 +11,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from assistant.cell import Cell
-from assistant.cell_io import load_cell, save_cell
+from assistant.cell.model import Cell
+from assistant.cell.storage import load_cell, save_cell
 from assistant.links.settings import LinkSettings
-from assistant.mission import (
+from assistant.mission.model import (
     Location,
     Mission,
 )
-from assistant.motion import trajectory_from_json, trajectory_to_json
+from assistant.mission.motion import trajectory_from_json, trajectory_to_json
 from assistant.session.store import (
     CELL_DIR,
     SESSION_JSON,
@@ -53,7 +53,7 @@ class Persistence:
         and teaches them)."""
         import json
 
-        from assistant.samples import SampleError, read_meta, sample_folder
+        from assistant.cell.samples import SampleError, read_meta, sample_folder
 
         src = sample_folder(name_or_path)
         meta = read_meta(src)

@@ -12,9 +12,9 @@ from typing import Any
 
 import numpy as np
 
-from assistant.collision import CollisionChecker
+from assistant.collision.checker import CollisionChecker
+from assistant.links.link import RobotLink
 from assistant.progress import Cancelled, Progress
-from assistant.robot_link import RobotLink
 from assistant.session.events import (
     ExecutionFinished,
     Notice,

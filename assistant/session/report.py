@@ -11,7 +11,7 @@ from typing import Any
 
 import numpy as np
 
-from assistant.collision import CollisionChecker, Obstacle
+from assistant.collision.checker import CollisionChecker, Obstacle
 from assistant.session.session import Session
 from assistant.transforms import inv_T
 

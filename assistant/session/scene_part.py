@@ -9,8 +9,8 @@ from typing import Any
 
 import numpy as np
 
-from assistant.cell import CellObject
-from assistant.mission import (
+from assistant.cell.model import CellObject
+from assistant.mission.model import (
     SegmentKind,
 )
 from assistant.session.types import (

@@ -26,10 +26,10 @@ from typing import Any
 import numpy as np
 import yaml
 
-from assistant.cell import ObjectRole
+from assistant.cell.model import ObjectRole
 from assistant.links.settings import LinkSettings
-from assistant.motion import ToolAction, ToolActionKind
-from assistant.robot_catalog import RobotSpec, ToolSpec
+from assistant.mission.motion import ToolAction, ToolActionKind
+from assistant.robots.catalog import RobotSpec, ToolSpec
 from assistant.session.session import Session
 from assistant.session.types import HiddenObstacle
 from assistant.transforms import pose_from_mm_deg

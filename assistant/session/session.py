@@ -18,15 +18,15 @@ from typing import Any
 
 import numpy as np
 
-from assistant.cell import Cell
+from assistant.cell.model import Cell
+from assistant.links.link import RobotLink
 from assistant.links.settings import LinkSettings
-from assistant.mission import (
+from assistant.mission.model import (
     Location,
     Mission,
 )
-from assistant.motion import Trajectory
-from assistant.robot_link import RobotLink
-from assistant.robot_model import Robot
+from assistant.mission.motion import Trajectory
+from assistant.robots.model import Robot
 from assistant.session.cell_part import CellActions
 from assistant.session.document import Document
 from assistant.session.events import (

@@ -9,11 +9,11 @@ import contextlib
 
 import numpy as np
 
-from assistant.collision import Obstacle
+from assistant.collision.checker import Obstacle
+from assistant.links.link import LinkEvent, LinkEventKind, RobotLink
 from assistant.links.settings import LinkSettings, make_link
-from assistant.robot_catalog import RobotSpec, ToolSpec
-from assistant.robot_link import LinkEvent, LinkEventKind, RobotLink
-from assistant.robot_model import Robot
+from assistant.robots.catalog import RobotSpec, ToolSpec
+from assistant.robots.model import Robot
 from assistant.session.events import (
     CollisionRecorded,
     RobotMoved,

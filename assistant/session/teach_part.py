@@ -9,14 +9,14 @@ from typing import Any
 
 import numpy as np
 
-from assistant.mission import (
+from assistant.mission.model import (
     ApplicationPath,
     Location,
     LocationSource,
     SegmentKind,
 )
-from assistant.motion import ToolAction
-from assistant.robot_model import IKResult, UnreachableError
+from assistant.mission.motion import ToolAction
+from assistant.robots.model import IKResult, UnreachableError
 from assistant.session.events import (
     Notice,
 )

@@ -9,14 +9,14 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from assistant.cell import CellError, PrimitiveKind, PrimitiveSpec
-from assistant.collision import CollisionChecker
-from assistant.mission import (
+from assistant.cell.model import CellError, PrimitiveKind, PrimitiveSpec
+from assistant.collision.checker import CollisionChecker
+from assistant.mission.model import (
     PathSegment,
     SegmentKind,
 )
-from assistant.robot_catalog import RobotSpec, robot_data_dirs
-from assistant.robot_model import UnreachableError
+from assistant.robots.catalog import RobotSpec, robot_data_dirs
+from assistant.robots.model import UnreachableError
 
 Array = np.ndarray
 

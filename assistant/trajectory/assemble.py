@@ -22,10 +22,11 @@ from typing import Protocol
 
 import numpy as np
 
-from assistant.collision import MotionCheck
-from assistant.motion import Motion, MotionKind, Trajectory, Waypoint
+from assistant.collision.checker import MotionCheck
+from assistant.collision.validity import ValidityChecker
+from assistant.mission.motion import Motion, MotionKind, Trajectory, Waypoint
 from assistant.progress import Progress
-from assistant.robot_model import Robot
+from assistant.robots.model import Robot
 from assistant.trajectory.cartesian_follow import follow_poses
 from assistant.trajectory.elastic_net import (
     AllowedFn,
@@ -43,7 +44,6 @@ from assistant.trajectory.primitives import (
     fit_primitives,
     primitive_poses,
 )
-from assistant.validity import ValidityChecker
 
 Array = np.ndarray
 

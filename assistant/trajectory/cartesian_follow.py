@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from assistant.robot_model import IKFailure, Robot
+from assistant.robots.model import IKFailure, Robot
 from assistant.trajectory.follow_kernel import slerp_kernel, walk_nearest
 from assistant.transforms import rotation_angle
 

@@ -18,7 +18,7 @@ import math
 import numpy as np
 
 from assistant.kernels.lazy import kernel
-from assistant.rv2aj_fk_batch import tcp_row
+from assistant.robots.rv2aj_fk_batch import tcp_row
 
 Array = np.ndarray
 

@@ -69,8 +69,9 @@ from enum import Enum
 
 import numpy as np
 
+from assistant.collision.validity import ValidityChecker
 from assistant.progress import Progress
-from assistant.robot_model import Robot
+from assistant.robots.model import Robot
 from assistant.trajectory.net_kernel import (
     ACCEPTED,
     ASK_FCL,
@@ -87,7 +88,6 @@ from assistant.trajectory.particles import (
     row_norms,
 )
 from assistant.trajectory.position_ik import BatchPositionIK, PositionIKParams
-from assistant.validity import ValidityChecker
 
 Array = np.ndarray
 

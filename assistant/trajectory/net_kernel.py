@@ -22,12 +22,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from assistant.broad_phase import FREE, _broad_row, _prune_and_flag
-from assistant.dh import chain_row
+from assistant.collision.broad_phase import FREE, _broad_row, _prune_and_flag
 from assistant.kernels.helpers import within_limits, wrap_pi
 from assistant.kernels.lazy import kernel
-from assistant.rv2aj_fk_batch import tcp_row
-from assistant.rv2aj_position_ik import as_tuples, solve_row
+from assistant.robots.dh import chain_row
+from assistant.robots.rv2aj_fk_batch import tcp_row
+from assistant.robots.rv2aj_position_ik import as_tuples, solve_row
 from assistant.world.leaf_lookup import leaf_flag
 
 Array = np.ndarray

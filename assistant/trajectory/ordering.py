@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from assistant.mission import Mission
+from assistant.mission.model import Mission
 
 Array = np.ndarray
 

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from assistant.robot_model import Robot
+from assistant.robots.model import Robot
 from assistant.trajectory.densify_kernel import densify_rows, resample_rows
 
 Array = np.ndarray

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from assistant.robot_model import Robot
+from assistant.robots.model import Robot
 
 Array = np.ndarray
 

@@ -22,9 +22,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from assistant.collision import CollisionChecker, ObstacleView
+from assistant.collision.checker import CollisionChecker, ObstacleView
 from assistant.progress import Progress
-from assistant.robot_model import BatchPoses, CollisionShape, IKResult, Robot, ShapeKind
+from assistant.robots.model import BatchPoses, CollisionShape, IKResult, Robot, ShapeKind
 from assistant.world.reachability import ReachabilityTable
 
 Array = np.ndarray

@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from assistant.robot_model import Robot, ShapeKind
+from assistant.robots.model import Robot, ShapeKind
 from assistant.world.octree import OctreeGrid
 from assistant.world.reachability import ReachabilityTable
 

@@ -19,9 +19,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from assistant.collision import ObstacleView
+from assistant.collision.checker import ObstacleView
 from assistant.progress import Progress
-from assistant.robot_model import Robot
+from assistant.robots.model import Robot
 from assistant.world.cell_positions import CellPositions, SelectionConfig
 from assistant.world.chain_levels import ChainValidator
 from assistant.world.fusion import FusionConfig, FusionUpdate, OccupancyFusion, Source

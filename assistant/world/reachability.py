@@ -43,7 +43,7 @@ from pathlib import Path
 import numpy as np
 
 from assistant.progress import Progress
-from assistant.robot_model import Robot
+from assistant.robots.model import Robot
 from assistant.world.octree import OctreeGrid
 
 Array = np.ndarray

@@ -39,11 +39,11 @@ import trimesh
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parents[1]))
 
-from assistant.cad import load_cad  # noqa: E402
-from assistant.cell import Cell, CellObject, ObjectRole  # noqa: E402
-from assistant.cell_io import save_cell  # noqa: E402
-from assistant.mission import Location, LocationSource, Mission  # noqa: E402
-from assistant.robot_catalog import RobotSpec, ToolSpec  # noqa: E402
+from assistant.cell.cad import load_cad  # noqa: E402
+from assistant.cell.model import Cell, CellObject, ObjectRole  # noqa: E402
+from assistant.cell.storage import save_cell  # noqa: E402
+from assistant.mission.model import Location, LocationSource, Mission  # noqa: E402
+from assistant.robots.catalog import RobotSpec, ToolSpec  # noqa: E402
 from assistant.session.frames import _drawing_control, drawing_path  # noqa: E402
 from assistant.transforms import make_T, pose_from_mm_deg, stored_pose  # noqa: E402
 

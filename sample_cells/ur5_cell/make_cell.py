@@ -37,10 +37,10 @@ import trimesh
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE.parents[1]))
 
-from assistant.cad import load_cad  # noqa: E402
-from assistant.cell import Cell, CellObject, ObjectRole  # noqa: E402
-from assistant.cell_io import save_cell  # noqa: E402
-from assistant.mission import (  # noqa: E402
+from assistant.cell.cad import load_cad  # noqa: E402
+from assistant.cell.model import Cell, CellObject, ObjectRole  # noqa: E402
+from assistant.cell.storage import save_cell  # noqa: E402
+from assistant.mission.model import (  # noqa: E402
     ApplicationPath,
     Location,
     LocationSource,
@@ -48,8 +48,8 @@ from assistant.mission import (  # noqa: E402
     PathSegment,
     SegmentKind,
 )
-from assistant.motion import ToolAction, ToolActionKind  # noqa: E402
-from assistant.robot_catalog import RobotSpec, ToolSpec  # noqa: E402
+from assistant.mission.motion import ToolAction, ToolActionKind  # noqa: E402
+from assistant.robots.catalog import RobotSpec, ToolSpec  # noqa: E402
 from assistant.transforms import make_T, stored_pose  # noqa: E402
 
 URDF = "example-robot-data/robots/ur_description/urdf/ur5_robot.urdf"

@@ -34,9 +34,9 @@ def frame_program(rv2aj) -> NeutralProgram:
 @pytest.fixture(scope="session")
 def ur5():
     """A UR5 from example-robot-data (the `test` extra) through URDFRobot; never skipped."""
-    from assistant.robot_catalog import installed_robot_urdf
-    from assistant.robot_model import Tool
-    from assistant.urdf_robot import URDFRobot
+    from assistant.robots.catalog import installed_robot_urdf
+    from assistant.robots.model import Tool
+    from assistant.robots.urdf_robot import URDFRobot
 
     urdf, share = installed_robot_urdf(UR5_URDF)
     T = np.eye(4)

@@ -13,7 +13,7 @@ from assistant.export.configuration import (
     quadrant,
     turn_count,
 )
-from assistant.rv2aj import L2, L3, L6
+from assistant.robots.rv2aj import L2, L3, L6
 
 
 def _random_q(robot, rng, n):

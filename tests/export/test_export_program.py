@@ -20,7 +20,14 @@ from assistant.export import (
     simulate,
 )
 from assistant.export.samples import thesis_trajectory, waypoint
-from assistant.motion import Motion, MotionKind, ToolAction, ToolActionKind, Trajectory, Waypoint
+from assistant.mission.motion import (
+    Motion,
+    MotionKind,
+    ToolAction,
+    ToolActionKind,
+    Trajectory,
+    Waypoint,
+)
 
 
 def test_thesis_program_has_the_thesis_shape(thesis_program):

@@ -12,10 +12,15 @@ import textwrap
 
 import numpy as np
 
-from assistant.broad_phase import _sphere_broad_phase_numpy, sphere_broad_phase
-from assistant.dh import _chain_frames_kernel, _chain_frames_numpy, _chain_row_numpy, chain_row
+from assistant.collision.broad_phase import _sphere_broad_phase_numpy, sphere_broad_phase
 from assistant.kernels import lazy
-from assistant.rv2aj import RV2AJ, RV2AJConfig
+from assistant.robots.dh import (
+    _chain_frames_kernel,
+    _chain_frames_numpy,
+    _chain_row_numpy,
+    chain_row,
+)
+from assistant.robots.rv2aj import RV2AJ, RV2AJConfig
 
 _TOY = textwrap.dedent('''
     import numpy as np

@@ -8,8 +8,8 @@ from collections.abc import Callable, Iterator
 import pytest
 from link_fixtures import FAST_SPEEDS
 
-from assistant.robot_model import Tool
-from assistant.rv2aj import RV2AJ, RV2AJConfig
+from assistant.robots.model import Tool
+from assistant.robots.rv2aj import RV2AJ, RV2AJConfig
 
 
 @pytest.fixture(scope="session")

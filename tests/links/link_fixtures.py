@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from assistant.collision import Obstacle
-from assistant.robot_model import CollisionShape, ShapeKind
-from assistant.rv2aj import RV2AJ
+from assistant.collision.checker import Obstacle
+from assistant.robots.model import CollisionShape, ShapeKind
+from assistant.robots.rv2aj import RV2AJ
 from assistant.transforms import make_T
 
 #: The RV-2AJ with a gripper and ten times its datasheet speeds: motions in tests take

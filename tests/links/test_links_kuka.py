@@ -9,16 +9,16 @@ import numpy as np
 import pytest
 from link_fixtures import FAST_SPEEDS, HOME, Q_A, Q_B, box_on_sweep, sweep
 
-from assistant.collision import CollisionChecker
+from assistant.collision.checker import CollisionChecker
 from assistant.links import kuka_protocol as kp
 from assistant.links.decimate import arm_deviation, decimate_joint_path
 from assistant.links.emulators.faults import GARBAGE
 from assistant.links.emulators.kuka_bridge_emulator import KukaBridgeEmulator
 from assistant.links.errors import ProtocolError
 from assistant.links.kuka_rest import KukaRestLink
-from assistant.robot_link import LinkError, LinkEventKind, LinkLost
-from assistant.robot_model import Tool
-from assistant.rv2aj import RV2AJ, RV2AJConfig
+from assistant.links.link import LinkError, LinkEventKind, LinkLost
+from assistant.robots.model import Tool
+from assistant.robots.rv2aj import RV2AJ, RV2AJConfig
 
 TOL = 1e-5  # rad: the wire carries 1e-4 mm and 1e-6 deg
 

@@ -9,15 +9,15 @@ import numpy as np
 import pytest
 from link_fixtures import FAST_SPEEDS, HOME, Q_A, Q_B, box_on_sweep, sweep
 
-from assistant.collision import CollisionChecker
+from assistant.collision.checker import CollisionChecker
 from assistant.links import melfa_protocol as mp
 from assistant.links.emulators.faults import GARBAGE
 from assistant.links.emulators.melfa_emulator import MelfaEmulator
 from assistant.links.errors import ProtocolError
+from assistant.links.link import LinkError, LinkEventKind, LinkLost
 from assistant.links.melfa import MelfaLink
-from assistant.robot_link import LinkError, LinkEventKind, LinkLost
-from assistant.robot_model import Tool
-from assistant.rv2aj import RV2AJ, RV2AJConfig
+from assistant.robots.model import Tool
+from assistant.robots.rv2aj import RV2AJ, RV2AJConfig
 
 TOL = np.radians(0.02)  # JPOSF carries 0.01 deg
 

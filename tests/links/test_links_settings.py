@@ -16,9 +16,9 @@ from assistant.links import LinkSettings, LinkSettingsError, make_link
 from assistant.links.emulators.kuka_bridge_emulator import KukaBridgeEmulator
 from assistant.links.emulators.melfa_emulator import MelfaEmulator
 from assistant.links.kuka_rest import KukaRestLink
+from assistant.links.link import LinkEventKind
 from assistant.links.melfa import MelfaLink
 from assistant.links.simulated import SimulatedRobot
-from assistant.robot_link import LinkEventKind
 
 
 def test_settings_round_trip_through_json():

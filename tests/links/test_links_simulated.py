@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from link_fixtures import HOME, Q_A, Q_B, box_on_sweep, sweep
 
-from assistant.collision import CollisionChecker
+from assistant.collision.checker import CollisionChecker
+from assistant.links.link import LinkError, LinkEventKind
 from assistant.links.simulated import SimulatedRobot
 from assistant.links.timing import RealClock, VirtualClock, time_parametrize, validate_path
-from assistant.robot_link import LinkError, LinkEventKind
 
 
 def connected(robot, **kw) -> SimulatedRobot:

@@ -8,13 +8,13 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from assistant.collision import CollisionChecker, Obstacle
+from assistant.collision.checker import CollisionChecker, Obstacle
 from assistant.links.simulated import SimulatedRobot
 from assistant.links.timing import VirtualClock
 from assistant.planning.config import MissionPlannerConfig
 from assistant.planning.mission_planner import MissionPlanner
 from assistant.roadmap.planner import RoadmapConfig, RoadmapPlanner
-from assistant.robot_model import CollisionShape, Robot, ShapeKind
+from assistant.robots.model import CollisionShape, Robot, ShapeKind
 from assistant.trajectory.elastic_net import ElasticNetParams
 from assistant.transforms import make_T
 from assistant.world.model import WorldConfig, WorldModel

@@ -10,13 +10,13 @@ import numpy as np
 import pytest
 from planning_fixtures import box, make_planner, sim_robot, tcp_points
 
-from assistant.collision import CollisionChecker
-from assistant.mission import Location
+from assistant.collision.checker import CollisionChecker
+from assistant.links.link import LinkEvent, LinkEventKind
+from assistant.mission.model import Location
 from assistant.planning.config import ExecutionConfig
 from assistant.planning.execution import EndReason, MissionExecutor
 from assistant.planning.scenario import load_scenario
 from assistant.progress import Progress
-from assistant.robot_link import LinkEvent, LinkEventKind
 
 QUICK = ExecutionConfig(plan_final=False)
 

@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 from planning_fixtures import box, make_planner, tcp_points
 
-from assistant.collision import CollisionChecker
-from assistant.mission import ApplicationPath, Location, Mission, PathSegment, SegmentKind
-from assistant.motion import MotionKind, ToolActionKind
+from assistant.collision.checker import CollisionChecker
+from assistant.mission.model import ApplicationPath, Location, Mission, PathSegment, SegmentKind
+from assistant.mission.motion import MotionKind, ToolActionKind
 from assistant.planning.locations import LocationError, LocationProblem, solve_location
 from assistant.planning.scenario import load_scenario
 from assistant.progress import Cancelled, Progress

@@ -9,9 +9,9 @@ import sys
 import numpy as np
 import pytest
 
-from assistant.collision import CollisionChecker
-from assistant.mission import SegmentKind
-from assistant.motion import ToolActionKind
+from assistant.collision.checker import CollisionChecker
+from assistant.mission.model import SegmentKind
+from assistant.mission.motion import ToolActionKind
 from assistant.planning.locations import solve_location
 from assistant.planning.scenario import DEFAULT_SAMPLE, load_hidden, load_scenario
 

@@ -10,7 +10,7 @@ import re
 import numpy as np
 import pytest
 
-from assistant.collision import CollisionChecker
+from assistant.collision.checker import CollisionChecker
 from assistant.export import export_files, program_from_trajectory
 from assistant.links.simulated import SimulatedRobot
 from assistant.links.timing import VirtualClock

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from assistant.export.bezier_drawings import drawing
-from assistant.mission import SegmentKind
-from assistant.robot_catalog import RobotSpec
+from assistant.mission.model import SegmentKind
+from assistant.robots.catalog import RobotSpec
 from assistant.session import Session, SessionError
 from assistant.session.events import Notice
 from assistant.session.frames import frame_from_three_points

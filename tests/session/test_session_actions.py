@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from assistant.cad import CadImportError
-from assistant.robot_model import UnreachableError
+from assistant.cell.cad import CadImportError
+from assistant.robots.model import UnreachableError
 from assistant.session import Session, SessionError
 from assistant.session.events import ErrorRaised, Notice, SceneChanged, StateChanged
 from assistant.session.store import SessionFileError

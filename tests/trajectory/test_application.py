@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 from traj_builders import TABLE, box
 
-from assistant.collision import CollisionChecker
+from assistant.collision.checker import CollisionChecker
 from assistant.export.bezier import de_casteljau
-from assistant.mission import ApplicationPath, PathSegment, SegmentKind
-from assistant.motion import MotionKind, ToolAction, ToolActionKind
+from assistant.mission.model import ApplicationPath, PathSegment, SegmentKind
+from assistant.mission.motion import MotionKind, ToolAction, ToolActionKind
 from assistant.trajectory.application import (
     ApplicationParams,
     BezierMode,

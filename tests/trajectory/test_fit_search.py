@@ -1,7 +1,8 @@
 """The compiled fitter control flow (`fit_search`) against the Python formulation it replaced
-(`fit_reference`), fit for fit: the same primitives to the bit, the same deviations,
-tangency errors and corner count - on synthetic paths (lines, arcs, bends, corners, noise,
-with every tolerance the planner uses) and on elastic nets of real planning queries."""
+(`fit_reference`), fit for fit: the same primitives, deviations and tangency errors up to
+last-bit differences of the compiled arithmetic (see `_same`), the same corner count - on
+synthetic paths (lines, arcs, bends, corners, noise, with every tolerance the planner uses)
+and on elastic nets of real planning queries."""
 
 from __future__ import annotations
 
@@ -11,18 +12,60 @@ from fit_reference import fit_primitives_reference
 
 from assistant.trajectory.primitives import FitParams, PrimitiveFit, fit_primitives
 
+# Both fitters evaluate the same formulas, but numba compiles them for the host CPU (FMA
+# contraction, vector width, libm) and the reference calls the kernels one by one: results
+# may differ in the last bits on another processor. 1e-9 (m, rad) is far above that (the
+# worst-conditioned quantity, the centre of an r_max = 1 m arc through nodes ~10 mm apart,
+# amplifies a 1e-16 relative difference to ~1e-12 m) and far below anything a fit changes:
+# the node tolerances are 1-2 mm.
+_GEOM = 1e-9
 
-def _same(a: PrimitiveFit, b: PrimitiveFit) -> None:
-    assert len(a.primitives) == len(b.primitives)
-    for p, q in zip(a.primitives, b.primitives, strict=True):
+
+def _layout(fit: PrimitiveFit) -> list[tuple[type, int, int]]:
+    return [(type(p), p.first_node, p.last_node) for p in fit.primitives]
+
+
+def _same(a: PrimitiveFit, b: PrimitiveFit, tolerance: float) -> None:
+    """The compiled fit `a` is the reference fit `b`: the same primitives covering the same
+    nodes, with the same geometry, deviations and tangency errors up to `_GEOM`.
+
+    The one legitimate difference: growth asks whether a node lies within `tolerance` of a
+    candidate (and which arc guess is closest), so a node lying within a few ULPs of that
+    bound may be decided differently by the two evaluations, moving one boundary and what
+    follows it. Then the fits must agree up to that primitive, each must still hold every
+    node within the tolerance, and the primitive counts may differ by at most one (a
+    shifted boundary leaves the greedy growth at most one primitive better or worse)."""
+    la, lb = _layout(a), _layout(b)
+    if la != lb:
+        k = next((i for i, (x, y) in enumerate(zip(la, lb, strict=False)) if x != y),
+                 min(len(la), len(lb)))
+        _same_primitives(a.primitives[:k], b.primitives[:k])
+        assert abs(len(la) - len(lb)) <= 1, (la, lb)
+        for fit in (a, b):
+            assert fit.max_deviation <= tolerance + _GEOM
+            assert fit.primitives[0].first_node == 0
+            assert fit.primitives[-1].last_node == len(fit.node_deviation) - 1
+            for p, q in zip(fit.primitives[:-1], fit.primitives[1:], strict=False):
+                assert p.last_node == q.first_node  # contiguous, every node covered
+        return
+    _same_primitives(a.primitives, b.primitives)
+    np.testing.assert_allclose(a.node_deviation, b.node_deviation, rtol=0, atol=_GEOM)
+    assert [e is None for e in a.tangency_error] == [e is None for e in b.tangency_error]
+    np.testing.assert_allclose([e for e in a.tangency_error if e is not None],
+                               [e for e in b.tangency_error if e is not None],
+                               rtol=0, atol=_GEOM)
+    assert a.tangency_breaks == b.tangency_breaks
+
+
+def _same_primitives(ps: list, qs: list) -> None:
+    assert len(ps) == len(qs)
+    for p, q in zip(ps, qs, strict=True):
         assert type(p) is type(q)
         assert (p.first_node, p.last_node) == (q.first_node, q.last_node)
         for f in ("start", "end", "via", "centre", "normal", "radius", "sweep"):
             if hasattr(p, f):
-                assert np.array_equal(getattr(p, f), getattr(q, f)), f
-    assert np.array_equal(a.node_deviation, b.node_deviation)
-    assert a.tangency_error == b.tangency_error
-    assert a.tangency_breaks == b.tangency_breaks
+                np.testing.assert_allclose(getattr(p, f), getattr(q, f), rtol=0,
+                                           atol=_GEOM, err_msg=f)
 
 
 def _path(rng: np.random.Generator, pieces: int, noise: float) -> np.ndarray:
@@ -61,7 +104,7 @@ def test_compiled_fit_equals_the_python_fitter_on_synthetic_paths(seed):
     nodes = _path(rng, int(rng.integers(1, 7)), [0.0, 0.0003, 0.001, 0.003][seed % 4])
     for tol in (0.002, 0.002 / 2.5, 0.001):
         params = FitParams(tolerance=tol)
-        _same(fit_primitives(nodes, params), fit_primitives_reference(nodes, params))
+        _same(fit_primitives(nodes, params), fit_primitives_reference(nodes, params), tol)
 
 
 def test_compiled_fit_equals_the_python_fitter_on_short_and_degenerate_paths():
@@ -69,7 +112,8 @@ def test_compiled_fit_equals_the_python_fitter_on_short_and_degenerate_paths():
                   np.array([[0.0, 0, 0], [0.0, 0, 0], [0.0, 0, 0]]),  # no length at all
                   np.array([[0.0, 0, 0], [0.05, 0.05, 0], [0.1, 0, 0]]),
                   np.zeros((1, 3)) + np.linspace(0, 0.2, 30)[:, None] * [1, 1, 0]):
-        _same(fit_primitives(nodes), fit_primitives_reference(nodes, FitParams()))
+        _same(fit_primitives(nodes), fit_primitives_reference(nodes, FitParams()),
+              FitParams().tolerance)
 
 
 def test_compiled_fit_equals_the_python_fitter_on_planned_nets(thesis_nets):
@@ -77,7 +121,7 @@ def test_compiled_fit_equals_the_python_fitter_on_planned_nets(thesis_nets):
     for nodes in thesis_nets:
         for tol in (0.002, 0.0008, 0.001):
             params = FitParams(tolerance=tol)
-            _same(fit_primitives(nodes, params), fit_primitives_reference(nodes, params))
+            _same(fit_primitives(nodes, params), fit_primitives_reference(nodes, params), tol)
 
 
 @pytest.fixture(scope="module")

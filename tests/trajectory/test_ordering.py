@@ -7,7 +7,7 @@ import itertools
 import numpy as np
 import pytest
 
-from assistant.mission import ApplicationPath, Location, Mission, PathSegment, SegmentKind
+from assistant.mission.model import ApplicationPath, Location, Mission, PathSegment, SegmentKind
 from assistant.trajectory.ordering import (
     Endpoint,
     JointDistance,

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from assistant.collision import Obstacle
-from assistant.robot_model import CollisionShape, Robot, ShapeKind
+from assistant.collision.checker import Obstacle
+from assistant.robots.model import CollisionShape, Robot, ShapeKind
 from assistant.transforms import make_T
 
 

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from assistant.collision import Obstacle
-from assistant.robot_model import CollisionShape, ShapeKind
+from assistant.collision.checker import Obstacle
+from assistant.robots.model import CollisionShape, ShapeKind
 from assistant.transforms import make_T
 from assistant.world.cell_positions import INVALID_INDICATED
 from assistant.world.fusion import Source

@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from assistant.collision import CollisionChecker, Obstacle
-from assistant.robot_model import CollisionShape, ShapeKind
+from assistant.collision.checker import CollisionChecker, Obstacle
+from assistant.robots.model import CollisionShape, ShapeKind
 from assistant.transforms import make_T, rot_z
 from assistant.world.cell_positions import INVALID_CAD, VALID
 from assistant.world.chain_levels import ChainValidator, link_levels

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 import viser
 
-from assistant.cell import ObjectRole
+from assistant.cell.model import ObjectRole
 from assistant.session.events import Event, SceneChanged
 from web.panels.base import Panel
 from web.units import point_from_mm

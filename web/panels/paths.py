@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from assistant.motion import ToolAction, ToolActionKind
+from assistant.mission.motion import ToolAction, ToolActionKind
 from assistant.session.events import Event, SceneChanged, StateChanged
 from web.panels.base import Panel
 

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from assistant.links.settings import KINDS, LinkSettings
-from assistant.robot_catalog import RobotSpec, ToolSpec
+from assistant.robots.catalog import RobotSpec, ToolSpec
 from assistant.session.events import Event, SceneChanged, StateChanged
 from web.panels.base import Panel
 

@@ -17,11 +17,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from assistant.collision import CollisionChecker, ObstacleView
+from assistant.collision.checker import CollisionChecker, ObstacleView
 from assistant.links.arm_motion import Advance, PathFollower
 from assistant.links.emulators.faults import Faults
 from assistant.links.timing import time_parametrize
-from assistant.robot_model import IKFailure, Robot
+from assistant.robots.model import IKFailure, Robot
 
 Array = np.ndarray
 

@@ -27,7 +27,7 @@ from urllib.parse import parse_qs, urlsplit
 
 import numpy as np
 
-from assistant.collision import ObstacleView
+from assistant.collision.checker import ObstacleView
 from assistant.links import kuka_protocol as kp
 from assistant.links.arm_config import matches_status_turn
 from assistant.links.emulators.arm import EmulatedArm, solve_wire_pose
@@ -35,7 +35,7 @@ from assistant.links.emulators.cartesian import arc_poses, line_poses
 from assistant.links.emulators.faults import Faults, Received
 from assistant.links.emulators.krl_program import KrlError, KrlMotion, parse_dat, parse_motions
 from assistant.links.emulators.until_stopped import wait_until_stopped
-from assistant.robot_model import Robot
+from assistant.robots.model import Robot
 
 Array = np.ndarray
 
@@ -336,7 +336,7 @@ class KukaBridgeEmulator:
 
 def main(argv: list[str] | None = None) -> None:
     from assistant.links.emulators.melfa_emulator import _parse_box
-    from assistant.rv2aj import RV2AJ
+    from assistant.robots.rv2aj import RV2AJ
 
     ap = argparse.ArgumentParser(description="KUKA REST bridge emulator (RV-2AJ model arm)")
     ap.add_argument("--host", default="127.0.0.1")

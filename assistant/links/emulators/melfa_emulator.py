@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from assistant.collision import ObstacleView
+from assistant.collision.checker import ObstacleView
 from assistant.links import melfa_protocol as mp
 from assistant.links.arm_config import matches_melfa_flags
 from assistant.links.emulators.arm import CollisionInfo, EmulatedArm, solve_wire_pose
@@ -40,7 +40,7 @@ from assistant.links.emulators.melfa_program import (
 )
 from assistant.links.emulators.until_stopped import wait_until_stopped
 from assistant.links.melfa_protocol import DState, MelfaPose
-from assistant.robot_model import Robot
+from assistant.robots.model import Robot
 
 Array = np.ndarray
 _POLL = 0.05  # seconds between checks of stop flags in blocking reads
@@ -637,8 +637,8 @@ class MelfaEmulator:
 
 
 def _parse_box(text: str):
-    from assistant.collision import Obstacle
-    from assistant.robot_model import CollisionShape, ShapeKind
+    from assistant.collision.checker import Obstacle
+    from assistant.robots.model import CollisionShape, ShapeKind
     from assistant.transforms import make_T
 
     v = [float(x) / 1000.0 for x in text.split(",")]
@@ -649,7 +649,7 @@ def _parse_box(text: str):
 
 
 def main(argv: list[str] | None = None) -> None:
-    from assistant.rv2aj import RV2AJ
+    from assistant.robots.rv2aj import RV2AJ
 
     ap = argparse.ArgumentParser(description="MELFA CR-series controller emulator (RV-2AJ)")
     ap.add_argument("--host", default="127.0.0.1")

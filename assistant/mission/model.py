@@ -12,7 +12,7 @@ from enum import Enum
 
 import numpy as np
 
-from assistant.motion import ToolAction
+from assistant.mission.motion import ToolAction
 
 Array = np.ndarray
 

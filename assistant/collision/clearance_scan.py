@@ -24,9 +24,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from assistant.broad_phase import _box_dist2, _pose, _sphere_centre
+from assistant.collision.broad_phase import _box_dist2, _pose, _sphere_centre
+from assistant.collision.segment_box import segment_box_distance_one
 from assistant.kernels.lazy import kernel
-from assistant.segment_box import segment_box_distance_one
 
 Array = np.ndarray
 

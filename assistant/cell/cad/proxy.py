@@ -24,8 +24,8 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
-from assistant.cad.raw import merge_meshes
-from assistant.robot_model import CollisionShape, ShapeKind
+from assistant.cell.cad.raw import merge_meshes
+from assistant.robots.model import CollisionShape, ShapeKind
 
 Array = np.ndarray
 

@@ -24,7 +24,7 @@ from enum import Enum
 
 import numpy as np
 
-from assistant.robot_model import BatchPoses
+from assistant.robots.model import BatchPoses
 
 Array = np.ndarray
 #: A matrix entry: a Python float (a constant, possibly exact 0/1) or a vector over configs.

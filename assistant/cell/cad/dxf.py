@@ -20,9 +20,9 @@ import numpy as np
 import trimesh
 from ezdxf import disassemble, recover
 
-from assistant.cad.errors import CadImportError
-from assistant.cad.options import ImportOptions
-from assistant.cad.raw import Outline, RawGeometry
+from assistant.cell.cad.errors import CadImportError
+from assistant.cell.cad.options import ImportOptions
+from assistant.cell.cad.raw import Outline, RawGeometry
 
 #: $INSUNITS codes we accept, by our short unit names (others fall back to the size guess).
 _INSUNITS = {1: "inch", 2: "ft", 4: "mm", 5: "cm", 6: "m", 13: "um", 14: "dm"}

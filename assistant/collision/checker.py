@@ -21,7 +21,7 @@ from typing import Protocol
 import fcl
 import numpy as np
 
-from assistant.broad_phase import (
+from assistant.collision.broad_phase import (
     ASK_FCL,
     CERTIFIED,
     FREE,
@@ -31,18 +31,18 @@ from assistant.broad_phase import (
     prune_round_pairs,
     sphere_broad_phase,
 )
-from assistant.clearance_scan import pruned_clearance
-from assistant.fcl_shapes import covering_spheres, fcl_geometry, fcl_transform, world_aabb
-from assistant.motion_rows import (
+from assistant.collision.clearance_scan import pruned_clearance
+from assistant.collision.fcl_shapes import covering_spheres, fcl_geometry, fcl_transform, world_aabb
+from assistant.collision.motion_rows import (
     motion_marks,
     path_samples,
     rows_before_first_bad,
     rows_inside,
     valid_before_first_bad,
 )
-from assistant.robot_model import CollisionShape, Robot, ShapeKind
-from assistant.segment_box import axis_segment, oriented_bounds
-from assistant.shape_poses import shape_poses
+from assistant.collision.segment_box import axis_segment, oriented_bounds
+from assistant.collision.shape_poses import shape_poses
+from assistant.robots.model import CollisionShape, Robot, ShapeKind
 
 Array = np.ndarray
 

@@ -12,7 +12,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import trimesh
 
-from assistant.cad.errors import CadImportError
+from assistant.cell.cad.errors import CadImportError
 
 #: Faces with less area than this (m^2, i.e. 1e-6 mm^2) are degenerate slivers.
 DEGENERATE_AREA_M2 = 1e-12

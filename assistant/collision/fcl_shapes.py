@@ -9,7 +9,7 @@ from __future__ import annotations
 import fcl
 import numpy as np
 
-from assistant.robot_model import CollisionShape, ShapeKind
+from assistant.robots.model import CollisionShape, ShapeKind
 
 Array = np.ndarray
 

@@ -24,10 +24,10 @@ from typing import Any
 
 import numpy as np
 
-from assistant.cad import CadImportError, ImportOptions, import_with_options
-from assistant.cad.importer import MAX_FILE_BYTES
-from assistant.cell import Cell, CellError, CellObject, PrimitiveSpec, check_transform
-from assistant.robot_catalog import RobotModelError, RobotSpec
+from assistant.cell.cad import CadImportError, ImportOptions, import_with_options
+from assistant.cell.cad.importer import MAX_FILE_BYTES
+from assistant.cell.model import Cell, CellError, CellObject, PrimitiveSpec, check_transform
+from assistant.robots.catalog import RobotModelError, RobotSpec
 
 SCHEMA_VERSION = 1
 CELL_JSON = "cell.json"

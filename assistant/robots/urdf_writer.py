@@ -11,8 +11,8 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from assistant.dh import DHChain
-from assistant.robot_model import CollisionShape, JointLimits, LinkGeometry, ShapeKind
+from assistant.robots.dh import DHChain
+from assistant.robots.model import CollisionShape, JointLimits, LinkGeometry, ShapeKind
 from assistant.transforms import matrix_to_rpy
 
 Array = np.ndarray

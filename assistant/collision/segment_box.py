@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from assistant.kernels.lazy import kernel
-from assistant.robot_model import CollisionShape, ShapeKind
+from assistant.robots.model import CollisionShape, ShapeKind
 
 Array = np.ndarray
 

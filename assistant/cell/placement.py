@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from assistant.cell import Cell, CellObject
+from assistant.cell.model import Cell, CellObject
 from assistant.transforms import pose_from_mm_deg, pose_to_mm_deg
 
 Array = np.ndarray

@@ -20,13 +20,13 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 import trimesh
 
-from assistant.cad.source import CadSource
-from assistant.robot_catalog import RobotSpec
-from assistant.robot_model import CollisionShape, Robot, ShapeKind
+from assistant.cell.cad.source import CadSource
+from assistant.robots.catalog import RobotSpec
+from assistant.robots.model import CollisionShape, Robot, ShapeKind
 from assistant.transforms import inv_T
 
 if TYPE_CHECKING:
-    from assistant.cad import CadImport
+    from assistant.cell.cad import CadImport
 
 Array = np.ndarray
 
@@ -231,7 +231,7 @@ class CellObject:
     def from_cad(name: str, cad_import: CadImport, T_world_object: Array | None = None, *,
                  role: ObjectRole | str = ObjectRole.OBSTACLE,
                  color: tuple[int, int, int] | None = None) -> CellObject:
-        """A part from `assistant.cad.load_cad`; its frame is the CAD file's own origin."""
+        """A part from `assistant.cell.cad.load_cad`; its frame is the CAD file's own origin."""
         return CellObject(name=name, role=role,  # type: ignore[arg-type]
                           T_world_object=np.eye(4) if T_world_object is None else T_world_object,
                           display_mesh=cad_import.mesh, collision=cad_import.collision,
@@ -245,7 +245,7 @@ class CellObject:
 @dataclass(frozen=True, eq=False)
 class CollisionObjectView:
     """What the collision checker needs of one object, in the robot base frame
-    (`assistant.collision.ObstacleView`)."""
+    (`assistant.collision.checker.ObstacleView`)."""
 
     name: str
     role: ObjectRole

@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from assistant.dh import chain_row
+from assistant.collision.segment_box import segment_box_distance_one
 from assistant.kernels.lazy import kernel
-from assistant.segment_box import segment_box_distance_one
+from assistant.robots.dh import chain_row
 
 Array = np.ndarray
 

@@ -2,7 +2,7 @@
 
 Readers know their format's quirks (node transforms, declared units, outlines to extrude);
 everything after that (units, validation, repair, collision proxy) is common and lives in
-`assistant.cad.importer`.
+`assistant.cell.cad.importer`.
 """
 
 from __future__ import annotations

@@ -18,7 +18,7 @@ import numpy as np
 
 from assistant.kernels.helpers import axis_angle3_into, mm3_into, within_limits, wrap_pi
 from assistant.kernels.lazy import kernel
-from assistant.robot_model import JointLimits
+from assistant.robots.model import JointLimits
 
 Array = np.ndarray
 

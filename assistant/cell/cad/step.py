@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import re
 
-from assistant.cad.errors import CadImportError
-from assistant.cad.meshfile import read_mesh_file
-from assistant.cad.options import ImportOptions
-from assistant.cad.raw import RawGeometry
+from assistant.cell.cad.errors import CadImportError
+from assistant.cell.cad.meshfile import read_mesh_file
+from assistant.cell.cad.options import ImportOptions
+from assistant.cell.cad.raw import RawGeometry
 
 ANGULAR_TOLERANCE_RAD = 0.5
 

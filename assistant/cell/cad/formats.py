@@ -6,9 +6,9 @@ from collections.abc import Callable
 from enum import Enum
 from pathlib import PurePath
 
-from assistant.cad.errors import CadImportError
-from assistant.cad.options import ImportOptions
-from assistant.cad.raw import RawGeometry
+from assistant.cell.cad.errors import CadImportError
+from assistant.cell.cad.options import ImportOptions
+from assistant.cell.cad.raw import RawGeometry
 
 
 class CadFormat(str, Enum):
@@ -53,13 +53,13 @@ def format_from_filename(filename: str) -> CadFormat:
 def reader_for(fmt: CadFormat) -> Callable[[bytes, str, ImportOptions], RawGeometry]:
     """The reader function for a format (imported lazily: STEP pulls in OpenCASCADE)."""
     if fmt == CadFormat.DXF:
-        from assistant.cad.dxf import read_dxf
+        from assistant.cell.cad.dxf import read_dxf
 
         return read_dxf
     if fmt == CadFormat.STEP:
-        from assistant.cad.step import read_step
+        from assistant.cell.cad.step import read_step
 
         return read_step
-    from assistant.cad.meshfile import read_mesh_file
+    from assistant.cell.cad.meshfile import read_mesh_file
 
     return lambda data, filename, options: read_mesh_file(data, filename, fmt.value, options)

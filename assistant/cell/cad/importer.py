@@ -8,19 +8,19 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from assistant.cad.errors import CadImportError
-from assistant.cad.formats import format_from_filename, reader_for
-from assistant.cad.options import (
+from assistant.cell.cad.errors import CadImportError
+from assistant.cell.cad.formats import format_from_filename, reader_for
+from assistant.cell.cad.options import (
     DEFAULT_PROXY_MAX_FACES,
     DEFAULT_PROXY_TOLERANCE_M,
     DEFAULT_STEP_TOLERANCE_M,
     ImportOptions,
 )
-from assistant.cad.proxy import ProxyReport, collision_proxy
-from assistant.cad.source import CadSource
-from assistant.cad.units import decide_units, size_warning
-from assistant.cad.validate import check_raw, repair
-from assistant.robot_model import CollisionShape
+from assistant.cell.cad.proxy import ProxyReport, collision_proxy
+from assistant.cell.cad.source import CadSource
+from assistant.cell.cad.units import decide_units, size_warning
+from assistant.cell.cad.validate import check_raw, repair
+from assistant.robots.model import CollisionShape
 
 #: Larger uploads are refused before parsing (memory); no cell part needs more.
 MAX_FILE_BYTES = 512 * 1024 * 1024

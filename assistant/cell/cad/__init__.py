@@ -5,13 +5,13 @@ length unit, validating and repairing meshes, and building collision proxies for
 Results are in metres in the file's own frame. Must not import the cell, the UI or planning.
 """
 
-from assistant.cad.errors import CadImportError
-from assistant.cad.formats import SUPPORTED_SUFFIXES, CadFormat
-from assistant.cad.importer import CadImport, import_with_options, load_cad, load_cad_path
-from assistant.cad.options import ImportOptions
-from assistant.cad.proxy import ProxyReport
-from assistant.cad.source import CadSource
-from assistant.cad.units import UnitsSource
+from assistant.cell.cad.errors import CadImportError
+from assistant.cell.cad.formats import SUPPORTED_SUFFIXES, CadFormat
+from assistant.cell.cad.importer import CadImport, import_with_options, load_cad, load_cad_path
+from assistant.cell.cad.options import ImportOptions
+from assistant.cell.cad.proxy import ProxyReport
+from assistant.cell.cad.source import CadSource
+from assistant.cell.cad.units import UnitsSource
 
 __all__ = [
     "SUPPORTED_SUFFIXES",

@@ -16,10 +16,10 @@ import json
 import numpy as np
 import trimesh
 
-from assistant.cad.errors import CadImportError
-from assistant.cad.options import ImportOptions
-from assistant.cad.raw import RawGeometry, merge_meshes
-from assistant.cad.units import UNIT_TO_M, normalize_unit
+from assistant.cell.cad.errors import CadImportError
+from assistant.cell.cad.options import ImportOptions
+from assistant.cell.cad.raw import RawGeometry, merge_meshes
+from assistant.cell.cad.units import UNIT_TO_M, normalize_unit
 
 #: Formats whose files declare a unit (others carry bare numbers).
 _FORMATS_WITH_UNITS = {"glb", "gltf", "3mf"}

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from assistant.robot_model import Robot, Tool
+from assistant.robots.model import Robot, Tool
 
 BUILTIN_ROBOTS = ("rv2aj",)
 
@@ -73,14 +73,14 @@ class RobotSpec:
 
     def build(self) -> Robot:
         if self.kind == "rv2aj":
-            from assistant.rv2aj import DATASHEET_LIMITS_DEG, RV2AJ, RV2AJConfig
+            from assistant.robots.rv2aj import DATASHEET_LIMITS_DEG, RV2AJ, RV2AJConfig
 
             return RV2AJ(RV2AJConfig(limits_deg=self.limits_deg or DATASHEET_LIMITS_DEG,
                                      tool=self.tool.build()))
         if self.kind == "urdf":
             if not self.urdf_path:
                 raise RobotModelError("a URDF robot needs urdf_path")
-            from assistant.urdf_robot import URDFRobot
+            from assistant.robots.urdf_robot import URDFRobot
 
             robot = URDFRobot.from_file(Path(self.urdf_path), package_dirs=self.package_dirs,
                                         base_link=self.base_link, tool_link=self.tool_link,

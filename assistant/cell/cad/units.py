@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from enum import Enum
 
-from assistant.cad.errors import CadImportError
+from assistant.cell.cad.errors import CadImportError
 
 #: Length of one unit in metres, by our short unit names.
 UNIT_TO_M: dict[str, float] = {

@@ -17,8 +17,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from assistant.dh import DHChain, DHRow, batch_chain_frames, chain_frames, flange_frame
-from assistant.robot_model import (
+from assistant.robots.dh import DHChain, DHRow, batch_chain_frames, chain_frames, flange_frame
+from assistant.robots.model import (
     BatchPoses,
     CollisionShape,
     IKFailure,
@@ -29,8 +29,8 @@ from assistant.robot_model import (
     ShapeKind,
     Tool,
 )
-from assistant.rv2aj_fk_batch import tcp_poses
-from assistant.rv2aj_pose_batch import (
+from assistant.robots.rv2aj_fk_batch import tcp_poses
+from assistant.robots.rv2aj_pose_batch import (
     PoseBatchModel,
     PoseCandidates,
     joint_limit_message,
@@ -38,9 +38,9 @@ from assistant.rv2aj_pose_batch import (
     pose_batch_model,
     pose_candidates,
 )
-from assistant.rv2aj_position_ik import planar_position_ik
+from assistant.robots.rv2aj_position_ik import planar_position_ik
+from assistant.robots.urdf_writer import urdf_from_chain
 from assistant.transforms import axis_angle, inv_T, rot_y, rot_z, rotation_angle
-from assistant.urdf_writer import urdf_from_chain
 
 Array = np.ndarray
 

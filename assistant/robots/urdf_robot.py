@@ -3,7 +3,7 @@
 What it owns: reading a URDF and its meshes (``package://``, ``file://`` and relative paths),
 choosing the base and tool frames, turning the kinematic tree into the `Robot` interface (one
 actuated serial chain, everything else locked), FK (single through pinocchio, batched through
-`assistant.batch_chain`) and numeric IK (damped least squares on pinocchio's frame Jacobian).
+`assistant.robots.batch_chain`) and numeric IK (damped least squares on pinocchio's frame Jacobian).
 It does not draw, check collisions or plan; it must not import viser.
 
 Why the split: pinocchio parses the kinematics and is the reference every result is tested
@@ -27,9 +27,9 @@ import pinocchio as pin
 import trimesh
 from lxml import etree
 
-from assistant.batch_chain import BatchChain, ChainJoint, JointKind
-from assistant.robot_catalog import RobotModelError
-from assistant.robot_model import (
+from assistant.robots.batch_chain import BatchChain, ChainJoint, JointKind
+from assistant.robots.catalog import RobotModelError
+from assistant.robots.model import (
     BatchPoses,
     CollisionShape,
     IKFailure,
@@ -764,7 +764,7 @@ class URDFRobot(Robot):
         return out
 
     def batch_fk(self, Q: Array, dtype: type = np.float64) -> BatchPoses:
-        """TCP poses of Q (N, dof), vectorised in numpy (see `assistant.batch_chain`)."""
+        """TCP poses of Q (N, dof), vectorised in numpy (see `assistant.robots.batch_chain`)."""
         return self._chain.tip_poses(Q, dtype=dtype)
 
     def batch_link_poses(self, Q: Array, dtype: type = np.float64) -> Array:

@@ -24,7 +24,7 @@ class SampleError(ValueError):
 def samples_root() -> Path:
     """`$CELLTEACH_SAMPLES`, else the `sample_cells` folder next to the installed packages."""
     env = os.environ.get("CELLTEACH_SAMPLES")
-    return Path(env) if env else Path(__file__).resolve().parent.parent / "sample_cells"
+    return Path(env) if env else Path(__file__).resolve().parents[2] / "sample_cells"
 
 
 @dataclass(frozen=True)
