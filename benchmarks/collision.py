@@ -20,7 +20,8 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import numpy as np  # noqa: E402
 
-from assistant.collision.checker import CollisionChecker, Obstacle  # noqa: E402
+from assistant.collision.checker import CollisionChecker
+from assistant.collision.reports import Obstacle  # noqa: E402
 from assistant.robots.model import CollisionShape, ShapeKind, Tool  # noqa: E402
 from assistant.robots.rv2aj import RV2AJ, RV2AJConfig  # noqa: E402
 from assistant.transforms import make_T  # noqa: E402

@@ -34,8 +34,6 @@ from assistant.export import (  # noqa: E402
     program_from_trajectory,
     round_trip,
 )
-from assistant.export.bezier import sample_bezier_chain, sample_fixed_dt  # noqa: E402
-from assistant.export.bezier_drawings import drawing  # noqa: E402
 from assistant.export.samples import (  # noqa: E402
     drawing_trajectory,
     paper_frame,
@@ -44,6 +42,8 @@ from assistant.export.samples import (  # noqa: E402
 from assistant.export.simulate import simulate  # noqa: E402
 from assistant.robots.model import Tool  # noqa: E402
 from assistant.robots.rv2aj import RV2AJ, RV2AJConfig  # noqa: E402
+from assistant.trajectory.bezier import sample_bezier_chain, sample_fixed_dt  # noqa: E402
+from assistant.trajectory.bezier_drawings import drawing  # noqa: E402
 
 TABLE7_STEPS = (0.5, 0.25, 0.1, 0.05, 0.02)
 TOLERANCE = 1e-4

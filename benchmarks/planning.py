@@ -48,7 +48,8 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
 
-from assistant.collision.checker import CollisionChecker, Obstacle  # noqa: E402
+from assistant.collision.checker import CollisionChecker
+from assistant.collision.reports import Obstacle  # noqa: E402
 from assistant.links.simulated import SimulatedRobot  # noqa: E402
 from assistant.links.timing import VirtualClock  # noqa: E402
 from assistant.planning import MissionExecutor, MissionPlanner, load_scenario  # noqa: E402

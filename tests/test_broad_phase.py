@@ -23,9 +23,10 @@ from assistant.collision.broad_phase import (
     prune_round_pairs,
     sphere_broad_phase,
 )
-from assistant.collision.checker import CollisionChecker, Obstacle
+from assistant.collision.checker import CollisionChecker
 from assistant.collision.clearance_scan import _row_sphere_bounds
 from assistant.collision.fcl_shapes import fcl_transform
+from assistant.collision.reports import Obstacle
 from assistant.collision.segment_box import segment_box_distance_one
 from assistant.robots.dh import batch_chain_frames, chain_frames, flange_frame
 from assistant.robots.model import CollisionShape, ShapeKind

@@ -15,9 +15,9 @@ import numpy as np
 import pytest
 import trimesh
 
+from assistant.cell import storage as cell_io
 from assistant.cell.cad import load_cad, load_cad_path
 from assistant.cell.model import Cell, CellObject
-from assistant.cell import storage as cell_io
 from assistant.cell.storage import CellFileError, load_cell, save_cell
 from assistant.robots.catalog import RobotSpec, ToolSpec
 from assistant.transforms import pose_from_mm_deg

@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from assistant.collision.broad_phase import ASK_FCL, CERTIFIED, FREE, OUTSIDE_LIMITS
-from assistant.collision.checker import CollisionChecker, Obstacle
+from assistant.collision.checker import CollisionChecker
+from assistant.collision.reports import Obstacle
 from assistant.robots.model import CollisionShape, ShapeKind
 from assistant.transforms import make_T
 

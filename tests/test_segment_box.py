@@ -5,9 +5,10 @@ from __future__ import annotations
 import numpy as np
 import trimesh
 
-from assistant.collision.checker import CollisionChecker, Obstacle
+from assistant.collision.checker import CollisionChecker
 from assistant.collision.clearance_scan import pruned_clearance
 from assistant.collision.fcl_shapes import fcl_transform
+from assistant.collision.reports import Obstacle
 from assistant.collision.segment_box import oriented_bounds, segment_box_distance_one
 from assistant.robots.catalog import installed_robot_urdf
 from assistant.robots.model import CollisionShape, ShapeKind

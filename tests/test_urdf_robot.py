@@ -14,7 +14,8 @@ from assistant.robots.batch_chain import BatchChain, ChainJoint, JointKind, sinc
 from assistant.robots.catalog import RobotModelError, RobotSpec, ToolSpec, installed_robot_urdf
 from assistant.robots.model import IKFailure, ShapeKind, Tool
 from assistant.robots.rv2aj import RV2AJ
-from assistant.robots.urdf_robot import COLLISION_FACE_LIMIT, TCP_FRAME, URDFRobot
+from assistant.robots.urdf_parse import COLLISION_FACE_LIMIT, TCP_FRAME
+from assistant.robots.urdf_robot import URDFRobot
 from assistant.transforms import make_T, rot_x, rot_y, rotation_angle
 
 POS_TOL = 2e-6  # m: IK tolerance 1e-6 plus rounding

@@ -3,19 +3,12 @@
 Owns the neutral program (`program`), the dialects (`melfa`, `krl`, `rapid`, `urscript`,
 one module each behind the `Dialect` protocol), the controller rules (`rules`), arm
 configuration flags (`configuration`), the round-trip proof (`simulate`, `roundtrip`),
-downloads (`download`) and free-shape Bezier paths (`bezier`, `bezier_drawings`).
-Must not import `web`, `viser` or the planner: it consumes a `Trajectory`.
+downloads (`download`); it samples free-shape Bezier paths with `trajectory.bezier`.
+May import mission, robots, trajectory (geometry only) and transforms; never the planner,
+`web` or `viser`: it consumes a `Trajectory`.
 Units inside are metres and radians; millimetres and degrees appear only in dialect text.
 """
 
-from assistant.export.bezier import (
-    BezierChain,
-    BezierSampling,
-    CubicBezier,
-    de_casteljau,
-    sample_bezier_chain,
-    sample_fixed_dt,
-)
 from assistant.export.checks import check_program
 from assistant.export.configuration import ArmConfig, arm_configuration
 from assistant.export.dialect import Dialect, ProgramFile
@@ -41,6 +34,14 @@ from assistant.export.registry import DIALECT_NAMES, get_dialect
 from assistant.export.roundtrip import RoundTripReport, round_trip
 from assistant.export.simulate import simulate
 from assistant.export.urscript import URScriptDialect
+from assistant.trajectory.bezier import (
+    BezierChain,
+    BezierSampling,
+    CubicBezier,
+    de_casteljau,
+    sample_bezier_chain,
+    sample_fixed_dt,
+)
 
 __all__ = [
     "ArmConfig", "BezierChain", "BezierSampling", "Comment", "CubicBezier", "DIALECT_NAMES",

@@ -20,7 +20,6 @@ from dataclasses import replace
 
 import numpy as np
 
-from assistant.export.bezier import BezierChain, fit_primitives, sample_bezier_chain
 from assistant.mission.motion import (
     Motion,
     MotionKind,
@@ -30,6 +29,7 @@ from assistant.mission.motion import (
     Waypoint,
 )
 from assistant.robots.model import Robot, UnreachableError
+from assistant.trajectory.bezier import BezierChain, fit_primitives, sample_bezier_chain
 from assistant.transforms import make_T, rot_x
 
 Array = np.ndarray

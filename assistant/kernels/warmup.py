@@ -110,7 +110,8 @@ def warm_steps() -> Iterator[None]:
     """`warm_up` in steps, in the order a first run needs them (the collision checker and the
     world's kernels, the roadmap's, then the trajectory's); yields after each, when the
     kernels it compiled are in the cache (`compile` reports them then)."""
-    from assistant.collision.checker import CollisionChecker, Obstacle
+    from assistant.collision.checker import CollisionChecker
+    from assistant.collision.reports import Obstacle
     from assistant.roadmap.astar import lazy_astar
     from assistant.roadmap.graph import GraphBase, JointGraph
     from assistant.roadmap.path_first import lazy_path_search

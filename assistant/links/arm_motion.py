@@ -13,7 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from assistant.collision.checker import CollisionChecker, MotionCheck
+from assistant.collision.checker import CollisionChecker
+from assistant.collision.reports import MotionCheck
 from assistant.links.timing import TimedPath
 
 Array = np.ndarray

@@ -12,7 +12,7 @@ from collections.abc import Iterable
 from dataclasses import asdict, dataclass, fields
 from typing import Any, Literal
 
-from assistant.collision.checker import ObstacleView
+from assistant.collision.reports import ObstacleView
 from assistant.links.link import RobotLink
 from assistant.robots.model import Robot
 

@@ -19,7 +19,8 @@ from collections.abc import Iterable
 
 import numpy as np
 
-from assistant.collision.checker import CollisionChecker, ObstacleView
+from assistant.collision.checker import CollisionChecker
+from assistant.collision.reports import ObstacleView
 from assistant.links.arm_motion import PathFollower
 from assistant.links.link import LinkError, LinkEvent, LinkEventKind, RobotLink
 from assistant.links.timing import Clock, RealClock, time_parametrize, validate_path

@@ -22,7 +22,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from assistant.collision.checker import CollisionChecker, CollisionReport, Contact, MotionCheck
+from assistant.collision.checker import CollisionChecker
+from assistant.collision.reports import CollisionReport, Contact, MotionCheck
 from assistant.world.indications import posture_box_half
 from assistant.world.leaf_lookup import leaf_flags
 from assistant.world.model import WorldModel

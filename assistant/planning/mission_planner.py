@@ -36,7 +36,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from assistant.collision.checker import CollisionChecker, ObstacleView
+from assistant.collision.checker import CollisionChecker
+from assistant.collision.reports import ObstacleView
 from assistant.mission.model import Location, Mission
 from assistant.mission.motion import Motion, MotionKind, Trajectory, Waypoint
 from assistant.planning.config import MissionPlannerConfig

@@ -16,7 +16,7 @@ import numpy as np
 
 from assistant.cell.model import Cell, PrimitiveSpec, check_transform
 from assistant.cell.storage import load_cell
-from assistant.collision.checker import Obstacle
+from assistant.collision.reports import Obstacle
 from assistant.mission.model import Mission
 from assistant.transforms import inv_T
 

@@ -11,15 +11,13 @@ against; lxml reads the XML ourselves because the operator needs an error that n
 the line and the element, and because collision/visual geometry is needed as trimesh meshes and
 primitives, not as pinocchio geometry objects.
 """
-
 from __future__ import annotations
 
 import hashlib
 import json
 import threading
-import urllib.parse
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -27,344 +25,33 @@ import pinocchio as pin
 import trimesh
 from lxml import etree
 
-from assistant.robots.batch_chain import BatchChain, ChainJoint, JointKind
+from assistant.robots.batch_chain import BatchChain, ChainJoint
 from assistant.robots.catalog import RobotModelError
 from assistant.robots.model import (
     BatchPoses,
     CollisionShape,
-    IKFailure,
-    IKResult,
     JointLimits,
     LinkGeometry,
     Robot,
     ShapeKind,
     Tool,
 )
-from assistant.transforms import inv_T, orthonormalized, rotation_angle
+from assistant.robots.urdf_ik import DLSInverseKinematics
+from assistant.robots.urdf_parse import (
+    _ACTUATED,
+    COLLISION_FACE_LIMIT,
+    CONTINUOUS_RANGE,
+    TCP_FRAME,
+    URDFDocument,
+    URDFGeometry,
+    URDFJoint,
+    URDFLink,
+    parse_urdf,
+    resolve_mesh_path,
+)
+from assistant.transforms import inv_T
 
 Array = np.ndarray
-
-#: Collision meshes with more faces than this are replaced by their convex hull. FCL's cost
-#: grows with the triangle count and the planner checks millions of poses; a hull is a safe
-#: (conservative) proxy for a link. Visual meshes are never simplified.
-COLLISION_FACE_LIMIT = 3000
-#: Default speed (rad/s or m/s) for a chain joint whose URDF <limit> gives none.
-DEFAULT_VELOCITY = 1.0
-#: Range given to continuous (unbounded) joints: one turn each way.
-CONTINUOUS_RANGE = 2.0 * np.pi
-#: Name of the TCP frame added to the pinocchio model.
-TCP_FRAME = "cellteach_tcp"
-
-_ACTUATED = {"revolute": JointKind.REVOLUTE, "continuous": JointKind.REVOLUTE,
-             "prismatic": JointKind.PRISMATIC}
-_JOINT_TYPES = {"revolute", "continuous", "prismatic", "fixed", "floating", "planar"}
-
-
-# ============================================================================ parsed document
-@dataclass(frozen=True)
-class _Geometry:
-    """One <visual> or <collision> element, placed in its URDF link's frame."""
-
-    kind: ShapeKind
-    size: tuple[float, ...]
-    T_link_geom: Array
-    line: int
-    filename: str | None = None  # as written in the URDF
-    path: Path | None = None  # resolved file
-    scale: tuple[float, float, float] = (1.0, 1.0, 1.0)
-    rgba: tuple[float, float, float, float] | None = None
-
-
-@dataclass(frozen=True)
-class _Link:
-    name: str
-    line: int
-    visuals: tuple[_Geometry, ...]
-    collisions: tuple[_Geometry, ...]
-
-
-@dataclass(frozen=True)
-class _Joint:
-    name: str
-    type: str
-    parent: str
-    child: str
-    line: int
-    axis: Array
-    lower: float
-    upper: float
-    velocity: float
-
-
-@dataclass
-class _Document:
-    """A parsed URDF with resolved mesh paths; shared by the robots derived from it.
-
-    Immutable after construction except `meshes`, a load cache (so `with_tool`/`with_limits`
-    never reload files).
-    """
-
-    source: str
-    base_dir: Path
-    text: str
-    tree: etree._Element
-    name: str
-    links: dict[str, _Link]
-    joints: dict[str, _Joint]
-    parent_joint: dict[str, _Joint]
-    children: dict[str, list[_Joint]]
-    root: str
-    model: pin.Model
-    mesh_digests: dict[str, str]
-    meshes: dict[tuple[Path, bool], trimesh.Trimesh] = field(default_factory=dict)
-    lock: threading.Lock = field(default_factory=threading.Lock)
-
-    def where(self, line: int) -> str:
-        return f"{self.source}:{line}"
-
-
-def _parse(text: str, source: str, base_dir: Path, package_dirs: Sequence[str | Path]
-           ) -> _Document:
-    try:
-        root_el = etree.fromstring(text.encode() if isinstance(text, str) else text)
-    except etree.XMLSyntaxError as e:
-        raise RobotModelError(f"{source}:{e.lineno}: malformed XML: {e.msg}") from None
-    if root_el.tag != "robot":
-        raise RobotModelError(f"{source}:{root_el.sourceline}: the root element is "
-                              f"<{root_el.tag}>, a URDF needs <robot>")
-    materials = _materials(root_el, source)
-    mesh_digests: dict[str, str] = {}
-    links: dict[str, _Link] = {}
-    for el in root_el.findall("link"):
-        name = _required(el, "name", source)
-        if name in links:
-            raise RobotModelError(f"{source}:{el.sourceline}: link {name!r} is defined twice")
-        geoms = {}
-        for tag in ("visual", "collision"):
-            geoms[tag] = tuple(
-                _geometry(g, tag, name, source, base_dir, package_dirs, materials, mesh_digests)
-                for g in el.findall(tag))
-        links[name] = _Link(name, el.sourceline, geoms["visual"], geoms["collision"])
-    if not links:
-        raise RobotModelError(f"{source}: the URDF has no <link>")
-    joints: dict[str, _Joint] = {}
-    parent_joint: dict[str, _Joint] = {}
-    children: dict[str, list[_Joint]] = {n: [] for n in links}
-    for el in root_el.findall("joint"):
-        j = _joint(el, source, links)
-        if j.name in joints:
-            raise RobotModelError(f"{source}:{el.sourceline}: joint {j.name!r} is defined twice")
-        if j.child in parent_joint:
-            raise RobotModelError(
-                f"{source}:{el.sourceline}: joint {j.name!r}: link {j.child!r} already has a "
-                f"parent joint ({parent_joint[j.child].name!r}); a URDF must be a tree")
-        joints[j.name] = j
-        parent_joint[j.child] = j
-        children[j.parent].append(j)
-    roots = [n for n in links if n not in parent_joint]
-    if len(roots) != 1:
-        what = ", ".join(repr(r) for r in roots) if roots else "none (the joints form a loop)"
-        raise RobotModelError(f"{source}: a URDF needs exactly one root link, found {what}")
-    _check_reachable(roots[0], links, children, source)
-    try:
-        model = pin.buildModelFromXML(text if isinstance(text, str) else text.decode())
-    except Exception as e:  # pinocchio raises plain RuntimeError/ValueError
-        raise RobotModelError(f"{source}: pinocchio cannot build a model: {e}") from None
-    return _Document(source, base_dir, text, root_el, root_el.get("name", "robot"), links,
-                     joints, parent_joint, children, roots[0], model, mesh_digests)
-
-
-def _check_reachable(root: str, links: dict[str, _Link], children: dict[str, list[_Joint]],
-                     source: str) -> None:
-    seen, stack = {root}, [root]
-    while stack:
-        for j in children[stack.pop()]:
-            if j.child not in seen:
-                seen.add(j.child)
-                stack.append(j.child)
-    lost = [n for n in links if n not in seen]
-    if lost:
-        raise RobotModelError(f"{source}:{links[lost[0]].line}: link {lost[0]!r} is not "
-                              "connected to the root (the joints form a loop)")
-
-
-def _required(el: etree._Element, attr: str, source: str) -> str:
-    v = el.get(attr)
-    if v is None or not v.strip():
-        raise RobotModelError(f"{source}:{el.sourceline}: <{el.tag}> needs a {attr!r} attribute")
-    return v.strip()
-
-
-def _floats(el: etree._Element, attr: str, n: int, source: str, default: str | None = None
-            ) -> Array:
-    raw = el.get(attr, default)
-    if raw is None:
-        raise RobotModelError(f"{source}:{el.sourceline}: <{el.tag}> needs a {attr!r} attribute")
-    try:
-        v = np.array([float(t) for t in raw.split()], dtype=float)
-    except ValueError:
-        v = np.array([])
-    if v.shape != (n,) or not np.all(np.isfinite(v)):
-        raise RobotModelError(f"{source}:{el.sourceline}: <{el.tag} {attr}={raw!r}> must be "
-                              f"{n} finite number{'s' if n > 1 else ''}")
-    return v
-
-
-def _origin(parent: etree._Element, source: str) -> Array:
-    """The <origin xyz rpy> of an element; URDF rpy is R = Rz(yaw) Ry(pitch) Rx(roll)."""
-    el = parent.find("origin")
-    T = np.eye(4)
-    if el is None:
-        return T
-    xyz = _floats(el, "xyz", 3, source, "0 0 0")
-    rpy = _floats(el, "rpy", 3, source, "0 0 0")
-    T[:3, :3] = pin.rpy.rpyToMatrix(*rpy)
-    T[:3, 3] = xyz
-    return T
-
-
-def _materials(root_el: etree._Element, source: str) -> dict[str, tuple[float, ...]]:
-    """Top-level named materials, which <visual> elements may refer to by name."""
-    out = {}
-    for m in root_el.findall("material"):
-        c = m.find("color")
-        if m.get("name") and c is not None and c.get("rgba"):
-            out[m.get("name")] = tuple(float(v) for v in _floats(c, "rgba", 4, source))
-    return out
-
-
-def _geometry(el: etree._Element, tag: str, link: str, source: str, base_dir: Path,
-              package_dirs: Sequence[str | Path], materials: dict, digests: dict[str, str]
-              ) -> _Geometry:
-    T = _origin(el, source)
-    g = el.find("geometry")
-    if g is None or len(g) == 0:
-        raise RobotModelError(f"{source}:{el.sourceline}: link {link!r}: <{tag}> has no "
-                              "<geometry>")
-    shape = next((c for c in g if isinstance(c.tag, str)), None)
-    if shape is None:
-        raise RobotModelError(f"{source}:{g.sourceline}: link {link!r}: <geometry> is empty")
-    rgba = None
-    mat = el.find("material")
-    if mat is not None:
-        c = mat.find("color")
-        if c is not None and c.get("rgba"):
-            rgba = tuple(_floats(c, "rgba", 4, source))
-        else:
-            rgba = materials.get(mat.get("name", ""))
-    kind = shape.tag
-    if kind == "box":
-        return _Geometry(ShapeKind.BOX, tuple(_floats(shape, "size", 3, source)), T,
-                         el.sourceline, rgba=rgba)
-    if kind in ("cylinder", "capsule"):
-        r = float(_floats(shape, "radius", 1, source)[0])
-        length = float(_floats(shape, "length", 1, source)[0])
-        sk = ShapeKind.CYLINDER if kind == "cylinder" else ShapeKind.CAPSULE
-        return _Geometry(sk, (r, length), T, el.sourceline, rgba=rgba)
-    if kind == "sphere":
-        return _Geometry(ShapeKind.SPHERE, (float(_floats(shape, "radius", 1, source)[0]),), T,
-                         el.sourceline, rgba=rgba)
-    if kind == "mesh":
-        filename = _required(shape, "filename", source)
-        s = shape.get("scale")
-        scale = (1.0, 1.0, 1.0)
-        if s is not None:
-            parts = s.split()
-            scale = tuple(_floats(shape, "scale", 1, source)) * 3 if len(parts) == 1 else \
-                tuple(_floats(shape, "scale", 3, source))
-        path = resolve_mesh_path(filename, base_dir, package_dirs,
-                                 where=f"{source}:{shape.sourceline}: link {link!r} <{tag}>")
-        if filename not in digests:
-            digests[filename] = hashlib.sha256(path.read_bytes()).hexdigest()
-        return _Geometry(ShapeKind.MESH, (), T, el.sourceline, filename, path,
-                         tuple(float(v) for v in scale), rgba)
-    raise RobotModelError(f"{source}:{shape.sourceline}: link {link!r}: unknown geometry "
-                          f"<{kind}> (box, cylinder, sphere, capsule or mesh)")
-
-
-def resolve_mesh_path(filename: str, base_dir: Path, package_dirs: Sequence[str | Path] = (),
-                      *, where: str = "") -> Path:
-    """The file a URDF mesh reference points at.
-
-    ``package://pkg/rel`` is looked up as ``<dir>/pkg/rel`` (or ``<dir>/rel`` when the folder
-    itself is named ``pkg``) for every folder in `package_dirs`, then in the URDF folder and
-    each of its ancestors - which covers the ROS layout ``pkg/urdf/robot.urdf`` and
-    example-robot-data's ``share/example-robot-data/robots/...``. ``file://`` URIs and absolute
-    paths are taken as they are; other paths are relative to the URDF folder.
-    """
-    tried: list[Path] = []
-    if filename.startswith("package://"):
-        rest = filename[len("package://"):]
-        pkg, _, rel = rest.partition("/")
-        if not pkg or not rel:
-            raise RobotModelError(f"{where}: malformed package URI {filename!r}")
-        dirs = [Path(d).expanduser() for d in package_dirs]
-        dirs += [base_dir, *base_dir.parents]
-        for d in dirs:
-            for cand in ((d / rel) if d.name == pkg else None, d / pkg / rel):
-                if cand is not None and cand not in tried:
-                    tried.append(cand)
-                    if cand.is_file():
-                        return cand.resolve()
-    else:
-        if filename.startswith("file://"):
-            p = Path(urllib.parse.unquote(urllib.parse.urlparse(filename).path))
-        elif "://" in filename:
-            raise RobotModelError(f"{where}: unsupported mesh URI {filename!r} "
-                                  "(use package://, file:// or a path)")
-        else:
-            p = Path(filename)
-        cand = p if p.is_absolute() else base_dir / p
-        tried.append(cand)
-        if cand.is_file():
-            return cand.resolve()
-    shown = ", ".join(str(t) for t in tried[:8]) + (" ..." if len(tried) > 8 else "")
-    raise RobotModelError(f"{where}: mesh file not found: {filename!r} (tried: {shown})")
-
-
-def _joint(el: etree._Element, source: str, links: dict[str, _Link]) -> _Joint:
-    name = _required(el, "name", source)
-    jtype = _required(el, "type", source)
-    if jtype not in _JOINT_TYPES:
-        raise RobotModelError(f"{source}:{el.sourceline}: joint {name!r} has unknown type "
-                              f"{jtype!r}")
-    ends = {}
-    for tag in ("parent", "child"):
-        e = el.find(tag)
-        if e is None:
-            raise RobotModelError(f"{source}:{el.sourceline}: joint {name!r} has no <{tag}>")
-        link = _required(e, "link", source)
-        if link not in links:
-            raise RobotModelError(f"{source}:{e.sourceline}: joint {name!r}: <{tag} "
-                                  f"link={link!r}> is not a link of this URDF")
-        ends[tag] = link
-    axis = np.array([1.0, 0.0, 0.0])
-    ax = el.find("axis")
-    if ax is not None:
-        axis = _floats(ax, "xyz", 3, source)
-        n = np.linalg.norm(axis)
-        if n < 1e-12 and jtype in _ACTUATED:
-            raise RobotModelError(f"{source}:{ax.sourceline}: joint {name!r}: the axis is zero")
-        axis = axis / n if n > 0 else axis
-    lower = upper = 0.0
-    velocity = DEFAULT_VELOCITY
-    lim = el.find("limit")
-    if jtype in ("revolute", "prismatic"):
-        if lim is None:
-            raise RobotModelError(f"{source}:{el.sourceline}: {jtype} joint {name!r} needs a "
-                                  "<limit lower upper velocity effort>")
-        lower = float(_floats(lim, "lower", 1, source, "0")[0])
-        upper = float(_floats(lim, "upper", 1, source, "0")[0])
-        if lower > upper:
-            raise RobotModelError(f"{source}:{lim.sourceline}: joint {name!r}: lower limit "
-                                  f"{lower} is above the upper limit {upper}")
-    elif jtype == "continuous":
-        lower, upper = -CONTINUOUS_RANGE, CONTINUOUS_RANGE
-    if lim is not None and lim.get("velocity") is not None:
-        v = float(_floats(lim, "velocity", 1, source)[0])
-        velocity = v if v > 0 else DEFAULT_VELOCITY
-    return _Joint(name, jtype, ends["parent"], ends["child"], el.sourceline, axis, lower, upper,
-                  velocity)
 
 
 # ============================================================================ IK settings
@@ -397,7 +84,7 @@ class IKSettings:
 
 
 # ============================================================================ the robot
-class URDFRobot(Robot):
+class URDFRobot(DLSInverseKinematics, Robot):
     """A serial chain from `base_link` to `tool_link` of a URDF; other joints are locked.
 
     Link frames are URDF link frames, i.e. each moving link's frame is its joint frame and
@@ -410,7 +97,7 @@ class URDFRobot(Robot):
     document and is what `with_tool` / `with_limits` use to share it (meshes load once).
     """
 
-    def __init__(self, doc: _Document, *, base_link: str | None = None,
+    def __init__(self, doc: URDFDocument, *, base_link: str | None = None,
                  tool_link: str | None = None, tool: Tool | None = None,
                  limits: Array | None = None,
                  locked_positions: Mapping[str, float] | None = None,
@@ -472,7 +159,7 @@ class URDFRobot(Robot):
             text = path.read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as e:
             raise RobotModelError(f"{path}: cannot read the URDF: {e}") from None
-        doc = _parse(text, str(path), path.resolve().parent, package_dirs)
+        doc = parse_urdf(text, str(path), path.resolve().parent, package_dirs)
         return cls(doc, base_link=base_link, tool_link=tool_link, tool=tool,
                    locked_positions=locked_positions, load_visual=load_visual,
                    ik_settings=ik_settings)
@@ -485,7 +172,7 @@ class URDFRobot(Robot):
                     load_visual: bool = True, ik_settings: IKSettings | None = None,
                     source: str = "<URDF string>") -> URDFRobot:
         """Like `from_file` for URDF text; relative mesh paths are resolved against base_dir."""
-        doc = _parse(xml, source, Path(base_dir).resolve(), package_dirs)
+        doc = parse_urdf(xml, source, Path(base_dir).resolve(), package_dirs)
         return cls(doc, base_link=base_link, tool_link=tool_link, tool=tool,
                    locked_positions=locked_positions, load_visual=load_visual,
                    ik_settings=ik_settings)
@@ -526,7 +213,7 @@ class URDFRobot(Robot):
             raise RobotModelError(f"{self._doc.source}: {role} link {name!r} is not in the URDF "
                                   f"(links: {known}{' ...' if len(self._doc.links) > 20 else ''})")
 
-    def _path(self) -> list[_Joint]:
+    def _path(self) -> list[URDFJoint]:
         """Joints from base to tool, in order; refuses a tool that is not below the base."""
         doc, out, link = self._doc, [], self.tool_link
         while link != self.base_link:
@@ -617,7 +304,7 @@ class URDFRobot(Robot):
                             + sum(max(abs(c.lower), abs(c.upper)) for c in self._chain_joints
                                   if c.type == "prismatic"))
 
-    def _build_links(self, path: list[_Joint]) -> list[LinkGeometry]:
+    def _build_links(self, path: list[URDFJoint]) -> list[LinkGeometry]:
         """dof + 1 bodies: every URDF link merged into the chain link it is rigidly fixed to."""
         doc = self._doc
         owner_of_path = {self.base_link: 0}
@@ -661,7 +348,7 @@ class URDFRobot(Robot):
                                     color or (220, 220, 220)))
         return out
 
-    def _mesh(self, g: _Geometry, link: _Link, collision: bool) -> trimesh.Trimesh:
+    def _mesh(self, g: URDFGeometry, link: URDFLink, collision: bool) -> trimesh.Trimesh:
         doc = self._doc
         key = (g.path, collision)
         with doc.lock:
@@ -683,7 +370,7 @@ class URDFRobot(Robot):
             doc.meshes[key] = mesh
         return mesh
 
-    def _shape(self, g: _Geometry, link: _Link, T_owner_link: Array) -> CollisionShape:
+    def _shape(self, g: URDFGeometry, link: URDFLink, T_owner_link: Array) -> CollisionShape:
         T = T_owner_link @ g.T_link_geom
         if g.kind != ShapeKind.MESH:
             return CollisionShape(g.kind, g.size, T)
@@ -693,7 +380,7 @@ class URDFRobot(Robot):
             mesh.apply_transform(np.diag([*g.scale, 1.0]))
         return CollisionShape(ShapeKind.MESH, (), T, mesh)
 
-    def _visual_mesh(self, g: _Geometry, link: _Link, T_owner_link: Array) -> trimesh.Trimesh:
+    def _visual_mesh(self, g: URDFGeometry, link: URDFLink, T_owner_link: Array) -> trimesh.Trimesh:
         if g.kind == ShapeKind.MESH:
             m = self._mesh(g, link, collision=False).copy()
             m.apply_transform(np.diag([*g.scale, 1.0]))
@@ -775,177 +462,6 @@ class URDFRobot(Robot):
         """The chain in base coordinates, TCP as tip (for vectorised users)."""
         return self._chain
 
-    # ------------------------------------------------------------------ inverse kinematics
-    def ik(
-        self,
-        T_base_tool: Array,
-        seed: Array | None = None,
-        *,
-        position_only: bool = False,
-        max_solutions: int | None = None,
-    ) -> IKResult:
-        """Damped least squares from the seed, then seeded random restarts; distinct solutions.
-
-        Every iterate is clamped into the joint limits, so each solution is within limits.
-        Failure reasons: REACH (farther than the summed link lengths), JOINT_LIMIT (solvable
-        only with a joint outside its range), ORIENTATION (fewer than 6 joints: the position
-        is reachable but not with this orientation), NO_CONVERGENCE. The best pose reached
-        is offered in `nearest_T_base_tool`.
-        """
-        T = np.asarray(T_base_tool, dtype=float)
-        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-            raise ValueError(f"{self.name}: T_base_tool must be a finite 4x4 transform")
-        if not position_only:
-            try:
-                T = orthonormalized(T)
-            except ValueError as exc:
-                raise ValueError(f"{self.name}: {exc}") from None
-        st = self.ik_settings
-        want = max_solutions or st.max_solutions
-        T_root_target = T if self._base_is_root else self.T_root_base @ T
-        lo, hi = self.limits.lower, self.limits.upper
-        home = np.clip(np.zeros(self.dof), lo, hi)
-        first = np.clip(self._check_q(seed), lo, hi) if seed is not None else home
-        rng = np.random.default_rng(st.rng_seed)
-        starts = [first] + [rng.uniform(lo, hi) for _ in range(st.restarts)]
-        dist = float(np.linalg.norm(T[:3, 3] - self._reach_centre))
-        out_of_reach = dist > self._reach + st.position_tolerance
-        if out_of_reach:
-            starts = starts[:2]
-
-        sols: list[Array] = []
-        best_q, best_err = first, np.inf
-        k = 0
-        while k < len(starts):
-            q, ok, err = self._dls(T_root_target, starts[k], position_only, clamp=True)
-            k += 1
-            if err < best_err:
-                best_q, best_err = q, err
-            if ok and all(np.linalg.norm(q - s) > st.distinct for s in sols):
-                sols.append(q)
-                if len(sols) >= want:
-                    break
-            if k == len(starts) and not sols and not out_of_reach and \
-                    len(starts) == 1 + st.restarts:
-                starts += [rng.uniform(lo, hi) for _ in range(st.extra_restarts)]
-        ref = first if seed is not None else home
-        if sols:
-            sols.sort(key=lambda s: float(np.linalg.norm(s - ref)))
-            return IKResult(sols)
-        nearest = self.fk(best_q)
-        target = "point" if position_only else "pose"
-        if out_of_reach:
-            return IKResult([], IKFailure.REACH,
-                            f"{target} at {dist * 1000:.0f} mm from the first joint is beyond "
-                            f"the arm's reach ({self._reach * 1000:.0f} mm)", nearest)
-        inside, free = self._solve_unlimited(T_root_target, starts[:1 + st.restarts],
-                                             position_only)
-        if inside is not None:
-            return IKResult([inside])
-        if free is not None:
-            return IKResult([], IKFailure.JOINT_LIMIT,
-                            f"no solution within the joint limits was found for this {target}; "
-                            "without limits it is reachable with "
-                            + ", ".join(self.limits.violations(free, self.joint_names)),
-                            nearest)
-        if not position_only and self.dof < 6:
-            for q0 in starts[:4]:
-                if self._dls(T_root_target, q0, True, clamp=True)[1]:
-                    return IKResult([], IKFailure.ORIENTATION,
-                                    f"the {self.dof}-axis arm reaches this point but not with "
-                                    "this orientation; the nearest pose found is offered",
-                                    nearest)
-        return IKResult([], IKFailure.NO_CONVERGENCE,
-                        f"no joint configuration found for this {target} after "
-                        f"{len(starts)} starts; the nearest pose found is offered", nearest)
-
-    def _solve_unlimited(self, T_root_target: Array, starts: list[Array],
-                         position_only: bool) -> tuple[Array | None, Array | None]:
-        """Solve ignoring limits: (a solution that is inside after 2 pi shifts, or else the
-        first solution found outside them); (None, None) if none converges."""
-        outside = None
-        for q0 in starts:
-            q, ok, _ = self._dls(T_root_target, q0, position_only, clamp=False)
-            if ok:
-                q = self._wrap_into_limits(q)
-                if self.limits.contains(q):
-                    return q, None  # reachable after all: the clamped runs were unlucky
-                if outside is None:
-                    outside = q
-        return None, outside
-
-    def _wrap_into_limits(self, q: Array) -> Array:
-        q = q.copy()
-        for k, j in enumerate(self._chain_joints):
-            if j.type == "prismatic":
-                continue
-            for shift in (0.0, -2 * np.pi, 2 * np.pi, -4 * np.pi, 4 * np.pi):
-                v = q[k] + shift
-                if self.limits.lower[k] - 1e-9 <= v <= self.limits.upper[k] + 1e-9:
-                    q[k] = v
-                    break
-        return q
-
-    def _dls(self, T_root_target: Array, q0: Array, position_only: bool, *, clamp: bool
-             ) -> tuple[Array, bool, float]:
-        """One damped-least-squares run: (q, converged, weighted error of the best iterate)."""
-        st = self.ik_settings
-        model, data, fid = self._model, self._data(), self._tcp_fid
-        lam2 = st.damping ** 2
-        oMdes = pin.SE3(T_root_target[:3, :3], T_root_target[:3, 3])
-        q = q0.copy()
-        best_q, best_err = q.copy(), np.inf
-        lo, hi = self.limits.lower, self.limits.upper
-        eye = np.eye(3 if position_only else 6)
-        stall = 0
-        for _ in range(st.max_iterations):
-            qp = self.to_pinocchio_q(q)
-            pin.computeJointJacobians(model, data, qp)
-            pin.updateFramePlacement(model, data, fid)
-            oMf = data.oMf[fid]
-            dp = oMdes.translation - oMf.translation
-            pos_err = float(np.linalg.norm(dp))
-            if position_only:
-                rot_err = 0.0
-                J = pin.getFrameJacobian(model, data, fid, pin.LOCAL_WORLD_ALIGNED)[:3]
-                e = dp
-            else:
-                iMd = oMf.actInv(oMdes)
-                rot_err = rotation_angle(iMd.rotation)
-                # e = log6(T_tcp^-1 T_target) in the TCP frame; de/dq = -Jlog6(iMd^-1) J_local
-                # (pinocchio's own IK example), so dq = +J^T (J J^T + lambda^2)^-1 e below.
-                e = pin.log6(iMd).vector
-                J = pin.Jlog6(iMd.inverse()) @ pin.getFrameJacobian(model, data, fid, pin.LOCAL)
-            err = pos_err + 0.1 * rot_err
-            if err < best_err - 1e-12:
-                best_q, best_err, stall = q.copy(), err, 0
-            else:
-                stall += 1
-                if stall > 20:
-                    break
-            if pos_err < st.position_tolerance and rot_err < st.orientation_tolerance:
-                return q, True, err
-            # Active set: a joint on a limit that the step would push further out is taken
-            # out of the solve, so the others make the progress (plain clamping stalls).
-            damp = min(1.0, float(np.linalg.norm(e)) / st.damping_error)
-            free = np.ones(self.dof, dtype=bool)
-            for _ in range(3):
-                Jf = J * free
-                dq = Jf.T @ np.linalg.solve(Jf @ Jf.T + lam2 * damp * eye, e)
-                if not clamp:
-                    break
-                blocked = ((q <= lo) & (dq < 0)) | ((q >= hi) & (dq > 0))
-                if not np.any(blocked & free):
-                    break
-                free &= ~blocked
-            step = float(np.max(np.abs(dq)))
-            if step > st.max_step:
-                dq *= st.max_step / step
-            q = q + dq
-            if clamp:
-                q = np.clip(q, lo, hi)
-        return best_q, False, best_err
-
     # ------------------------------------------------------------------ description
     def urdf(self) -> str:
         """The URDF with absolute mesh paths, the current limits and a fixed `tool` frame.
@@ -1017,7 +533,7 @@ def _set_pin_q(model: pin.Model, jid: int, q: Array, value: float) -> None:
         q[j.idx_q], q[j.idx_q + 1] = np.cos(value), np.sin(value)
 
 
-def _default_tool_link(doc: _Document, base: str) -> str:
+def _default_tool_link(doc: URDFDocument, base: str) -> str:
     """The end of the longest chain below `base`: most actuated joints, then most joints."""
     best, best_key = base, (-1, -1)
     stack = [(base, 0, 0)]

@@ -75,7 +75,7 @@ def frame_from_three_points(name: str, origin: Array, x_point: Array,
 
 def _drawing_control(drawing: int | Array) -> Array:
     """Control points (1 + 3k, 2-D metres) of drawing 1..9 or of the points given."""
-    from assistant.export.bezier_drawings import drawing as numbered
+    from assistant.trajectory.bezier_drawings import drawing as numbered
 
     if isinstance(drawing, (int, np.integer)):
         try:

@@ -11,7 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from assistant.collision.checker import CollisionChecker, Obstacle
+from assistant.collision.checker import CollisionChecker
+from assistant.collision.reports import Obstacle
 from assistant.session.session import Session
 from assistant.transforms import inv_T
 

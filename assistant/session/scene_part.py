@@ -39,7 +39,7 @@ class SceneQueries:
 
     def path_polylines(self, tol: float = 0.0005) -> list[tuple[str, Array]]:
         """Each application path as points (world frame) for drawing."""
-        from assistant.export.bezier import CubicBezier, sample_bezier_chain
+        from assistant.trajectory.bezier import CubicBezier, sample_bezier_chain
 
         out = []
         for p in self.mission.paths:

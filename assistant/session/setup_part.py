@@ -9,7 +9,7 @@ import contextlib
 
 import numpy as np
 
-from assistant.collision.checker import Obstacle
+from assistant.collision.reports import Obstacle
 from assistant.links.link import LinkEvent, LinkEventKind, RobotLink
 from assistant.links.settings import LinkSettings, make_link
 from assistant.robots.catalog import RobotSpec, ToolSpec

@@ -21,11 +21,11 @@ from enum import Enum
 
 import numpy as np
 
-from assistant.export.bezier import de_casteljau, sample_bezier_chain
 from assistant.mission.model import ApplicationPath, PathSegment, SegmentKind
 from assistant.mission.motion import Motion, MotionKind, ToolAction, Trajectory, Waypoint
 from assistant.robots.model import Robot
 from assistant.trajectory.assemble import PathVerifier, TrajectoryReport, verify
+from assistant.trajectory.bezier import de_casteljau, sample_bezier_chain
 from assistant.trajectory.cartesian_follow import follow_poses, poses_from
 from assistant.trajectory.primitives import ArcPrimitive, sample_primitive
 from assistant.transforms import rotation_angle

@@ -22,7 +22,7 @@ from typing import Protocol
 
 import numpy as np
 
-from assistant.collision.checker import MotionCheck
+from assistant.collision.reports import MotionCheck
 from assistant.collision.validity import ValidityChecker
 from assistant.mission.motion import Motion, MotionKind, Trajectory, Waypoint
 from assistant.progress import Progress

@@ -22,7 +22,8 @@ from dataclasses import replace
 
 import numpy as np
 
-from assistant.collision.checker import CollisionChecker, ObstacleView
+from assistant.collision.checker import CollisionChecker
+from assistant.collision.reports import ObstacleView
 from assistant.progress import Progress
 from assistant.robots.model import BatchPoses, CollisionShape, IKResult, Robot, ShapeKind
 from assistant.world.reachability import ReachabilityTable

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from assistant.collision.checker import ObstacleView
+from assistant.collision.reports import ObstacleView
 from assistant.progress import Progress
 from assistant.robots.model import Robot
 from assistant.world.cell_positions import CellPositions, SelectionConfig

@@ -17,8 +17,8 @@ from collections.abc import Iterable
 import fcl
 import numpy as np
 
-from assistant.collision.checker import ObstacleView
 from assistant.collision.fcl_shapes import fcl_geometry, fcl_transform, world_aabb
+from assistant.collision.reports import ObstacleView
 from assistant.world.octree import OctreeGrid
 
 Array = np.ndarray

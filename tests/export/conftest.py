@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 from assistant.export import NeutralProgram, program_from_trajectory
-from assistant.export.bezier_drawings import drawing
 from assistant.export.samples import drawing_trajectory, thesis_trajectory
+from assistant.trajectory.bezier_drawings import drawing
 
 UR5_URDF = "example-robot-data/robots/ur_description/urdf/ur5_robot.urdf"
 

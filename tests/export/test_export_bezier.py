@@ -7,14 +7,14 @@ from math import comb
 import numpy as np
 import pytest
 
-from assistant.export.bezier import (
+from assistant.trajectory.bezier import (
     BezierChain,
     CubicBezier,
     de_casteljau,
     sample_bezier_chain,
     sample_fixed_dt,
 )
-from assistant.export.bezier_drawings import DRAWINGS, drawing
+from assistant.trajectory.bezier_drawings import DRAWINGS, drawing
 
 
 def _bernstein(P, t):
@@ -134,7 +134,7 @@ def test_sampling_in_3d_after_placing_on_the_paper():
 
 
 def test_lines_and_arcs_are_recognised_within_tolerance():
-    from assistant.export.bezier import fit_primitives
+    from assistant.trajectory.bezier import fit_primitives
 
     kinds = [p.kind for p in fit_primitives(drawing(1), 1e-4)]
     assert kinds == ["line", "arc"] * 4  # a rounded rectangle: 4 strokes, 4 quarter arcs

@@ -8,7 +8,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from assistant.collision.checker import CollisionChecker, Obstacle
+from assistant.collision.checker import CollisionChecker
+from assistant.collision.reports import Obstacle
 from assistant.links.simulated import SimulatedRobot
 from assistant.links.timing import VirtualClock
 from assistant.planning.config import MissionPlannerConfig

@@ -6,7 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from assistant.collision.checker import CollisionChecker, Obstacle
+from assistant.collision.checker import CollisionChecker
+from assistant.collision.reports import Obstacle
 from assistant.progress import Cancelled, Progress
 from assistant.roadmap.astar import SearchBudget
 from assistant.roadmap.planner import PlanFailure, RoadmapConfig, RoadmapPlanner

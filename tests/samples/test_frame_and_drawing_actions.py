@@ -8,7 +8,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from assistant.export.bezier_drawings import drawing
 from assistant.mission.model import SegmentKind
 from assistant.robots.catalog import RobotSpec
 from assistant.session import Session, SessionError
@@ -17,6 +16,7 @@ from assistant.session.frames import frame_from_three_points
 from assistant.session.script import parse_script, run_action
 from assistant.session.types import sample_robot_spec
 from assistant.trajectory.application import BezierMode
+from assistant.trajectory.bezier_drawings import drawing
 from assistant.transforms import pose_from_mm_deg
 
 SAMPLES = Path(__file__).resolve().parents[2] / "sample_cells"

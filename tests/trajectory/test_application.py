@@ -9,7 +9,6 @@ import pytest
 from traj_builders import TABLE, box
 
 from assistant.collision.checker import CollisionChecker
-from assistant.export.bezier import de_casteljau
 from assistant.mission.model import ApplicationPath, PathSegment, SegmentKind
 from assistant.mission.motion import MotionKind, ToolAction, ToolActionKind
 from assistant.trajectory.application import (
@@ -18,6 +17,7 @@ from assistant.trajectory.application import (
     application_motions,
     reversed_path,
 )
+from assistant.trajectory.bezier import de_casteljau
 from assistant.trajectory.primitives import ArcPrimitive
 from assistant.transforms import make_T, rot_x, rot_z
 

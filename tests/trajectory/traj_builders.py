@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from assistant.collision.checker import Obstacle
+from assistant.collision.reports import Obstacle
 from assistant.robots.model import CollisionShape, Robot, ShapeKind
 from assistant.transforms import make_T
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from assistant.collision.checker import Obstacle
+from assistant.collision.reports import Obstacle
 from assistant.robots.model import CollisionShape, ShapeKind
 from assistant.transforms import make_T
 from assistant.world.cell_positions import INVALID_INDICATED

@@ -5,7 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from assistant.collision.checker import CollisionChecker, Obstacle
+from assistant.collision.checker import CollisionChecker
+from assistant.collision.reports import Obstacle
 from assistant.robots.model import CollisionShape, ShapeKind
 from assistant.transforms import make_T, rot_z
 from assistant.world.cell_positions import INVALID_CAD, VALID

@@ -17,7 +17,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from assistant.collision.checker import CollisionChecker, ObstacleView
+from assistant.collision.checker import CollisionChecker
+from assistant.collision.reports import ObstacleView
 from assistant.links.arm_motion import Advance, PathFollower
 from assistant.links.emulators.faults import Faults
 from assistant.links.timing import time_parametrize

@@ -27,7 +27,7 @@ from urllib.parse import parse_qs, urlsplit
 
 import numpy as np
 
-from assistant.collision.checker import ObstacleView
+from assistant.collision.reports import ObstacleView
 from assistant.links import kuka_protocol as kp
 from assistant.links.arm_config import matches_status_turn
 from assistant.links.emulators.arm import EmulatedArm, solve_wire_pose

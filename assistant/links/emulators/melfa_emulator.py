@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from assistant.collision.checker import ObstacleView
+from assistant.collision.reports import ObstacleView
 from assistant.links import melfa_protocol as mp
 from assistant.links.arm_config import matches_melfa_flags
 from assistant.links.emulators.arm import CollisionInfo, EmulatedArm, solve_wire_pose
@@ -637,7 +637,7 @@ class MelfaEmulator:
 
 
 def _parse_box(text: str):
-    from assistant.collision.checker import Obstacle
+    from assistant.collision.reports import Obstacle
     from assistant.robots.model import CollisionShape, ShapeKind
     from assistant.transforms import make_T
 

@@ -17,7 +17,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from assistant.export.bezier import BezierChain, CubicBezier
+from assistant.trajectory.bezier import BezierChain, CubicBezier
 
 Array = np.ndarray
 
