@@ -7,6 +7,9 @@ dominated (68 us for 10 postures); written as one loop it is 8 us, with the same
 Compiled on first use and cached on disk (`cache=True`), so only the first run after an
 install pays the compile (`jit_warmup`); `NUMBA_DISABLE_JIT=1` runs the same code as plain
 Python.
+
+Serves (the user-felt figure): every collision check of the world build, plan and execution:
+in the thesis run its numpy fallback costs 5.5 s, compiled well under 0.1 s.
 """
 
 from __future__ import annotations

@@ -18,6 +18,9 @@ link and a box obstacle; the other pairs are handed back for FCL with their boun
 The answer is the minimum of the same exact distances as bounding every sample would give
 (a sample left out has every distance at or above one found); what changes is the work:
 ~0.3 ms instead of ~1.1 ms for frames, sphere bounds and tight bounds of every sample.
+
+Serves (the user-felt figure): the clearance reported with every plan: 0.9 s in Python in
+the thesis run.
 """
 
 from __future__ import annotations

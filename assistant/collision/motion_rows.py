@@ -5,6 +5,9 @@ motions' ends, the link frames, the limit test and picking each motion's rows be
 first invalid one cost more than the compiled certification itself (~70 us of a ~150 us
 edge check). The answers are those of the numpy forms they replace, bit for bit (the link
 frames are `dh.chain_row`'s, the limit test `JointLimits.contains_batch`'s).
+
+Serves (the user-felt figure): the motion checks' samples: 0.2 s in Python in the thesis
+run.
 """
 
 from __future__ import annotations

@@ -12,6 +12,9 @@ of its axis segment, and an obstacle lies inside its oriented bounding box, so
 which for a box obstacle *is* the distance. Spheres are segments of length zero; a cylinder
 lies inside the capsule with its radius and length. The collision broad phase uses the same
 bound to keep pairs that are clearly apart from FCL (`broad_phase.prune_round_pairs`).
+
+Serves (the user-felt figure): the pruning and clearance of every check: 1.5 s in Python in
+the thesis run.
 """
 
 from __future__ import annotations

@@ -6,6 +6,9 @@ rows of a motion that grazes an obstacle (~0.1 ms a call, 13 % of a motion-heavy
 query on the planning benchmark), although the check stops at the row that first touches;
 written out it is ~10 us. The products are summed in einsum's order (j = 0..3 in turn), so
 the poses, and FCL's answers, are the same to the bit.
+
+Serves (the user-felt figure): posing the robot for FCL in the world build: 1.1 s in Python
+in the thesis run.
 """
 
 from __future__ import annotations

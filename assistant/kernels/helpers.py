@@ -3,6 +3,9 @@
 numba's `@` goes through BLAS, slow at 3 x 3 and warning on slices, so the kernels write
 their small products out; these are the ones more than one kernel needs
 (`rv2aj_pose_batch`, `trajectory.follow_kernel`, `trajectory.net_kernel`).
+
+Serves (the user-felt figure): the RV-2AJ's IK and the net's moves: 0.8 s in Python in the
+thesis run.
 """
 
 from __future__ import annotations

@@ -23,24 +23,28 @@ Everything is refused before it is sent if it is outside the joint limits or unr
 Every read has a timeout; a timeout or a dropped socket mid-move ends the move with
 LINK_LOST, marks the link disconnected and leaves the robot "stopped at its last known
 joints"; `connect()` again and re-plan from `current_joints()`.
+
+This module holds the command-port session (connect, requests, status, single moves, how a
+move ends); `melfa_streaming` holds the joint stream and `melfa_programs` the program upload
+and run, both mixed into `MelfaLink`.
 """
 
 from __future__ import annotations
 
 import contextlib
 import math
-import select
 import socket
 import threading
 import time
-from collections.abc import Callable
 
 import numpy as np
 
 from assistant.links import melfa_protocol as mp
-from assistant.links.errors import ControllerRefused, ProtocolError
+from assistant.links.errors import ControllerRefused
 from assistant.links.link import LinkError, LinkEvent, LinkEventKind, LinkLost, RobotLink
+from assistant.links.melfa_programs import MelfaPrograms
 from assistant.links.melfa_protocol import DState, MelfaPose, Reply
+from assistant.links.melfa_streaming import MelfaStreaming
 from assistant.links.operator_button import OperatorButton
 from assistant.links.timing import time_parametrize, validate_path
 from assistant.robots.model import Robot
@@ -48,38 +52,7 @@ from assistant.robots.model import Robot
 Array = np.ndarray
 
 
-class _StatusPoller:
-    """Polls DSTATE on the command port while the stream runs, in its own thread, so a slow
-    command channel never delays a streamed target. The stream loop reads `error_code` and
-    `failure` (a LinkError the poll ran into)."""
-
-    def __init__(self, link: MelfaLink, period_s: float):
-        self._link = link
-        self._period = period_s
-        self._done = threading.Event()
-        self.error_code = 0
-        self.failure: LinkError | None = None
-        self._thread = threading.Thread(target=self._run, name="melfa-status", daemon=True)
-        self._thread.start()
-
-    def _run(self) -> None:
-        while not self._done.wait(self._period):
-            try:
-                code = self._link.read_state().error_code
-            except LinkError as exc:
-                self.failure = exc
-                return
-            if code:
-                self.error_code = code
-                return
-
-    def close(self) -> None:
-        self._done.set()
-        if self._thread is not threading.current_thread():
-            self._thread.join(timeout=self._link.timeout_s + 1.0)
-
-
-class MelfaLink(OperatorButton, RobotLink):
+class MelfaLink(MelfaStreaming, MelfaPrograms, OperatorButton, RobotLink):
     """TCP client for a MELFA CR controller: commands, streaming, programs.
 
     Args:
@@ -358,216 +331,7 @@ class MelfaLink(OperatorButton, RobotLink):
         finally:
             self._moving.release()
 
-    # ------------------------------------------------------------------ streaming
-    def move_path(self, joint_path: Array, *, speed_scale: float = 1.0) -> LinkEvent:
-        path = validate_path(self.robot, joint_path)
-        if not self._connected:
-            raise LinkError("MELFA link is not connected; call connect() first")
-        timed_check = time_parametrize(path[:1], self.robot.limits.velocity, speed_scale)
-        del timed_check  # validates speed_scale before anything is sent
-        self._stop.clear()
-        self._pressed = None
-        if not self._moving.acquire(blocking=False):
-            raise LinkError("the robot is already moving")
-        try:
-            return self._stream(path, speed_scale)
-        except LinkLost as exc:
-            return self._lost_event(str(exc), self._progress_index)
-        finally:
-            self._moving.release()
-
-    def _ensure_stream(self) -> None:
-        if self._stream_ready and self._dl is not None:
-            return
-        self._stop_stream()
-        st = self.read_state()
-        if st.error_code:
-            self.command("RSTALRM")
-        if mp.STREAM_PROGRAM_NAME not in self.program_names():
-            self._store_program(mp.STREAM_PROGRAM_NAME, mp.streaming_program().splitlines())
-        self.command("SLOTINIT")
-        self.command(f"RUN{mp.STREAM_PROGRAM_NAME};1")
-        try:
-            dl = socket.create_connection((self.host, self.datalink_port),
-                                          self.connect_timeout_s)
-        except OSError as exc:
-            raise self._lost(f"cannot open the data link {self.host}:{self.datalink_port}: "
-                             f"{exc}") from None
-        dl.settimeout(self.timeout_s)
-        self._dl, self._dl_buf = dl, b""
-        self._stream_ready = True
-
-    def _stop_stream(self) -> None:
-        """Stop the streaming program (if any), then close the data link.
-
-        In this order: a data link closed under a running INPUT is a controller alarm.
-        """
-        try:
-            if self._stream_ready:
-                self.command("STOP")
-        finally:
-            if self._dl is not None:
-                with contextlib.suppress(OSError):
-                    self._dl.close()
-            self._dl, self._dl_buf = None, b""
-            self._stream_ready = False
-
-    def _stream(self, path: Array, speed_scale: float) -> LinkEvent:
-        self._last_q = self._read_joints()
-        lead = 0 if np.allclose(path[0], self._last_q, atol=1e-6) else 1
-        full = path if lead == 0 else np.vstack([self._last_q[None], path])
-        timed = time_parametrize(full, self.robot.limits.velocity, speed_scale)
-        targets, seg = timed.resample(self.stream_cycle_s)
-        index = np.maximum(seg - lead, 0)
-        if timed.duration <= 0.0:
-            ev = LinkEvent(LinkEventKind.REACHED, self._last_q.copy(), time.monotonic(),
-                           "already there", len(path) - 1)
-            self._emit(ev)
-            return ev
-        self._ensure_stream()
-        self.set_override(math.ceil(speed_scale * 100))
-        dl = self._dl
-        assert dl is not None
-        t0 = time.monotonic()
-        self._progress_index = 0
-        self.last_stream_send_times = []
-        self.last_stream_ack_times = []
-        poller = _StatusPoller(self, self.status_period_s)
-        try:
-            return self._stream_loop(dl, targets, index, path, poller, t0)
-        finally:
-            poller.close()
-
-    def _stream_loop(self, dl: socket.socket, targets: Array, index: Array, path: Array,
-                     poller: _StatusPoller, t0: float) -> LinkEvent:
-        n = len(targets)
-        sent, acked = 0, -1
-        cycle, window = self.stream_cycle_s, self.stream_window
-        waiting_since: float | None = None
-        last_event = 0.0
-        while True:
-            now = time.monotonic()
-            if self._stop.is_set():
-                kind, text, details = self._stopped_as()
-                return self._halt(kind, text, targets, index, acked, details)
-            while sent < n and sent - acked - 1 < window and now >= t0 + sent * cycle:
-                try:
-                    dl.sendall(mp.format_stream_line(sent, targets[sent], self._names))
-                except OSError as exc:
-                    raise self._lost(f"data link send failed: {exc}") from None
-                self.last_stream_send_times.append(time.monotonic())
-                if waiting_since is None:
-                    waiting_since = now
-                sent += 1
-            if acked == n - 1:
-                break
-            if poller.failure is not None:
-                if isinstance(poller.failure, LinkLost):
-                    raise poller.failure
-                return self._halt(LinkEventKind.ERROR, str(poller.failure), targets, index,
-                                  acked)
-            if poller.error_code:
-                return self._on_error(poller.error_code, targets, index, acked)
-            if waiting_since is not None and now - waiting_since > self.timeout_s:
-                raise self._lost(f"no acknowledgement of streamed target {acked + 1} within "
-                                 f"{self.timeout_s:.2f} s")
-            wake = min(t0 + sent * cycle if sent < n else math.inf,
-                       (waiting_since or math.inf) + self.timeout_s)
-            wait = float(np.clip(wake - time.monotonic(), 0.0, cycle))
-            try:
-                ready, _, _ = select.select([dl], [], [], wait)
-            except (OSError, ValueError) as exc:
-                raise self._lost(f"data link failed: {exc}") from None
-            if not ready:
-                continue
-            try:
-                chunk = dl.recv(4096)
-            except TimeoutError:
-                continue
-            except OSError as exc:
-                raise self._lost(f"data link failed: {exc}") from None
-            if not chunk:
-                raise self._lost("controller closed the data link")
-            self._dl_buf += chunk
-            while b"\r" in self._dl_buf:
-                raw, _, self._dl_buf = self._dl_buf.partition(b"\r")
-                text = raw.decode("ascii", errors="replace")
-                if not text.strip():
-                    continue
-                try:
-                    seq, q = mp.parse_feedback_line(text, self._names)
-                except ProtocolError as exc:
-                    return self._halt(LinkEventKind.ERROR, str(exc), targets, index, acked)
-                if seq != acked + 1:
-                    return self._halt(LinkEventKind.ERROR,
-                                      f"data link acknowledged target {seq}, expected "
-                                      f"{acked + 1}: {text!r}", targets, index, acked)
-                acked = seq
-                self.last_stream_ack_times.append(time.monotonic())
-                self._last_q = q
-                self._progress_index = int(index[self._nearest(targets, acked, q)])
-                now = time.monotonic()
-                waiting_since = now if sent > acked + 1 else None
-                if now - last_event >= self.event_period_s:
-                    last_event = now
-                    self._emit(LinkEvent(LinkEventKind.MOVED, q.copy(), now, "",
-                                         self._progress_index))
-        return self._finish_stream(targets, index, path)
-
-    @staticmethod
-    def _nearest(targets: Array, upto: int, q: Array) -> int:
-        lo = max(0, upto - 16)
-        d = np.linalg.norm(targets[lo:upto + 1] - q[None], axis=1)
-        return lo + int(np.argmin(d))
-
-    def _finish_stream(self, targets: Array, index: Array, path: Array) -> LinkEvent:
-        """All targets accepted: wait (polling) until the arm is at the last one."""
-        goal = targets[-1]
-        deadline = time.monotonic() + self.timeout_s + 16 * self.stream_cycle_s
-        while True:
-            try:
-                q = self._read_joints()
-                st = self.read_state()
-            except ProtocolError as exc:
-                return self._halt(LinkEventKind.ERROR, str(exc), targets, index,
-                                  len(targets) - 1)
-            self._last_q = q
-            if st.error_code:
-                return self._on_error(st.error_code, targets, index, len(targets) - 1)
-            if np.max(np.abs(q - goal)) <= self.reached_tol_rad:
-                ev = LinkEvent(LinkEventKind.REACHED, q.copy(), time.monotonic(), "reached",
-                               len(path) - 1)
-                self._emit(ev)
-                return ev
-            if time.monotonic() > deadline:
-                return self._halt(LinkEventKind.ERROR, "the arm did not reach the last target "
-                                  f"(off by {np.degrees(np.max(np.abs(q - goal))):.2f} deg)",
-                                  targets, index, len(targets) - 1)
-            time.sleep(max(self.stream_cycle_s, 0.005))
-
-    def _halt(self, kind: LinkEventKind, message: str, targets: Array, index: Array,
-              acked: int, details: dict | None = None) -> LinkEvent:
-        """Stop the program and the arm, read where it is, report `kind`."""
-        with contextlib.suppress(LinkError):
-            self._stop_stream()
-        q = self._last_q
-        with contextlib.suppress(LinkError):
-            q = self._read_joints()
-        self._last_q = q
-        i = int(index[self._nearest(targets, max(acked, 0), q)]) if len(targets) else 0
-        ev = LinkEvent(kind, q.copy(), time.monotonic(), message, i, details or {})
-        self._emit(ev)
-        return ev
-
-    def _on_error(self, code: int, targets: Array, index: Array, acked: int) -> LinkEvent:
-        msg = self._error_message(code)
-        ev = self._controller_stopped(code, f"DSTATE error {code:04d}", 0, message=msg,
-                                      emit=False)
-        i = int(index[self._nearest(targets, max(acked, 0), ev.q)]) if len(targets) else 0
-        ev = LinkEvent(ev.kind, ev.q, ev.time_s, ev.message, i, ev.details)
-        self._emit(ev)
-        return ev
-
+    # ------------------------------------------------------------------ how a move ends
     def _controller_stopped(self, code: int, raw: str, path_index: int, *, stopped: bool = False,
                             message: str | None = None, emit: bool = True) -> LinkEvent:
         """The controller ended a move itself: collision, refusal or STOP."""
@@ -601,96 +365,6 @@ class MelfaLink(OperatorButton, RobotLink):
                        path_index)
         self._emit(ev)
         return ev
-
-    # ------------------------------------------------------------------ programs
-    def program_names(self) -> list[str]:
-        """Programs stored on the controller (PDIR pages until an empty one)."""
-        names: list[str] = []
-        for page in range(256):
-            body = self.command("PDIR" if page == 0 else f"PDIR{page:02X}").body
-            if not body.strip():
-                break
-            names.append(body.split(";", 1)[0].split(".", 1)[0].upper())
-        return names
-
-    def _store_program(self, name: str, lines: list[str]) -> None:
-        chunks = mp.emdat_chunks(lines)
-        if not chunks:
-            raise LinkError("program is empty")
-        self.command("NEW")
-        self.command(f"LOAD={name}")
-        self.request_edit("ECLR")
-        for chunk in chunks:
-            self.request_edit(f"EMDAT{chunk}")
-        self.command("SAVE")
-
-    def request_edit(self, command: str) -> Reply:
-        """A command for the edit slot (TASKMAX + 1), as program editing requires."""
-        slot, self.slot = self.slot, mp.EDIT_SLOT
-        try:
-            return self.command(command)
-        finally:
-            self.slot = slot
-
-    def upload_program(self, name: str, files: dict[str, bytes]) -> str:
-        """Store a program under a name not yet on the controller; returns that name.
-
-        The name is `name` made MELFA-safe (A-Z, 0-9, at most 6 characters) plus a two-digit
-        number chosen against the controller's directory, so a second upload never replaces
-        (or is confused with) the first - the flaw of the 002 bridge.
-        """
-        if not self._connected:
-            raise LinkError("MELFA link is not connected; call connect() first")
-        try:
-            lines = mp.program_lines(files)
-        except UnicodeDecodeError as exc:
-            raise LinkError(f"program files must be ASCII: {exc}") from None
-        taken = set(self.program_names())
-        base = mp.sanitize_program_name(name, max_len=6)
-        unique = next((f"{base}{n:02d}" for n in range(1, 100) if f"{base}{n:02d}" not in taken),
-                      None)
-        if unique is None:
-            raise LinkError(f"controller already holds 99 programs named {base}NN")
-        self._stop_stream()
-        self._store_program(unique, lines)
-        if unique not in self.program_names():
-            raise LinkError(f"controller did not list {unique} after SAVE")
-        return unique
-
-    def run_program(self, name: str, *, wait: bool = True,
-                    on_poll: Callable[[], None] | None = None,
-                    timeout_s: float = 600.0) -> LinkEvent:
-        """Run a stored program in slot 1 (cycle mode); optionally wait until it ends."""
-        if not self._connected:
-            raise LinkError("MELFA link is not connected; call connect() first")
-        self._stop_stream()
-        self._stop.clear()
-        self._pressed = None
-        self.command("SLOTINIT")
-        self.command(f"RUN{mp.sanitize_program_name(name, max_len=12)};1")
-        if not wait:
-            return LinkEvent(LinkEventKind.MOVED, self._last_q.copy(), time.monotonic(),
-                             f"{name} started")
-        deadline = time.monotonic() + timeout_s
-        while True:
-            st = self.read_state()
-            if on_poll:
-                on_poll()
-            if st.error_code:
-                return self._controller_stopped(st.error_code, f"DSTATE error "
-                                                f"{st.error_code:04d}", st.step)
-            if self._stop.is_set():
-                self.command("STOP")
-                return self._controller_stopped(0, "STOP", st.step, stopped=True, message="")
-            if not st.running:
-                self._last_q = self._read_joints()
-                ev = LinkEvent(LinkEventKind.REACHED, self._last_q.copy(), time.monotonic(),
-                               f"{name} finished")
-                self._emit(ev)
-                return ev
-            if time.monotonic() > deadline:
-                raise LinkError(f"{name} still running after {timeout_s:.0f} s")
-            time.sleep(max(self.status_period_s, 0.01))
 
 
 __all__ = ["ControllerRefused", "MelfaLink"]

@@ -12,6 +12,9 @@ so entries pop in the order `lazy_astar`'s heapq pops them: with no edge known t
 both searches close the same nodes in the same order and return the same path. (numba's
 heapq on a list of tuples did the same ~15 % slower; the expansion appends its successors
 to the heap array itself, `graph_kernel.successors_into`.)
+
+Serves (the user-felt figure): the A* of every plan and re-plan: 0.4 s in Python in the
+thesis run.
 """
 
 from __future__ import annotations

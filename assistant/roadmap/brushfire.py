@@ -5,6 +5,9 @@ the numpy formulation swept four 26-neighbourhood reductions over the whole box 
 (~5 ms of a query). This loop visits only each layer's front and the cells it reaches. The
 rules are those of the `voronoi` module docstring, integer for integer (the test compares
 both formulations on random grids and incremental updates).
+
+Serves (the user-felt figure): the Voronoi roads of the world build and every re-plan: 1.8 s
+in Python in the thesis run.
 """
 
 from __future__ import annotations

@@ -5,6 +5,9 @@ Why: the lazy search checks its path's edges in one batched call (`planner._Edge
 laying out every edge's samples and finding each edge's first invalid sample were a dozen
 numpy calls around it (~0.03 ms a call, two or three calls a query). The samples are the
 numpy form's, number for number: a + (k / n) (b - a), k = 0..n.
+
+Serves (the user-felt figure): the roadmap's batched edge checks: 0.1 s in Python in the
+thesis run; a candidate to drop.
 """
 
 from __future__ import annotations

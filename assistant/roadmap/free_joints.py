@@ -6,6 +6,9 @@ was a dozen calls (~0.04 ms a query). The steps are the numpy form's, number for
 segment lengths of the weighted other joints (differences of the weighted values, squares
 summed in order), their running sum, fractions of the whole (or even fractions for a path
 that does not move them), and start + s (goal - start) per free joint.
+
+Serves (the user-felt figure): the found path's free-joint ramp: under 0.1 s in Python; a
+candidate to drop.
 """
 
 from __future__ import annotations

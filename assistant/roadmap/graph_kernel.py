@@ -5,6 +5,9 @@ query), and finding the neighbour cells (27 offsets, the squeeze rule's six face
 exempt cells) and their nodes took ~15 numpy calls, ~40 us. The rules are those of
 `JointGraph.neighbour_cells` and `nodes_of`, in the same order (offsets as
 `itertools.product((-1, 0, 1), repeat=3)`, nodes ascending within a cell).
+
+Serves (the user-felt figure): the search on every plan and re-plan: in the thesis run its
+Python form costs 3.1 s.
 """
 
 from __future__ import annotations

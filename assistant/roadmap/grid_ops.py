@@ -2,6 +2,9 @@
 
 Shared by the brushfire (`voronoi`) and the source labelling (`sources`). Cells outside the
 array count as absent: they contribute the reduction's neutral value.
+
+Serves (the user-felt figure): the start/goal connectivity test when the roads hold no path:
+under 0.1 s in Python; a candidate to drop.
 """
 
 from __future__ import annotations

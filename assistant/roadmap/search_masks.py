@@ -4,6 +4,9 @@ Why: a query's masks - the escape boxes around start and goal, the free cells wi
 the roads (the base labels and the terminals' own) among those - were a dozen numpy
 operations on the whole 32^3 grid (~35 us a query). `RoadmapPlanner.plan` documents what
 each part means; this is the same set logic cell by cell.
+
+Serves (the user-felt figure): the searchable cells of every query: 0.3 s in Python in the
+thesis run.
 """
 
 from __future__ import annotations

@@ -5,6 +5,9 @@ As numpy calls the rounds' bookkeeping (dilations through scipy, bounding boxes,
 comparisons of the whole grid) cost more than the brushfire itself (~1.2 of 1.7 ms a
 query); here each step touches only the bounding box of what it works on. The logic is
 `update_voronoi`'s, step for step (its docstring); the tests compare with full rebuilds.
+
+Serves (the user-felt figure): the roads' update around start and goal on every plan and re-
+plan: 0.8 s in Python in the thesis run.
 """
 
 from __future__ import annotations

@@ -2,6 +2,9 @@
 
 Used by the built-in robots. `DHChain` keeps the table immutable; the per-configuration
 algorithms are free functions over it so they can be vectorised over many configurations.
+
+Serves (the user-felt figure): the link frames of every check: in the thesis run the numpy
+fallback costs 4 s, compiled under 0.1 s.
 """
 
 from __future__ import annotations

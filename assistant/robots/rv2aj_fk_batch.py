@@ -4,6 +4,9 @@ The planners ask for a few to a few dozen poses at a time (a sweep of the elasti
 fitted arc), where the numpy form - two dozen array expressions - cost ~60 us per call
 whatever the batch; the loop costs ~2 us plus ~0.1 us per pose, and is no slower on the
 reachability table's 131k-configuration chunks.
+
+Serves (the user-felt figure): the RV-2AJ's TCP poses in the net and the reachability table:
+0.6 s in Python in the thesis run.
 """
 
 from __future__ import annotations

@@ -7,6 +7,8 @@ only a cheap nearest-neighbour pick per pose. The arithmetic is that of `RV2AJ.i
 `RV2AJ.nearest_reachable_orientation` (for a tool on the flange axis, where the projection
 into the arm plane is one exact rotation); rows it cannot answer the same way (on the J1
 axis, or a projection that does not settle in one step) are flagged for the scalar IK.
+
+Serves (the user-felt figure): the Cartesian moves' IK: 0.3 s in Python in the thesis run.
 """
 
 from __future__ import annotations

@@ -5,6 +5,9 @@ explains the geometry: J1 faces the point, a tool pitch fixes the wrist, J2/J3 s
 two-link triangle on the seed's elbow branch). As numpy it evaluated every candidate pitch
 of every failed row before picking the first that worked; the loop stops at the first, and
 costs no per-call array set-up.
+
+Serves (the user-felt figure): the net's IK next to its seeds: 0.4 s in Python in the thesis
+run.
 """
 
 from __future__ import annotations

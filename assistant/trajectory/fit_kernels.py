@@ -15,6 +15,9 @@ benchmark both give the same primitives. A NaN deviation counts as a miss here (
 let it through as "within tolerance"). The nodes' directions come from their 3x3 Gram matrix
 (`sym3_eigvec`, `sym2_major`) rather than LAPACK's SVD: the same directions to ~1e-13, and
 the same primitives and lengths (to 6e-15 m) on 480 generated transfers, at half the time.
+
+Serves (the user-felt figure): the line/arc fit of every transfer: 0.6 s in Python in the
+thesis run.
 """
 
 from __future__ import annotations

@@ -14,6 +14,10 @@ radius, normal, sweep, first node, last node (lines leave via..sweep at 0). A "r
 None is -1 (remembered per start point and tangent in arrays sized for the worst case,
 `_new_memo`); look-ahead scores (reach, a line gets there, end node, is a line) compare as
 tuples through `_score`.
+
+Serves (the user-felt figure): the fitter's search: under 0.1 s of its own in Python in the
+thesis run (the fits it calls are in fit_kernels); the largest compile (~30 s of one core),
+the first candidate to drop.
 """
 
 from __future__ import annotations

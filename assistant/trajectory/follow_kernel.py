@@ -7,6 +7,9 @@ handful of small numpy calls - about 10 us each, ~1 ms per planning query. The l
 the same arithmetic (Euclidean norm summed in joint order, first minimum, first largest
 jump) and stops where the Python side must take over: a pose the batch cannot answer, or a
 jump.
+
+Serves (the user-felt figure): the Cartesian moves' sample poses: under 0.1 s in Python in
+the thesis run; a candidate to drop.
 """
 
 from __future__ import annotations

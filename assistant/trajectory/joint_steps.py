@@ -5,6 +5,9 @@ assembly tries and every check of one (several a query); as numpy it was eight c
 (~6 us each time). The steps are the numpy form's, number for number: the arm travel
 summed joint by joint in order (np.sum's order for a handful of joints), the count,
 np.linspace's fractions, q0 + f (q1 - q0).
+
+Serves (the user-felt figure): the joint moves' samples: under 0.1 s in Python; a candidate
+to drop.
 """
 
 from __future__ import annotations

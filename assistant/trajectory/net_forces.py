@@ -6,6 +6,9 @@ particles this was ~40 small array operations per colour class, ~0.1 ms per swee
 quarter of the net's time; one compiled loop does the same sweep in a few microseconds.
 The formulas (equidistance, shrink, rotation, the line/curve switch) are documented in
 `elastic_net`; the test compares this kernel with that numpy formulation sweep for sweep.
+
+Serves (the user-felt figure): the elastic net of every plan and re-plan: 0.6 s in Python in
+the thesis run.
 """
 
 from __future__ import annotations

@@ -13,6 +13,9 @@ It needs compiled pieces of the robot (position IK, TCP FK, link frames), of the
 (covering spheres, pruning) and of the world (leaf flags); `elastic_net` uses it when all
 three provide them (`NetKernelModel`) and the numpy path otherwise. Both give the same
 particles bit for bit (tests/planning/test_net_kernel.py runs both).
+
+Serves (the user-felt figure): the elastic net of every plan and re-plan: 0.7 s in Python in
+the thesis run.
 """
 
 from __future__ import annotations

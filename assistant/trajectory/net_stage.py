@@ -12,6 +12,10 @@ arrays: the mean movement E and the taut test's lengths are summed as numpy sums
 tests compare with the sweep-by-sweep form). The one step that cannot run here is FCL, for
 the moves the broad phase cannot clear: a sweep that needs it is rolled back (its state was
 copied first) and handed to Python, which runs it the old way and then calls in again.
+
+Serves (the user-felt figure): the elastic net's sweeps between progress reports: 0.15 s in
+Python in the thesis run; a candidate to drop (its compile costs far more than it saves a
+first-time user).
 """
 
 from __future__ import annotations

@@ -4,6 +4,9 @@ The elastic net asks "is each proposed TCP point (and its edge midpoints) in a f
 once or twice per sweep, a few dozen points at a time; through `OctreeGrid.flat_of_points`
 that was six numpy calls and ~40 us per question. The arithmetic is the grid's own:
 leaf index floor((p - origin) / leaf) per axis, outside the cube (or NaN) -> False.
+
+Serves (the user-felt figure): the octree lookups of the net and the world build: 0.3 s in
+Python in the thesis run.
 """
 
 from __future__ import annotations

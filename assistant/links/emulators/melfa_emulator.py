@@ -7,6 +7,10 @@ interpreter; the arm moves in time at the model's joint speeds, refuses out-of-r
 with the real reply shape (``QeR2600``), stops before hidden obstacles (error 1010, replies
 then start with ``Qok``), and can be told to drop connections, answer late or garble.
 
+This module holds the command port and the program runs; `melfa_machine` holds what the
+interpreter drives (moves, servo, data-link channels) and `melfa_sockets` the connections and
+data-link ports.
+
 Run as a script for demos::
 
     python -m assistant.links.emulators.melfa_emulator --port 10001 --datalink-port 10002
@@ -15,12 +19,10 @@ Run as a script for demos::
 from __future__ import annotations
 
 import argparse
-import contextlib
 import socket
 import socketserver
 import threading
 import time
-from collections import deque
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 
@@ -28,167 +30,21 @@ import numpy as np
 
 from assistant.collision.reports import ObstacleView
 from assistant.links import melfa_protocol as mp
-from assistant.links.arm_config import matches_melfa_flags
-from assistant.links.emulators.arm import CollisionInfo, EmulatedArm, solve_wire_pose
-from assistant.links.emulators.cartesian import arc_poses, line_poses
+from assistant.links.emulators.arm import CollisionInfo, EmulatedArm
 from assistant.links.emulators.faults import Faults, Received
+from assistant.links.emulators.melfa_machine import MelfaMachine
 from assistant.links.emulators.melfa_program import (
     Interpreter,
     MelfaProgram,
     ProgramError,
     ProgramSyntaxError,
 )
+from assistant.links.emulators.melfa_sockets import POLL_S, DataLinkPort, LineConnection
 from assistant.links.emulators.until_stopped import wait_until_stopped
-from assistant.links.melfa_protocol import DState, MelfaPose
+from assistant.links.melfa_protocol import DState
 from assistant.robots.model import Robot
 
 Array = np.ndarray
-_POLL = 0.05  # seconds between checks of stop flags in blocking reads
-
-
-class _Conn:
-    """A client socket with a line buffer; closed by the owner on drop."""
-
-    def __init__(self, sock: socket.socket):
-        self.sock = sock
-        self.buf = b""
-        self.closed = False
-
-    def close(self) -> None:
-        self.closed = True
-        with contextlib.suppress(OSError):
-            self.sock.shutdown(socket.SHUT_RDWR)
-        self.sock.close()
-
-    def readline(self, stop: threading.Event) -> str | None:
-        """Next CR/LF-terminated line, or None on EOF / stop."""
-        while True:
-            self.buf = self.buf.lstrip(b"\r\n")
-            ends = [i for i in (self.buf.find(b"\r"), self.buf.find(b"\n")) if i >= 0]
-            if ends:
-                i = min(ends)
-                line, self.buf = self.buf[:i], self.buf[i + 1:]
-                return line.decode("ascii", errors="replace")
-            if stop.is_set() or self.closed:
-                return None
-            try:
-                chunk = self.sock.recv(4096)
-            except TimeoutError:
-                continue
-            except OSError:
-                return None
-            if not chunk:
-                return None
-            self.buf += chunk
-
-
-class DataLinkPort:
-    """An Ethernet data-link port (one COMn:): a listener whose newest client is the channel."""
-
-    def __init__(self, emulator: MelfaEmulator, com: int, host: str, port: int):
-        self.emu = emulator
-        self.com = com
-        self._listener = socket.create_server((host, port))
-        self._listener.settimeout(_POLL)
-        self.port = self._listener.getsockname()[1]
-        self._conn: _Conn | None = None
-        self._cond = threading.Condition()
-        self._closed = threading.Event()
-        self._late: deque[tuple[float, _Conn, bytes]] = deque()
-        self._thread = threading.Thread(target=self._accept_loop, name=f"melfa-com{com}",
-                                        daemon=True)
-        self._thread.start()
-        self._late_thread = threading.Thread(target=self._late_loop,
-                                             name=f"melfa-com{com}-late", daemon=True)
-        self._late_thread.start()
-
-    def _accept_loop(self) -> None:
-        while not self._closed.is_set():
-            try:
-                sock, _ = self._listener.accept()
-            except TimeoutError:
-                continue
-            except OSError:
-                return
-            sock.settimeout(_POLL)
-            with self._cond:
-                if self._conn is not None:
-                    self._conn.close()
-                self._conn = _Conn(sock)
-                self._cond.notify_all()
-
-    def wait_connection(self, abort: threading.Event) -> _Conn | None:
-        with self._cond:
-            while (self._conn is None or self._conn.closed) and not abort.is_set() \
-                    and not self._closed.is_set():
-                self._cond.wait(_POLL)
-            return self._conn if self._conn is not None and not self._conn.closed else None
-
-    def readline(self, abort: threading.Event) -> str:
-        conn = self.wait_connection(abort)
-        if conn is None:
-            return ""
-        line = conn.readline(abort)
-        if line is None:
-            if abort.is_set():
-                return ""
-            raise ProgramError(mp.ERR_DATALINK_LOST, f"COM{self.com}: connection closed")
-        self.emu._log(f"COM{self.com}", line)
-        return line
-
-    def write(self, text: str, abort: threading.Event) -> None:
-        """Send a line; a reply delay (fault) holds it back without blocking the program,
-        as a controller's output buffer would."""
-        with self._cond:
-            conn = self._conn
-        if conn is None or conn.closed:
-            raise ProgramError(mp.ERR_DATALINK_LOST, f"COM{self.com}: not connected")
-        out, delay = self.emu.faults.take_reply(text)
-        data = (out + mp.TERMINATOR).encode("ascii", errors="replace")
-        if delay > 0:
-            with self._cond:
-                self._late.append((time.monotonic() + delay, conn, data))
-                self._cond.notify_all()
-            return
-        try:
-            conn.sock.sendall(data)
-        except OSError:
-            raise ProgramError(mp.ERR_DATALINK_LOST, f"COM{self.com}: send failed") from None
-
-    def _late_loop(self) -> None:
-        """Sends held-back lines when they are due (in order)."""
-        while not self._closed.is_set():
-            with self._cond:
-                while not self._late and not self._closed.is_set():
-                    self._cond.wait(_POLL)
-                if self._closed.is_set():
-                    return
-                due, conn, data = self._late[0]
-                wait = due - time.monotonic()
-                if wait > 0:
-                    self._cond.wait(min(wait, _POLL))
-                    continue
-                self._late.popleft()
-            if not conn.closed:
-                with contextlib.suppress(OSError):
-                    conn.sock.sendall(data)
-
-    def drop(self) -> None:
-        """Close the channel's connection; unread data and held-back lines are discarded."""
-        with self._cond:
-            if self._conn is not None:
-                self._conn.close()
-            self._conn = None
-            self._late.clear()
-
-    def close(self) -> None:
-        self._closed.set()
-        self.drop()
-        self._listener.close()
-        with self._cond:
-            self._cond.notify_all()
-        self._thread.join(timeout=2.0)
-        self._late_thread.join(timeout=2.0)
 
 
 @dataclass
@@ -199,7 +55,7 @@ class _RunningProgram:
     thread: threading.Thread | None = None
 
 
-class MelfaEmulator:
+class MelfaEmulator(MelfaMachine):
     """A CR-series controller emulator: command port + data-link ports + a moving model.
 
     Args:
@@ -247,7 +103,7 @@ class MelfaEmulator:
         self._direct_lock = threading.Lock()
         self.received: list[Received] = []
         self._recv_lock = threading.Lock()
-        self._conns: set[_Conn] = set()
+        self._conns: set[LineConnection] = set()
         self._closed = threading.Event()
         self._port_req = port
         self._dl_req = dict(datalink_ports or {mp.STREAM_COM: 0})
@@ -269,7 +125,7 @@ class MelfaEmulator:
 
         self._server = Server((self.host, self._port_req), Handler)
         self._server_thread = threading.Thread(target=self._server.serve_forever,
-                                               kwargs={"poll_interval": _POLL},
+                                               kwargs={"poll_interval": POLL_S},
                                                name="melfa-command", daemon=True)
         self._server_thread.start()
         for com, p in self._dl_req.items():
@@ -306,7 +162,7 @@ class MelfaEmulator:
         return self.datalinks[com].port
 
     # ------------------------------------------------------------------ logs
-    def _log(self, channel: str, text: str) -> None:
+    def log_received(self, channel: str, text: str) -> None:
         with self._recv_lock:
             self.received.append(Received(channel, time.monotonic(), text))
 
@@ -316,8 +172,8 @@ class MelfaEmulator:
 
     # ------------------------------------------------------------------ command port
     def _serve(self, sock: socket.socket) -> None:
-        sock.settimeout(_POLL)
-        conn = _Conn(sock)
+        sock.settimeout(POLL_S)
+        conn = LineConnection(sock)
         with self._lock:
             self._conns.add(conn)
         try:
@@ -325,7 +181,7 @@ class MelfaEmulator:
                 line = conn.readline(self._closed)
                 if line is None:
                     return
-                self._log("command", line)
+                self.log_received("command", line)
                 reply = self.handle(line)
                 out, delay = self.faults.take_reply(reply)
                 if delay > 0:
@@ -533,107 +389,6 @@ class MelfaEmulator:
             c.close()
         for dl in self.datalinks.values():
             dl.drop()
-
-    # ------------------------------------------------------------------ Machine protocol
-    def current_q(self) -> Array:
-        return self.arm.q
-
-    def current_pose(self) -> MelfaPose:
-        q = self.arm.q
-        fl1, fl2 = mp.pose_flags(self.robot, q)
-        return MelfaPose(self.robot.fk(q), fl1, fl2)
-
-    def panel_override(self) -> float:
-        return self.panel_ovrd
-
-    def set_servo(self, on: bool) -> None:
-        self.servo_on = on
-        if not on:
-            self.arm.stop_all("stopped")
-
-    def set_hand(self, n: int, closed: bool) -> None:
-        self.hands[n] = closed
-
-    def sleep(self, robot_seconds: float, abort: threading.Event) -> None:
-        abort.wait(max(0.0, robot_seconds) / self.time_scale)
-
-    def datalink_open(self, com: int, abort: threading.Event) -> None:
-        if com not in self.datalinks:
-            raise ProgramError(mp.ERR_ILLEGAL_DATA, f"COM{com}: is not a data-link port")
-        self.datalinks[com].wait_connection(abort)
-
-    def datalink_readline(self, com: int, abort: threading.Event) -> str:
-        return self.datalinks[com].readline(abort)
-
-    def datalink_write(self, com: int, text: str, abort: threading.Event) -> None:
-        self.datalinks[com].write(text, abort)
-
-    def _joints_for(self, value: object, seed: Array) -> Array:
-        if isinstance(value, MelfaPose):
-            q, why = solve_wire_pose(
-                self.robot, value.T_base_tool, seed,
-                lambda s: matches_melfa_flags(self.robot, s, value.fl1, value.fl2))
-            if q is None:
-                raise ProgramError(mp.ERR_UNREACHABLE, why)
-            return q
-        if isinstance(value, float):
-            raise ProgramError(mp.ERR_ILLEGAL_DATA, "a move needs a position")
-        q = np.asarray(value, dtype=float)
-        if not self.robot.limits.contains(q):
-            raise ProgramError(mp.ERR_JOINT_RANGE, ", ".join(
-                self.robot.limits.violations(q, self.joint_names)))
-        return q
-
-    def _pose_of(self, value: object, seed: Array) -> Array:
-        if isinstance(value, MelfaPose):
-            return value.T_base_tool
-        return self.robot.fk(self._joints_for(value, seed))
-
-    def _cartesian(self, poses: list[Array], seed: Array) -> list[Array]:
-        out, q = [], seed
-        for T in poses:
-            q_new, why = solve_wire_pose(self.robot, T, q, lambda s: True,
-                                       project_tol_rad=np.pi)
-            if q_new is None or np.max(np.abs(q_new - q)) > 0.35:
-                raise ProgramError(mp.ERR_UNREACHABLE, why or "configuration flip on the path")
-            out.append(q_new)
-            q = q_new
-        return out
-
-    def move(self, targets: list[object], kind: str, speed: float, blend: bool,
-             abort: threading.Event) -> None:
-        if not self.servo_on:
-            raise ProgramError(mp.ERR_SERVO_OFF, "servo is off")
-        if self.error_code:
-            raise ProgramError(self.error_code, "controller in error")
-        start = self.arm.planned_end()
-        if kind == "MOV":
-            waypoints = [self._joints_for(targets[0], start)]
-        elif kind == "MVS":
-            T0 = self.robot.fk(start)
-            T1 = self._pose_of(targets[0], start)
-            waypoints = self._cartesian(line_poses(T0, T1), start)
-        else:
-            Ta, Tb, Tc = (self._pose_of(t, start) for t in targets)
-            poses = [] if np.linalg.norm(self.robot.fk(start)[:3, 3] - Ta[:3, 3]) < 1e-4 \
-                else line_poses(self.robot.fk(start), Ta)
-            try:
-                arc = arc_poses(Ta, Tb, Tc)
-            except ValueError as exc:
-                raise ProgramError(mp.ERR_ILLEGAL_DATA, str(exc)) from None
-            waypoints = self._cartesian(poses + arc, start)
-        motion = self.arm.enqueue(np.array(waypoints), speed, kind)
-        if blend:
-            # CNT: the program runs on while this move executes (one move of look-ahead).
-            self.arm.wait_queue_at_most(2, abort)
-            if motion.outcome == "collision":
-                raise ProgramError(mp.ERR_COLLISION, "collision")
-            return
-        outcome = self.arm.wait(motion, abort=abort)
-        if outcome == "collision":
-            raise ProgramError(mp.ERR_COLLISION, "collision")
-        if outcome in ("dropped", "stopped") and not abort.is_set():
-            raise ProgramError(mp.ERR_ILLEGAL_DATA, f"move {outcome}")
 
 
 def _parse_box(text: str):
