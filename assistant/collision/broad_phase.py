@@ -18,7 +18,7 @@ import numpy as np
 
 from assistant.collision.segment_box import segment_box_distance_one
 from assistant.kernels.lazy import kernel
-from assistant.robots.dh import chain_row
+from assistant.robots.dh import chain_frames_numpy, chain_row
 
 Array = np.ndarray
 
@@ -275,7 +275,79 @@ def _pose(frames: Array, ready: Array, Q: Array, F: Array, k: int, T: Array) -> 
         ready[k] = True
 
 
-@kernel(cache=True)
+def _pose_and_broad_numpy(frames: Array, ready: Array, F: Array, Q: Array, rows: Array,
+                         sph_link: Array, sph_local: Array, sph_r: Array, sph_shape: Array,
+                         env_lo: Array, env_hi: Array, sp_a: Array, sp_b: Array,
+                         sp_pair: Array, env_c: Array, self_c: Array, shape_link: Array,
+                         seg_a: Array, seg_b: Array, seg_r: Array, box_R: Array, box_c: Array,
+                         box_h: Array, pair_a: Array, pair_b: Array, apart: float,
+                         status: Array) -> Array:
+    """Pose `rows` (unless ready), give them the broad phase as array expressions and prune
+    the rows it flags; status FREE or ASK_FCL per row into `status`; returns their gaps."""
+    todo = rows[~ready[rows]]
+    if todo.size:
+        frames[todo] = chain_frames_numpy(Q[todo], F)
+        ready[todo] = True
+    env_r = np.zeros((rows.size,) + env_c.shape[1:], dtype=np.bool_)
+    self_r = np.zeros((rows.size,) + self_c.shape[1:], dtype=np.bool_)
+    gap = _broad_rows_numpy(frames[rows], sph_link, sph_local, sph_r, sph_shape, env_lo,
+                            env_hi, sp_a, sp_b, sp_pair, env_r, self_r)[0]
+    env_c[rows], self_c[rows] = env_r, self_r
+    A, B = np.empty((seg_r.shape[0], 3)), np.empty((seg_r.shape[0], 3))
+    la, lb = np.empty(3), np.empty(3)
+    flagged = env_r.reshape(rows.size, -1).any(axis=1) | self_r.any(axis=1)
+    status[rows] = FREE
+    for k in rows[flagged]:
+        status[k] = _prune_and_flag(frames, k, env_c, self_c, shape_link, seg_a, seg_b, seg_r,
+                                    box_R, box_c, box_h, pair_a, pair_b, apart, A, B, la, lb)
+    return gap
+
+
+def _certify_samples_numpy(frames: Array, ready: Array, F: Array, Q: Array, inside: Array,
+                           first: Array, last: Array, stride: int, radii: Array,
+                           sph_link: Array, sph_local: Array, sph_r: Array, sph_shape: Array,
+                           env_lo: Array, env_hi: Array, sp_a: Array, sp_b: Array,
+                           sp_pair: Array, n_shapes: int, n_pairs: int, shape_link: Array,
+                           seg_a: Array, seg_b: Array, seg_r: Array, box_R: Array,
+                           box_c: Array, box_h: Array, pair_a: Array, pair_b: Array,
+                           apart: float) -> tuple[Array, Array, Array]:
+    """`certify_samples` as array expressions (its fallback until compiled): every row within
+    the limits gets the broad phase itself - none is certified by a neighbour's margin, so
+    the answers are the same (FREE where the kernel says CERTIFIED) for more arithmetic."""
+    n = Q.shape[0]
+    env_c = np.zeros((n, n_shapes, env_lo.shape[0]), dtype=np.bool_)
+    self_c = np.zeros((n, n_pairs), dtype=np.bool_)
+    status = np.full(n, OUTSIDE_LIMITS, dtype=np.int8)
+    rows = np.flatnonzero(inside)
+    if rows.size:
+        _pose_and_broad_numpy(frames, ready, F, Q, rows, sph_link, sph_local, sph_r, sph_shape,
+                              env_lo, env_hi, sp_a, sp_b, sp_pair, env_c, self_c, shape_link,
+                              seg_a, seg_b, seg_r, box_R, box_c, box_h, pair_a, pair_b, apart,
+                              status)
+    return status, env_c, self_c
+
+
+def _margin_rows_numpy(frames: Array, ready: Array, F: Array, Q: Array, sph_link: Array,
+                       sph_local: Array, sph_r: Array, sph_shape: Array, env_lo: Array,
+                       env_hi: Array, sp_a: Array, sp_b: Array, sp_pair: Array, n_shapes: int,
+                       n_pairs: int, shape_link: Array, seg_a: Array, seg_b: Array,
+                       seg_r: Array, box_R: Array, box_c: Array, box_h: Array, pair_a: Array,
+                       pair_b: Array, apart: float) -> tuple[Array, Array, Array, Array]:
+    """`margin_rows` as array expressions (its fallback until compiled)."""
+    n = Q.shape[0]
+    env_c = np.zeros((n, n_shapes, env_lo.shape[0]), dtype=np.bool_)
+    self_c = np.zeros((n, n_pairs), dtype=np.bool_)
+    status = np.zeros(n, dtype=np.int8)
+    gap = np.full(n, np.inf)
+    if n:
+        gap = _pose_and_broad_numpy(frames, ready, F, Q, np.arange(n), sph_link, sph_local,
+                                    sph_r, sph_shape, env_lo, env_hi, sp_a, sp_b, sp_pair,
+                                    env_c, self_c, shape_link, seg_a, seg_b, seg_r, box_R,
+                                    box_c, box_h, pair_a, pair_b, apart, status)
+    return status, gap, env_c, self_c
+
+
+@kernel(cache=True, fallback=_certify_samples_numpy)
 def certify_samples(frames: Array, ready: Array, F: Array, Q: Array, inside: Array,
                     first: Array, last: Array,
                     stride: int, radii: Array, sph_link: Array, sph_local: Array,
@@ -372,7 +444,7 @@ def certify_samples(frames: Array, ready: Array, F: Array, Q: Array, inside: Arr
     return status, env_c, self_c
 
 
-@kernel(cache=True)
+@kernel(cache=True, fallback=_margin_rows_numpy)
 def margin_rows(frames: Array, ready: Array, F: Array, Q: Array, sph_link: Array,
                 sph_local: Array, sph_r: Array, sph_shape: Array, env_lo: Array,
                 env_hi: Array, sp_a: Array, sp_b: Array, sp_pair: Array, n_shapes: int,

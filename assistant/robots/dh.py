@@ -10,6 +10,7 @@ fallback costs 4 s, compiled under 0.1 s.
 from __future__ import annotations
 
 import functools
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -89,7 +90,7 @@ def batch_chain_frames(chain: DHChain, Q: Array) -> tuple[Array, Array]:
     return frames, frames[:, -1] @ F[-1]
 
 
-def _chain_frames_numpy(Q: Array, F: Array) -> Array:
+def chain_frames_numpy(Q: Array, F: Array) -> Array:
     """`_chain_frames_kernel` as batched numpy, for the configurations all at once (its
     fallback until the kernel is compiled: the world build poses ~400 000 configurations)."""
     N, n = Q.shape
@@ -107,12 +108,20 @@ def _chain_frames_numpy(Q: Array, F: Array) -> Array:
 
 
 def _chain_row_numpy(q: Array, F: Array, out: Array, T: Array) -> None:
-    """`chain_row` in numpy (its fallback until compiled)."""
-    out[:] = _chain_frames_numpy(q.reshape(1, -1), F)[0]
-    T[:] = out[-1] @ F[q.shape[0] - 1] if q.shape[0] else np.eye(4)
+    """`chain_row` with numpy columns (its fallback until compiled; one configuration)."""
+    M = np.eye(4)
+    out[0] = M
+    for i in range(q.shape[0]):
+        c, s = math.cos(q[i]), math.sin(q[i])
+        Ti = out[i + 1]
+        Ti[:, 0] = c * M[:, 0] + s * M[:, 1]
+        Ti[:, 1] = c * M[:, 1] - s * M[:, 0]
+        Ti[:, 2:] = M[:, 2:]
+        M = Ti @ F[i]
+    T[:] = M
 
 
-@kernel(cache=True, fallback=_chain_frames_numpy)
+@kernel(cache=True, fallback=chain_frames_numpy)
 def _chain_frames_kernel(Q: Array, F: Array) -> Array:
     """frames[k, i + 1] = frames[k, i] F[i - 1] Rz(Q[k, i]) (F[-1] only after), base = I."""
     N, n = Q.shape

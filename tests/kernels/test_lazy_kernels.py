@@ -16,8 +16,8 @@ from assistant.collision.broad_phase import _sphere_broad_phase_numpy, sphere_br
 from assistant.kernels import lazy
 from assistant.robots.dh import (
     _chain_frames_kernel,
-    _chain_frames_numpy,
     _chain_row_numpy,
+    chain_frames_numpy,
     chain_row,
 )
 from assistant.robots.rv2aj import RV2AJ, RV2AJConfig
@@ -125,7 +125,7 @@ def test_chain_frames_fallback_agrees_with_the_kernel(rng):
     Q = rng.uniform(-3.0, 3.0, size=(50, F.shape[0]))
     # 1e-12: six 4x4 products of unit-size entries, each rounding ~1e-16 relative; the two
     # forms sum the same products in another order
-    np.testing.assert_allclose(_chain_frames_numpy(Q, F), _chain_frames_kernel(Q, F),
+    np.testing.assert_allclose(chain_frames_numpy(Q, F), _chain_frames_kernel(Q, F),
                                rtol=0, atol=1e-12)
     out_a, out_b = np.empty((F.shape[0] + 1, 4, 4)), np.empty((F.shape[0] + 1, 4, 4))
     T_a, T_b = np.empty((4, 4)), np.empty((4, 4))
@@ -134,7 +134,7 @@ def test_chain_frames_fallback_agrees_with_the_kernel(rng):
     np.testing.assert_allclose(out_a, out_b, rtol=0, atol=1e-12)
     np.testing.assert_allclose(T_a, T_b, rtol=0, atol=1e-12)
     # a wrong angle is seen
-    assert not np.allclose(_chain_frames_numpy(Q + 1e-6, F), _chain_frames_kernel(Q, F),
+    assert not np.allclose(chain_frames_numpy(Q + 1e-6, F), _chain_frames_kernel(Q, F),
                            rtol=0, atol=1e-12)
 
 
@@ -160,3 +160,42 @@ def test_broad_phase_fallback_agrees_with_the_kernel(rng):
     np.testing.assert_array_equal(env_a, env_b)
     np.testing.assert_array_equal(self_a, self_b)
     np.testing.assert_allclose(gap_a, gap_b, rtol=0, atol=1e-12)  # metres
+
+
+def test_pending_checks_give_the_compiled_answers(rng):
+    """The collision checks a first run makes before its kernels are compiled (numpy
+    fallbacks, kernels' own Python) answer as the compiled ones do."""
+    from assistant.collision.checker import CollisionChecker
+    from assistant.collision.reports import Obstacle
+    from assistant.robots.model import CollisionShape, ShapeKind, Tool
+    from assistant.transforms import make_T
+
+    robot = RV2AJ(RV2AJConfig(tool=Tool.straight(0.1)))
+    blocks = [Obstacle(f"b{i}", make_T(p=rng.uniform([0.15, -0.3, 0.0], [0.45, 0.3, 0.4])),
+                       (CollisionShape(ShapeKind.BOX, tuple(rng.uniform(0.04, 0.15, 3))),))
+              for i in range(4)]
+    checker = CollisionChecker(robot, blocks)
+    lo, hi = robot.limits.lower, robot.limits.upper
+    Q = rng.uniform(lo, hi, size=(300, robot.dof))
+    Q[::7] = rng.uniform(lo - 0.3, hi + 0.3, size=Q[::7].shape)  # some outside the limits
+    path = np.linspace(Q[0], Q[1], 40)
+
+    def answers():
+        return (checker.is_valid_batch(Q), checker.is_valid_batch_margin(Q)[0],
+                checker.is_valid_samples(Q), _first_bad(checker.check_path(list(path))))
+
+    compiled = answers()
+    lazy.set_pending(True)
+    try:
+        pending = answers()
+    finally:
+        lazy.set_pending(False)
+    assert 0 < compiled[0].sum() < len(Q)  # both free and colliding rows
+    for a, b in zip(compiled[:3], pending[:3], strict=True):
+        np.testing.assert_array_equal(a, b)  # validity is exact: FCL decides both
+    assert compiled[3] == pending[3]
+
+
+def _first_bad(found):
+    """check_path's first invalid segment and the fraction along it (None: all valid)."""
+    return None if found is None else (found[0], found[1].first_invalid_fraction)
