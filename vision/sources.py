@@ -23,7 +23,8 @@ import numpy as np
 from vision.camera_model import CameraModel
 from vision.errors import CameraClosed, CameraError, CameraTimeout, FrameError
 from vision.frame import Frame
-from vision.render import CanvasGeometry, ball_truth, make_background, render_scene
+from vision.render import CanvasGeometry, ball_truth, render_scene
+from vision.render_backdrop import make_background
 from vision.scene import PointerScene
 
 

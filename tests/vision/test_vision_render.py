@@ -10,14 +10,9 @@ import pytest
 
 from vision.calibration_targets import ChessboardSpec
 from vision.camera_model import CameraModel
-from vision.render import (
-    Canvas,
-    CanvasGeometry,
-    _draw_sphere_reference,
-    draw_sphere,
-    make_background,
-    render_scene,
-)
+from vision.render import CanvasGeometry, render_scene
+from vision.render_backdrop import make_background
+from vision.render_primitives import Canvas, _draw_sphere_reference, draw_sphere
 from vision.rigs import look_at
 from vision.scene import (
     BLUE_MARKER_BGR,
