@@ -1,69 +1,29 @@
-"""URDF robots: loading, FK against pinocchio, batch FK, numeric IK, errors; RV-2AJ's URDF."""
+"""URDF robots: loading, mesh paths, FK against pinocchio, batch FK, the description."""
 
 from __future__ import annotations
 
-import functools
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 import pytest
 import trimesh
+from urdf_builders import (
+    PANDA_URDF,
+    POS_TOL,
+    SHARE,
+    UR5_URDF,
+    _arm_urdf,
+    _pin_fk,
+    _random_q,
+)
 
 from assistant.robots.batch_chain import BatchChain, ChainJoint, JointKind, sincos
-from assistant.robots.catalog import RobotModelError, RobotSpec, ToolSpec, installed_robot_urdf
-from assistant.robots.model import IKFailure, ShapeKind, Tool
-from assistant.robots.rv2aj import RV2AJ
+from assistant.robots.catalog import RobotModelError, RobotSpec, ToolSpec
+from assistant.robots.model import ShapeKind, Tool
 from assistant.robots.urdf_parse import COLLISION_FACE_LIMIT, TCP_FRAME
 from assistant.robots.urdf_robot import URDFRobot
-from assistant.transforms import make_T, rot_x, rot_y, rotation_angle
-
-POS_TOL = 2e-6  # m: IK tolerance 1e-6 plus rounding
-ROT_TOL = 2e-5  # rad
-
-
-UR5_URDF, SHARE = installed_robot_urdf(
-    "example-robot-data/robots/ur_description/urdf/ur5_robot.urdf")
-ROBOTS = SHARE / "example-robot-data" / "robots"
-PANDA_URDF = ROBOTS / "panda_description" / "urdf" / "panda.urdf"
-
-
-@pytest.fixture(scope="module")
-def ur5() -> URDFRobot:
-    return URDFRobot.from_file(UR5_URDF, package_dirs=[SHARE])
-
-
-@pytest.fixture(scope="module")
-def panda() -> URDFRobot:
-    # No package_dirs: package://example-robot-data/... is found among the URDF's ancestors.
-    return URDFRobot.from_file(PANDA_URDF, tool_link="panda_hand")
-
-
-def _pin_fk(urdf: Path | str, robot: URDFRobot, q: np.ndarray, frame: str,
-            locked: dict[str, float] | None = None, from_xml: bool = False) -> np.ndarray:
-    """Reference: pinocchio's full model, chain joints at q, everything else at 0."""
-    model = _pin_model(str(urdf), from_xml)
-    data = model.createData()
-    qf = pin.neutral(model)
-    for name, v in list(zip(robot.joint_names, q, strict=True)) + list((locked or {}).items()):
-        j = model.joints[model.getJointId(name)]
-        if j.nq == 2:
-            qf[j.idx_q:j.idx_q + 2] = np.cos(v), np.sin(v)
-        else:
-            qf[j.idx_q] = v
-    pin.framesForwardKinematics(model, data, qf)
-    T_root_base = data.oMf[model.getFrameId(robot.base_link)].homogeneous
-    return np.linalg.inv(T_root_base) @ data.oMf[model.getFrameId(frame)].homogeneous
-
-
-@functools.lru_cache(maxsize=8)
-def _pin_model(urdf: str, from_xml: bool) -> pin.Model:
-    return pin.buildModelFromXML(urdf) if from_xml else pin.buildModelFromUrdf(urdf)
-
-
-def _random_q(robot, n: int, seed: int) -> np.ndarray:
-    return np.random.default_rng(seed).uniform(robot.limits.lower, robot.limits.upper,
-                                               (n, robot.dof))
+from assistant.transforms import make_T, rot_x, rot_y
 
 
 # ------------------------------------------------------------------------------ loading
@@ -280,101 +240,6 @@ def test_arm_radii_bound_the_motion_of_the_tcp(ur5):
         assert moved <= float(radii @ np.abs(dq)) + 1e-12
 
 
-# ------------------------------------------------------------------------------ IK
-@pytest.mark.parametrize("which", ["ur5", "panda"])
-def test_ik_round_trip_full_pose(which, request):
-    robot = request.getfixturevalue(which)
-    several = 0
-    for q in _random_q(robot, 6, seed=8):
-        T = robot.fk(q)
-        res = robot.ik(T)
-        assert res.ok, res.message
-        several += len(res.solutions) >= 2
-        for s in res.solutions:
-            assert robot.limits.contains(s)
-            T_s = robot.fk(s)
-            assert np.linalg.norm(T_s[:3, 3] - T[:3, 3]) < POS_TOL
-            assert rotation_angle(T_s[:3, :3].T @ T[:3, :3]) < ROT_TOL
-        for a in range(len(res.solutions)):
-            for b in range(a):
-                assert np.linalg.norm(res.solutions[a] - res.solutions[b]) > 1e-3
-    assert several >= 4  # restarts find distinct configurations for most targets
-
-
-@pytest.mark.parametrize("which", ["ur5", "panda"])
-def test_ik_position_only(which, request):
-    robot = request.getfixturevalue(which)
-    for q in _random_q(robot, 6, seed=9):
-        p = robot.fk(q)[:3, 3]
-        res = robot.ik(make_T(rot_x(1.0), p), position_only=True)  # orientation ignored
-        assert res.ok, res.message
-        for s in res.solutions:
-            assert robot.limits.contains(s)
-            assert np.linalg.norm(robot.fk(s)[:3, 3] - p) < POS_TOL
-
-
-def test_ik_with_seed_returns_the_nearby_solution_first(panda):
-    q = _random_q(panda, 1, seed=10)[0]
-    res = panda.ik(panda.fk(q), seed=q + 0.03)
-    assert res.ok
-    assert np.linalg.norm(res.solutions[0] - q) < 0.1  # 7 dof: redundant, but it stays close
-    one = panda.ik(panda.fk(q), seed=q + 0.03, max_solutions=1)
-    assert len(one.solutions) == 1
-
-
-def test_ik_is_deterministic(ur5):
-    T = ur5.fk(_random_q(ur5, 1, seed=11)[0])
-    a, b = ur5.ik(T), ur5.ik(T)
-    # a run compared with itself (same input, same process): exact
-    assert len(a.solutions) == len(b.solutions)
-    assert all(np.array_equal(x, y) for x, y in zip(a.solutions, b.solutions, strict=True))
-
-
-def test_ik_accepts_a_rounded_rotation_and_refuses_a_non_rotation(ur5):
-    q = _random_q(ur5, 1, seed=12)[0]
-    T = ur5.fk(q)
-    rounded = T.copy()
-    rounded[:3, :3] = np.round(T[:3, :3], 3)  # as stored in a file with 3 decimals
-    assert np.max(np.abs(rounded[:3, :3].T @ rounded[:3, :3] - np.eye(3))) > 1e-6
-    res = ur5.ik(rounded, seed=q)
-    assert res.ok
-    assert np.allclose(ur5.fk(res.solutions[0])[:3, 3], T[:3, 3], atol=1e-4)
-    skewed = T.copy()
-    skewed[:3, :3] *= 1.2
-    with pytest.raises(ValueError, match="not a rotation"):
-        ur5.ik(skewed)
-
-
-def test_ik_reach_failure_offers_nearest_pose(ur5):
-    T = make_T(p=[2.0, 0.5, 0.3])
-    res = ur5.ik(T)
-    assert not res.ok and res.failure == IKFailure.REACH
-    assert "reach" in res.message
-    near = res.nearest_T_base_tool
-    # the arm stretched towards the target: nearer than the home pose
-    assert np.linalg.norm(near[:3, 3] - T[:3, 3]) < np.linalg.norm(
-        ur5.fk(np.zeros(6))[:3, 3] - T[:3, 3])
-
-
-def test_ik_joint_limit_failure_names_the_joint(ur5):
-    q = np.array([1.5, -1.0, 1.2, -0.5, 1.0, 0.3])
-    T = ur5.fk(q)
-    narrow = np.column_stack([ur5.limits.lower, ur5.limits.upper])
-    narrow[0] = (-0.1, 0.1)  # shoulder_pan cannot turn towards the target (either branch)
-    res = ur5.with_limits(narrow).ik(T)
-    assert res.failure == IKFailure.JOINT_LIMIT
-    assert "shoulder_pan_joint" in res.message
-    assert res.nearest_T_base_tool is not None
-
-
-def test_ik_no_convergence_for_an_impossible_point(tmp_path):
-    """A planar arm cannot leave its plane, even inside its reach."""
-    robot = URDFRobot.from_string(_arm_urdf(planar=True), base_dir=tmp_path)
-    res = robot.ik(make_T(p=[0.2, 0.15, 0.6]), position_only=True)
-    assert res.failure == IKFailure.NO_CONVERGENCE
-    assert res.nearest_T_base_tool is not None
-
-
 # ------------------------------------------------------------------------------ description
 def test_with_tool_with_limits_and_hash(ur5):
     T_ft = make_T(p=[0, 0, 0.12])
@@ -455,173 +320,3 @@ def test_robot_spec_builds_a_urdf_robot():
     assert np.allclose(robot.fk(q), _pin_fk(UR5_URDF, robot, q, "tool0") @ robot.T_flange_tool)
 
 
-# ------------------------------------------------------------------------------ bad input
-def _write(tmp_path: Path, text: str, name: str = "bad.urdf") -> Path:
-    p = tmp_path / name
-    p.write_text(text)
-    return p
-
-
-def test_malformed_xml_names_file_and_line(tmp_path):
-    p = _write(tmp_path, '<?xml version="1.0"?>\n<robot name="x">\n  <link name="a">\n'
-                         '</robot>\n')
-    with pytest.raises(RobotModelError) as e:
-        URDFRobot.from_file(p)
-    assert str(p) in str(e.value) and "malformed XML" in str(e.value)
-    assert f"{p}:4:" in str(e.value)
-
-
-def test_unknown_base_or_tool_link(tmp_path):
-    p = _write(tmp_path, _arm_urdf())
-    with pytest.raises(RobotModelError, match=r"bad\.urdf: tool link 'hand' is not in the URDF"):
-        URDFRobot.from_file(p, tool_link="hand")
-    with pytest.raises(RobotModelError, match=r"base link 'floor' is not in the URDF"):
-        URDFRobot.from_file(p, base_link="floor")
-    with pytest.raises(RobotModelError, match=r"tool link 'base' is not below base link 'l2'"):
-        URDFRobot.from_file(p, base_link="l2", tool_link="base")
-
-
-def test_missing_mesh_names_link_and_path(tmp_path):
-    p = _write(tmp_path, _arm_urdf(collision='<mesh filename="meshes/gone.stl"/>'))
-    with pytest.raises(RobotModelError) as e:
-        URDFRobot.from_file(p)
-    msg = str(e.value)
-    assert str(p) in msg and "link 'l1'" in msg and str(tmp_path / "meshes" / "gone.stl") in msg
-
-
-def test_chain_without_actuated_joint(tmp_path):
-    p = _write(tmp_path, _arm_urdf())
-    with pytest.raises(RobotModelError, match=r"no actuated joint between base link 'l3' and "
-                                              r"tool link 'tip'"):
-        URDFRobot.from_file(p, base_link="l3", tool_link="tip")
-
-
-def test_mesh_that_does_not_load(tmp_path):
-    (tmp_path / "junk.stl").write_bytes(b"solid nothing here\x00\x01\x02 not a mesh")
-    p = _write(tmp_path, _arm_urdf(collision='<mesh filename="junk.stl"/>'))
-    with pytest.raises(RobotModelError) as e:
-        URDFRobot.from_file(p)
-    assert "link 'l1'" in str(e.value) and "junk.stl" in str(e.value)
-
-
-@pytest.mark.parametrize("broken, expected", [
-    ('<joint name="x" type="revolute"><parent link="l3"/><child link="ghost"/></joint>',
-     r"<child link='ghost'> is not a link"),
-    ('<joint name="x" type="hinge"><parent link="l3"/><child link="tip"/></joint>',
-     r"joint 'x' has unknown type 'hinge'"),
-    ('<link name="l1"/>', r"link 'l1' is defined twice"),
-    ('<link name="orphan"/>', r"exactly one root link, found 'world', 'orphan'"),
-    ('<link name="odd"><collision><geometry><torus r="1"/></geometry></collision></link>'
-     '<joint name="x" type="fixed"><parent link="l3"/><child link="odd"/></joint>',
-     r"link 'odd': unknown geometry <torus>"),
-    ('<link name="odd"><collision><origin xyz="1 2"/><geometry><sphere radius="1"/></geometry>'
-     '</collision></link><joint name="x" type="fixed"><parent link="l3"/><child link="odd"/>'
-     '</joint>', r"<origin xyz='1 2'> must be 3 finite numbers"),
-])
-def test_structural_errors_name_file_line_and_element(tmp_path, broken, expected):
-    p = _write(tmp_path, _arm_urdf(extra=broken))
-    with pytest.raises(RobotModelError, match=expected) as e:
-        URDFRobot.from_file(p)
-    assert str(e.value).startswith(str(p))
-
-
-def test_revolute_without_limit_is_refused(tmp_path):
-    p = _write(tmp_path, _arm_urdf(j1_limit=""))
-    with pytest.raises(RobotModelError, match=r"bad\.urdf:\d+: revolute joint 'j1' needs"):
-        URDFRobot.from_file(p)
-
-
-def test_bad_locked_positions(tmp_path):
-    with pytest.raises(RobotModelError, match=r"panda\.urdf:\d+: locked joint "
-                                              r"'panda_finger_joint1': 0.5 is outside"):
-        URDFRobot.from_file(PANDA_URDF, tool_link="panda_hand", load_visual=False,
-                            locked_positions={"panda_finger_joint1": 0.5})
-    with pytest.raises(RobotModelError, match=r"cannot lock joint 'panda_joint2': it is in the "
-                                              r"arm's chain"):
-        URDFRobot.from_file(PANDA_URDF, tool_link="panda_hand", load_visual=False,
-                            locked_positions={"panda_joint2": 0.1})
-
-
-def test_empty_geometry_is_refused(tmp_path):
-    p = _write(tmp_path, _arm_urdf(collision="<!-- nothing -->"))
-    with pytest.raises(RobotModelError, match=r"bad\.urdf:\d+: link 'l1': <geometry> is empty"):
-        URDFRobot.from_file(p)
-
-
-def test_unreadable_file(tmp_path):
-    with pytest.raises(RobotModelError, match="cannot read the URDF"):
-        URDFRobot.from_file(tmp_path / "nope.urdf")
-
-
-# ------------------------------------------------------------------------------ RV-2AJ URDF
-@pytest.mark.parametrize("tool", [Tool(), Tool("offset", make_T(rot_x(0.4), [0.02, -0.01, 0.12]))])
-def test_rv2aj_urdf_loads_in_pinocchio_and_matches_its_fk(tool):
-    robot = RV2AJ().with_tool(tool)
-    model = pin.buildModelFromXML(robot.urdf())
-    assert model.nq == 5 and list(model.names)[1:] == robot.joint_names
-    data = model.createData()
-    fid = model.getFrameId("tool")
-    for q in _random_q(robot, 50, seed=16):
-        pin.framesForwardKinematics(model, data, q)
-        assert np.abs(data.oMf[fid].homogeneous - robot.fk(q)).max() < 1e-9
-
-
-def test_numeric_ik_on_the_rv2aj_urdf_agrees_with_the_closed_form():
-    rv = RV2AJ().with_tool(Tool.straight(0.1))
-    numeric = URDFRobot.from_string(rv.urdf(), base_dir=".", tool_link="tool",
-                                    load_visual=False)
-    for q in _random_q(rv, 5, seed=17):
-        T = rv.fk(q)
-        closed, num = rv.ik(T), numeric.ik(T)
-        assert closed.ok and num.ok
-        for s in num.solutions:
-            assert np.linalg.norm(rv.fk(s)[:3, 3] - T[:3, 3]) < POS_TOL
-            assert rotation_angle(rv.fk(s)[:3, :3].T @ T[:3, :3]) < ROT_TOL
-    # an orientation out of the arm plane: the 5-axis arm reaches the point, not the pose
-    T = rv.fk(np.array([0.3, 0.2, 0.9, 0.4, 0.0]))
-    T[:3, :3] = T[:3, :3] @ rot_x(0.5)
-    res = numeric.ik(T)
-    assert res.failure == IKFailure.ORIENTATION and res.nearest_T_base_tool is not None
-
-
-# ------------------------------------------------------------------------------ helpers
-def _arm_urdf(*, collision: str = '<cylinder radius="0.03" length="0.2"/>',
-              visual: str | None = None, extra: str = "", root_offset: str = "",
-              j1_type: str = "revolute", j1_axis: str = "0 0 1", j2_axis: str = "0 1 0",
-              j3_type: str = "revolute",
-              j3_axis: str = "0 1 0", planar: bool = False,
-              j1_limit: str = '<limit lower="-2.5" upper="2.5" effort="1" velocity="2"/>'
-              ) -> str:
-    """A small 3-joint arm: world -> base -> l1 -> l2 -> l3 -> tip (fixed)."""
-    vis = f"<visual><geometry>{visual}</geometry></visual>" if visual else ""
-    lim = '<limit lower="-2" upper="2" effort="1" velocity="2"/>'
-    plim = '<limit lower="-0.1" upper="0.2" effort="1" velocity="0.5"/>'
-    j1_axis = "0 1 0" if planar else j1_axis
-    return f"""<?xml version="1.0"?>
-<robot name="arm">
-  <link name="world"/>
-  <joint name="mount" type="fixed"><parent link="world"/><child link="base"/>{root_offset}
-  </joint>
-  <link name="base"><collision><geometry><box size="0.2 0.2 0.1"/></geometry></collision></link>
-  <joint name="j1" type="{j1_type}"><parent link="base"/><child link="l1"/>
-    <origin xyz="0 0 0.1"/><axis xyz="{j1_axis}"/>{j1_limit if j1_type != "continuous" else ""}
-  </joint>
-  <link name="l1">{vis}<collision><origin xyz="0 0 0.1" rpy="0.1 0 0"/>
-    <geometry>{collision}</geometry></collision></link>
-  <joint name="j2" type="revolute"><parent link="l1"/><child link="l2"/>
-    <origin xyz="0 0 0.2" rpy="0 0.3 0"/><axis xyz="{"0 1 0" if planar else j2_axis}"/>{lim}
-  </joint>
-  <link name="l2"><collision><origin xyz="0 0 0.15"/>
-    <geometry><capsule radius="0.03" length="0.3"/></geometry></collision></link>
-  <joint name="j3" type="{j3_type}"><parent link="l2"/><child link="l3"/>
-    <origin xyz="0.05 0 0.3" rpy="{"0 0 0" if planar else "1.57079632679 0 0"}"/>
-    <axis xyz="{j3_axis}"/>
-    {plim if j3_type == "prismatic" else lim}
-  </joint>
-  <link name="l3"><collision><geometry><sphere radius="0.04"/></geometry></collision></link>
-  <joint name="tip_fixed" type="fixed"><parent link="l3"/><child link="tip"/>
-    <origin xyz="0 0 0.08" rpy="0 0 0.5"/></joint>
-  <link name="tip"/>
-  {extra}
-</robot>
-"""
