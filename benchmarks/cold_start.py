@@ -45,14 +45,13 @@ import traceback
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from browser import ARGS, CHROMIUM, FRAMES_JS  # noqa: E402
+
 SCRIPT = ROOT / "sample_cells" / "thesis_rv2aj" / "session.yaml"
 
-CHROMIUM = "/usr/bin/chromium"
-ARGS = ["--no-sandbox", "--disable-gpu", "--use-gl=swiftshader", "--enable-unsafe-swiftshader",
-        "--disable-background-networking", "--disable-component-update", "--disable-sync",
-        "--no-first-run"]
 VIEWPORT = {"width": 1400, "height": 950}
-FRAMES_JS = """() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))"""
 #: viser's client keeps only the latest GUI message per 50 ms (see tests/web/web_ui.py).
 THROTTLE_MS = 120
 

@@ -31,18 +31,16 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
+
+from browser import ARGS, CHROMIUM, FRAMES_JS  # noqa: E402
 
 from assistant.session import Session  # noqa: E402
 from assistant.session.events import PlanReady  # noqa: E402
 from web import serve  # noqa: E402
 
-CHROMIUM = "/usr/bin/chromium"
-ARGS = ["--no-sandbox", "--disable-gpu", "--use-gl=swiftshader", "--enable-unsafe-swiftshader",
-        "--disable-background-networking", "--disable-component-update", "--disable-sync",
-        "--no-first-run"]
 VIEWPORT = {"width": 1400, "height": 900}
 
-FRAMES_JS = """() => new Promise(r => requestAnimationFrame(() => requestAnimationFrame(r)))"""
 
 
 def frame_times(page, seconds: float, min_frames: int = 3) -> np.ndarray:
