@@ -44,7 +44,7 @@ def capsule_box_gap(frames: Array, k: int, s: int, e: int, shape_link: Array, se
                     A: Array, B: Array, la: Array, lb: Array) -> float:
     """Distance bound of robot shape s to obstacle box e in configuration k: the shape's
     axis segment to the oriented box, less its radius (-inf where they may overlap).
-    Products in the order of the vectorised einsum form it replaced (kept in
+    Products in the order of a vectorised einsum form (kept in
     tests/test_segment_box.py, which compares the bits); A, B, la, lb are scratch (3,)."""
     link = shape_link[s]
     for i in range(3):  # frame @ segment ends, as einsum "nij,nj->ni" + t

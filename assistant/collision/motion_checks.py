@@ -193,7 +193,7 @@ _NONE_TRUSTED = np.zeros(0, dtype=bool)
 
 def _path_array(path: Sequence[Array] | Array) -> Array:
     """A joint path as one (M, dof) float array: a dense path that already is one is used
-    as it is (stacking its rows again cost ~0.2 ms per verification)."""
+    as it is (stacking its rows again would cost ~0.2 ms per verification)."""
     if isinstance(path, np.ndarray) and path.ndim == 2:
         return np.asarray(path, dtype=float)
     return np.stack([np.asarray(q, dtype=float) for q in path])

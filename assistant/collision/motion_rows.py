@@ -2,9 +2,9 @@
 
 A roadmap edge or a verification chunk is a few dozen samples; as numpy calls, marking the
 motions' ends, the link frames, the limit test and picking each motion's rows before its
-first invalid one cost more than the compiled certification itself (~70 us of a ~150 us
-edge check). The answers are those of the numpy forms they replace, bit for bit (the link
-frames are `dh.chain_row`'s, the limit test `JointLimits.contains_batch`'s).
+first invalid one cost more than the compiled certification itself. The answers are the
+numpy forms', bit for bit (the link frames are `dh.chain_row`'s, the limit test
+`JointLimits.contains_batch`'s).
 
 Serves (the user-felt figure): the motion checks' samples: 0.2 s in Python in the thesis
 run.
@@ -86,8 +86,8 @@ def path_samples(A: Array, counts: Array, trusted: Array) -> tuple[Array, Array,
     """(segment, fraction, joints) of the samples `CollisionChecker.check_path` asks on
     the path A (M, dof), segment i in counts[i] steps: each segment's samples but its end,
     the last segment's end too, the segments flagged in `trusted` left out (an empty
-    `trusted` flags none). The joints A[i] + (k / n) (A[i + 1] - A[i]) as the numpy form
-    made them (two numpy passes and a dozen calls, ~15 us a check of a path)."""
+    `trusted` flags none). The joints A[i] + (k / n) (A[i + 1] - A[i]), the same numbers
+    as a numpy form (two numpy passes and a dozen calls, ~15 us a check of a path)."""
     m = counts.shape[0]
     total = 0
     for i in range(m):

@@ -3,8 +3,9 @@
 The clearance report (`clearance_scan.pruned_clearance`) asks FCL for the distance of
 the pairs that may be nearest, in the order of a lower bound. The covering spheres of the
 broad phase bound a capsule link only loosely (the RV-2AJ's 250 mm upper arm is covered by
-spheres 25 mm larger than the capsule), so hundreds to thousands of pairs along a path used
-to fall below the answer and each cost an FCL call. A capsule is the set of points within r
+spheres 25 mm larger than the capsule), so by the spheres alone hundreds to thousands of
+pairs along a path fall below the answer and each costs an FCL call. A capsule is the set of
+points within r
 of its axis segment, and an obstacle lies inside its oriented bounding box, so
 
     distance(capsule, obstacle) >= distance(axis segment, box) - r,
@@ -94,7 +95,7 @@ def segment_box_distance_one(a: Array, b: Array, half: Array) -> float:
     Each such piece is minimised in closed form (its faces are fixed at its middle), and
     the smallest piece minimum is the exact answer. Compiled (numba): the collision broad
     phase calls it per candidate pair; scalars, not small arrays, hold each piece (an array
-    per piece was an allocation per piece).
+    per piece would be an allocation per piece).
     """
     d0, d1, d2 = b[0] - a[0], b[1] - a[1], b[2] - a[2]
     t = np.empty(8)

@@ -16,17 +16,16 @@ from assistant.trajectory.primitives import FitParams
 
 #: Particle spacing of the transfer nets (m). Transfers are fitted within 5 mm; particles
 #: 40 mm apart still draw a bend of radius 40 mm within that (sagitta 40^2 / (8 * 40) mm), and
-#: the net needs about a quarter of the sweeps it needs at 20 mm. On the planning benchmark
-#: (thesis + 20 generated cells) 40 mm cut the median query from 0.27 to 0.21 s with the same
-#: success, TCP lengths (0.65x OMPL's vs 0.67x) and primitive counts.
+#: the net needs about a quarter of the sweeps it needs at 20 mm, with the same success, TCP
+#: lengths and primitive counts on the planning benchmark (thesis + 20 generated cells).
 TRANSFER_NET_SPACING = 0.04
 #: Sphere gap (m) the transfer nets keep between the arm and obstacles (and itself). The net
 #: checks the arm at its particles only and the fitted lines and arcs stray up to the 5 mm
-#: fit tolerance from them, so a net pulled right against a box made the fitted path touch
-#: it in 30 % of the benchmark's queries (each then refitted tighter, re-run as the
+#: fit tolerance from them, so a net pulled right against a box makes the fitted path touch
+#: it in ~30 % of the benchmark's queries (each then refitted tighter, re-run as the
 #: exploring net or fallen back to joint moves). Kept 5 mm away (a lower bound: the spheres
-#: cover the links loosely), all 60 generated queries verified at the first fit, with 11 %
-#: fewer primitives, 0.8 % longer TCP paths and 17 mm mean clearance instead of 14.5 mm.
+#: cover the links loosely), the generated queries verify at the first fit, with fewer
+#: primitives, slightly longer TCP paths and more clearance.
 TRANSFER_MIN_GAP = 0.005
 
 
@@ -39,37 +38,20 @@ def _exploring_net() -> ElasticNetParams:
 
 def _final_net() -> ElasticNetParams:
     # High (over-relaxed) shrink pulls the final path taut, usually settling well inside the
-    # 300 iterations; stage 2 forms the arcs. At 20 mm spacing 60 stage-2 iterations gave
-    # the primitives of 150 (30 did not: arcs were still forming). At the 40 mm transfer
-    # spacing stage 2 has no natural end (its turn angles keep drifting a few degrees per ten
-    # iterations) and the 5 mm fit sees little of it; each iteration was ~0.8 ms then (before
-    # the compiled checker). Final transfers on generated cells, stage-2 iterations 20 vs 8:
-    #   seeds 120-199 (240): all planned; first fit verified 218 vs 222; primitives 1403 vs
-    #     1371; TCP length +0.12 %; median clearance 10.0 vs 10.2 mm; median 0.104 vs 0.096 s
-    #   seeds 220-279 (180, not used to choose): all planned; 172 vs 171; 1040 vs 1020;
-    #     +0.09 %; 11.4 vs 11.2 mm; median 0.114 vs 0.102 s
-    #   (0 and 4 iterations: fewer primitives but longer paths and 1-1.5 mm less clearance)
-    # The thesis scenario's final program then: 10 primitives, 1.169 m (9 and 1.150 m with 20;
-    # 9 and 1.183 m with the settings below).
-    # Stage 1 counts as taut once the net shrank by under 0.5 mm in 5 iterations (default:
+    # 300 iterations; stage 2 forms the arcs. At the 40 mm transfer spacing stage 2 has no
+    # natural end (its turn angles keep drifting a few degrees per ten iterations) and the
+    # 5 mm fit sees little of it, so 6 stage-2 iterations suffice: on generated cells more
+    # of them give more primitives and take longer for the same lengths and clearance,
+    # fewer (0-4) cost 1-2 mm of clearance and, on some cells, more primitives.
+    # Stage 1 counts as taut once the net shrinks by under 0.5 mm in 5 iterations (default:
     # 0.1 mm in 10). Its length falls about geometrically; the tail the default waits for
-    # is a fraction of a millimetre (the fit tolerance is 5 mm), and stage 2 shrinks on.
-    #   seeds 120-199: stage-1 iterations 45 -> 34 per net; first fit verified 222 vs 224;
-    #     primitives 1371 vs 1386; TCP length -0.6 %; clearance 10.2 vs 10.1 mm; -10 % time
-    #   seeds 220-279 (not used to choose): 171 vs 171; 1020 vs 1019; -1.2 %; 11.2 vs
-    #     10.4 mm; -9 % time (2 mm in 4 iterations: 1438 primitives on 120-199, +5 %)
+    # is a fraction of a millimetre (the fit tolerance is 5 mm), and stage 2 shrinks on:
+    # ~10 % less time for the same verified fits, primitives and clearance (a looser 2 mm
+    # in 4 iterations gives ~5 % more primitives).
     # Stage 1 moves a particle up to 10 mm a sweep (stage 2 keeps 5 mm) with the shrink
     # over-relaxed a little more (0.8): the taut pull asks centimetre moves that a 5 mm cap
-    # spread over more sweeps. Final transfers, seeds 120-199 (240), timed interleaved with
-    # the previous setting in one process: all planned; median 6.60 -> 6.06 ms (paired
-    # per-query ratio 0.95); second tries 42 -> 34; primitives 1388 -> 1372; TCP length
-    # +0.2 %; median clearance 10.13 -> 10.07 mm. A 10 mm cap in stage 2 as well: as fast,
-    # but 4 % more primitives (a rougher net for the fit); 50 mm spacing: twice the second
-    # tries. With the tauter stage 1, 6 stage-2 iterations instead of 8 (same A/B):
-    #   seeds 120-199: paired ratio 0.987; primitives 1392 -> 1350; TCP length +0.13 %;
-    #     clearance 10.07 -> 10.13 mm; second tries 36 -> 35
-    #   seeds 220-279: 0.987; 993 -> 979; -0.04 %; 11.64 -> 11.10 mm; 11 -> 10
-    #   (4 iterations: as fast, but more primitives on 220-279 and 1.7 mm less clearance)
+    # spreads over more sweeps, and the tauter net needs fewer second tries. A 10 mm cap in
+    # stage 2 as well is no faster and gives ~4 % more primitives (a rougher net for the fit).
     return ElasticNetParams.final(stage1_iterations=300, stage2_iterations=6,
                                   taut_length=5e-4, taut_window=5, stage1_shrink=0.8,
                                   stage1_max_move=0.01,

@@ -64,7 +64,7 @@ class SearchBudget:
     #: Edges checked together when one must be checked: the popped one plus the next entries
     #: of the queue (the likeliest to be popped next), in one batched validity call. Saves
     #: per-call overhead when the search pops many nodes, wastes checks when it pops few; on
-    #: the thesis cell it was a wash, so the default checks strictly one edge per pop.
+    #: the thesis cell it is a wash, so the default checks strictly one edge per pop.
     edge_batch: int = 1
     #: Rounds of the path-first search (`path_first.lazy_path_search`: search with unchecked
     #: edges assumed valid, check the path's edges) before it hands over to checking at

@@ -9,9 +9,9 @@ so the page stays responsive during a long search.
 The queue is a binary heap of (f, g, node, parent) rows in one float array, ordered as
 Python compares those tuples and kept by heapq's own algorithm (`_sift_down`, `_sift_up`),
 so entries pop in the order `lazy_astar`'s heapq pops them: with no edge known to be invalid
-both searches close the same nodes in the same order and return the same path. (numba's
-heapq on a list of tuples did the same ~15 % slower; the expansion appends its successors
-to the heap array itself, `graph_kernel.successors_into`.)
+both searches close the same nodes in the same order and return the same path. (One
+float array, because numba's heapq on a list of tuples is ~15 % slower; the expansion
+appends its successors to the heap array itself, `graph_kernel.successors_into`.)
 
 Serves (the user-felt figure): the A* of every plan and re-plan: 0.4 s in Python in the
 thesis run.

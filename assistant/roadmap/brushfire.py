@@ -1,8 +1,8 @@
 """The labelled brushfire of `voronoi` over a box of cells, compiled (numba).
 
 Every planning query adds its start and goal as sources and updates the map around them;
-the numpy formulation swept four 26-neighbourhood reductions over the whole box per layer
-(~5 ms of a query). This loop visits only each layer's front and the cells it reaches. The
+the numpy formulation sweeps four 26-neighbourhood reductions over the whole box per layer
+(~5 ms of a query), where this loop visits only each layer's front and the cells it reaches. The
 rules are those of the `voronoi` module docstring, integer for integer (the test compares
 both formulations on random grids and incremental updates).
 

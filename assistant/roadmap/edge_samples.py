@@ -2,7 +2,7 @@
 (numba).
 
 Why: the lazy search checks its path's edges in one batched call (`planner._EdgeCheck`);
-laying out every edge's samples and finding each edge's first invalid sample were a dozen
+laying out every edge's samples and finding each edge's first invalid sample take a dozen
 numpy calls around it (~0.03 ms a call, two or three calls a query). The samples are the
 numpy form's, number for number: a + (k / n) (b - a), k = 0..n.
 

@@ -2,7 +2,7 @@
 tool) ramped from start to goal along the path, compiled (numba).
 
 Why: every found path gets this (`RoadmapPlanner._interpolate_free_joints`); as numpy it
-was a dozen calls (~0.04 ms a query). The steps are the numpy form's, number for number:
+is a dozen calls (~0.04 ms a query). The steps are the numpy form's, number for number:
 segment lengths of the weighted other joints (differences of the weighted values, squares
 summed in order), their running sum, fractions of the whole (or even fractions for a path
 that does not move them), and start + s (goal - start) per free joint.

@@ -69,7 +69,7 @@ class JointGraph:
         (a planning query's searches share their start and goal). The same searches as
         over `build`'s graph, node for node (other ids; `build`'s graph itself when an
         extra sits in an unsearchable cell with positions, or more extras than spare rows
-        come); the copy of the searchable cells' positions `build` makes cost ~0.1 ms a
+        come); the copy of the searchable cells' positions `build` makes costs ~0.1 ms a
         query."""
         k = len(extra)
         n_base = int(base.cell_start[-1])

@@ -2,7 +2,7 @@
 
 Why: the lazy A* asks `JointGraph.successors` once per expansion (~30 times per planning
 query), and finding the neighbour cells (27 offsets, the squeeze rule's six faces, the
-exempt cells) and their nodes took ~15 numpy calls, ~40 us. The rules are those of
+exempt cells) and their nodes take ~15 numpy calls, ~40 us. The rules are those of
 `JointGraph.neighbour_cells` and `nodes_of`, in the same order (offsets as
 `itertools.product((-1, 0, 1), repeat=3)`, nodes ascending within a cell).
 
@@ -187,8 +187,8 @@ def successors_into(u: int, gu: float, nx: int, ny: int, nz: int, searchable: Ar
     `size` on, in successor order (`rows` grows by doubling; `cells` is scratch, 27 long);
     their heuristic (weight x distance to the goal) is computed once per node into h (NaN =
     not yet). Returns `rows` and its new size. Appending to the search's own queue array
-    spares the three arrays per expansion (and the successor arrays before them) that
-    returning the successors took."""
+    spares the three arrays per expansion (and the successor arrays behind them) that
+    returning the successors would take."""
     n_nodes = node_q.shape[0]
     n_base = cell_start[cell_start.shape[0] - 1]
     n_cells = neighbour_cells_into(node_cell[u], nx, ny, nz, searchable, squeeze_blocked,
@@ -228,7 +228,7 @@ def select_nodes(cells: Array, offsets: Array, Q: Array, searchable: Array,
     """(node_q, node_cell, cell_start, extra ids) of `JointGraph.build`: the positions of
     the searchable cells (positions of cell i: Q[offsets[i]:offsets[i + 1]]) and then the
     extra nodes, grouped by cell in a counting sort - within a cell the positions in their
-    order, then the extras in theirs, as the stable sort by cell it replaces (~0.3 ms a
+    order, then the extras in theirs, as a stable sort by cell gives them (~0.3 ms a
     query as numpy calls)."""
     count = np.zeros(n_cells, dtype=np.int64)
     for i in range(cells.shape[0]):

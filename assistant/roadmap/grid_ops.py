@@ -59,7 +59,7 @@ def dilate(mask: Array, radius: int) -> Array:
 
     Filtered on the True cells' bounding box grown by `radius` only: nothing outside it is
     that near, and the Voronoi update dilates small regions of a large grid several times
-    per query (the whole 32^3 grid cost ~0.1 ms a call)."""
+    per query (the whole 32^3 grid costs ~0.1 ms a call)."""
     if radius <= 0:
         return mask.copy()
     out = np.zeros(mask.shape, dtype=bool)
@@ -80,7 +80,7 @@ def components26(mask: Array) -> tuple[Array, int]:
 def connected26(mask: Array, a: int, b: int) -> bool:
     """Whether flat cells a and b of the 3-D mask (both True) are in one component
     (26-connectivity): a search from a that stops when it reaches b. A query needs only
-    this answer, and labelling every component of the grid cost ~0.3 ms of each."""
+    this answer, and labelling every component of the grid costs ~0.3 ms of each."""
     nx, ny, nz = mask.shape
     flat = mask.reshape(-1)
     seen = np.zeros(flat.shape[0], dtype=np.bool_)

@@ -1,8 +1,8 @@
 """Path-first lazy search (Lazy PRM, Bohlin & Kavraki 2000) over a `JointGraph`.
 
 Why: the pop-checking lazy A* (`astar.lazy_astar`) checks the edge into every node it pops,
-and on the benchmark's queries it popped ~29 nodes to find a path of ~11 edges: two checks
-in three were of edges the path never used, each ~0.1 ms of exact continuous check. Here a
+and on the benchmark's queries it pops ~29 nodes to find a path of ~11 edges: two checks
+in three are of edges the path never uses, each ~0.1 ms of exact continuous check. Here a
 round searches the graph less the edges found invalid so far with every other edge assumed
 valid (`astar_kernel.search`, compiled, no checks), then checks only the unknown edges of the
 path it found, all in one batched call. A path whose edges all pass is the answer; else the

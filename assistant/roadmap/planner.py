@@ -87,9 +87,9 @@ class RoadmapConfig:
     d_min: int = 3
     #: The reset radius (cells) of each query's update around its start and goal. The
     #: update's result is the full rebuild's whatever the radius (it grows until the change
-    #: stops reaching further); the radius only sets the work. At 3 most queries took a
-    #: second, larger round; at 5 one round nearly always does (benchmark cells, 60 queries:
-    #: 0.63 -> 0.45 ms, 1.9 -> 1.05 rounds; 4: 0.74 ms, 6: 0.55 ms, 8: 0.86 ms).
+    #: stops reaching further); the radius only sets the work. At 5 one round nearly always
+    #: does; a smaller radius makes most queries run a second, larger round, a larger one
+    #: resets more cells than the change reaches.
     terminal_reset: int = 5
     #: Cost (m of arm travel) per unit occupancy probability of an entered cell.
     occupancy_penalty: float = 0.2
@@ -144,7 +144,7 @@ class RoadmapPlan:
     @functools.cached_property
     def cells(self) -> list[tuple[int, int, int]]:
         """Leaf (i, j, k) of each path node's TCP. Measured when asked (displays and tests
-        do; the planning does not, and it cost a batch FK, ~0.03 ms a query)."""
+        do; the planning does not, and it costs a batch FK, ~0.03 ms a query)."""
         if self.cell_of is None or not self.joint_path:
             return []
         return self.cell_of(np.array(self.joint_path))
@@ -394,8 +394,8 @@ class RoadmapPlanner:
                        ) -> RoadmapPlan:
         """The roads held no path and start and goal lie in different free regions: no
         search can connect them. (Tested only once the roads failed: a path through the
-        roads, which lie in the free cells, proves the connection, and the flood fill cost
-        every query ~0.1 ms.)"""
+        roads, which lie in the free cells, proves the connection, and the flood fill would
+        cost every query ~0.1 ms.)"""
         timings["total"] = time.perf_counter() - t0
         return RoadmapPlan(False, "no path: start and goal are in different free regions",
                            PlanFailure.NO_PATH_REGIONS, expansions=res.expansions,

@@ -1,7 +1,7 @@
 """The cells a roadmap query searches, in one compiled pass (numba).
 
 Why: a query's masks - the escape boxes around start and goal, the free cells with them,
-the roads (the base labels and the terminals' own) among those - were a dozen numpy
+the roads (the base labels and the terminals' own) among those - take a dozen numpy
 operations on the whole 32^3 grid (~35 us a query). `RoadmapPlanner.plan` documents what
 each part means; this is the same set logic cell by cell.
 

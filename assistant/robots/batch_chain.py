@@ -9,8 +9,8 @@ one scalar operation for a whole chunk of configurations. Three things make it f
   deg, axes mostly +-x/y/z) are kept as Python floats, so products with them cost nothing;
   the base frame and the first joint are pure constants times cos/sin.
 * Axis-aligned joints rotate two columns only (4 multiplies per row), no 3x3 product.
-* `sincos`: numpy's float64 sin/cos are scalar code here (~10 ns per element each) and were
-  half of the time; a vectorised polynomial gives both for ~8 ns.
+* `sincos`: numpy's float64 sin/cos are scalar code here (~10 ns per element each) and would
+  be half of the time; a vectorised polynomial gives both for ~8 ns.
 
 Chunks of 8-16 k configurations keep the working set in cache (`CHUNK_BYTES`). float64 results
 agree with a plain 4x4 product to ~1e-11 (see `_SNAP`); ``dtype=np.float32`` (~1e-6) is about
@@ -32,7 +32,7 @@ Val = float | np.ndarray
 
 #: Bytes per vector in a chunk (8192 float64 or 16384 float32 configurations). Vectors stay
 #: below glibc's 128 KiB mmap threshold, so numpy's temporaries come from the heap instead of
-#: fresh page-faulting mappings - above it every operation got ~4x slower here - and a
+#: fresh page-faulting mappings - above it every operation is ~4x slower - and a
 #: chain's ~40 live vectors stay in cache.
 CHUNK_BYTES = 65536
 

@@ -64,8 +64,9 @@ def chain_frames(chain: DHChain, q: Array) -> Array:
 
     Entry 0 is the base; entry i (1..n) is the frame of link i, i.e. the base-side frame of
     joint i rotated by q_i (before the fixed part F_i). The flange is `flange_frame`.
-    The compiled loop of `batch_chain_frames` (~1 us; the numpy form took ~40 us, and a
-    planning query asks for ~20 single poses), the same bits as that form.
+    The compiled loop of `batch_chain_frames` (~1 us, where numpy's per-call overhead
+    dominates, and a planning query asks for ~20 single poses), with the same bits as the
+    numpy form (`chain_frames_numpy`).
     """
     Q = np.ascontiguousarray(q, dtype=float).reshape(1, -1)
     return _chain_frames_kernel(Q, chain.fixed_stack)[0]
@@ -80,8 +81,8 @@ def batch_chain_frames(chain: DHChain, Q: Array) -> tuple[Array, Array]:
     """Link frames and flanges for N configurations: ((N, n+1, 4, 4), (N, 4, 4)).
 
     One compiled loop (`_chain_frames_kernel`): the planners ask for a few to a few dozen
-    configurations at a time, where numpy's batched 4x4 products spent their time in call
-    overhead (35 us for 10 configurations, 4 us compiled); the robots that need millions (the
+    configurations at a time, where numpy's batched 4x4 products spend their time in call
+    overhead (10 configurations cost ~4 us compiled); the robots that need millions (the
     reachability table) write their closed form out per element instead.
     """
     Q = np.ascontiguousarray(Q, dtype=float)

@@ -201,8 +201,8 @@ class RV2AJ(Robot):
     @functools.cached_property
     def _limit_bounds(self) -> tuple[list[float], list[float]]:
         """`JointLimits.contains`' bounds (limit -+ its 1e-9 tolerance) as floats: the
-        scalar IK tests a handful of branches per call, where numpy's per-call cost was a
-        third of its time."""
+        scalar IK tests a handful of branches per call, where numpy's per-call cost would be
+        a third of its time."""
         return ((self.limits.lower - 1e-9).tolist(), (self.limits.upper + 1e-9).tolist())
 
     @functools.cached_property

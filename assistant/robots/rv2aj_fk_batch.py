@@ -1,7 +1,7 @@
 """The RV-2AJ's TCP poses for many configurations: the closed form as one compiled loop.
 
 The planners ask for a few to a few dozen poses at a time (a sweep of the elastic net, a
-fitted arc), where the numpy form - two dozen array expressions - cost ~60 us per call
+fitted arc), where the numpy form - two dozen array expressions - costs ~60 us per call
 whatever the batch; the loop costs ~2 us plus ~0.1 us per pose, and is no slower on the
 reachability table's 131k-configuration chunks.
 

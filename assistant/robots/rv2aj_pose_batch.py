@@ -83,7 +83,7 @@ def joint_limit_message(configs: list[Array], limits: JointLimits, names: list[s
 class PoseBatchModel:
     """The constants of `pose_candidates` for one robot, laid out once: a LINEAR or CIRCULAR
     move asks for its poses' candidates, and building these per call (the 2 pi copies'
-    table among them) was ~8 us of Python each time, a third of the compiled pass."""
+    table among them) would cost ~8 us of Python each time, a third of the compiled pass."""
 
     R_ft: Array  # the tool's rotation on the flange (3, 3)
     T_tf: Array  # its inverse pose, as the robot holds it (4, 4)
@@ -150,7 +150,7 @@ def _candidates(T: Array, R_ft: Array, T_tf: Array, lower: Array, upper: Array, 
     exact = np.zeros(m, dtype=np.bool_)
     reach = np.zeros((m, 4), dtype=np.bool_)
     R_tf = T_tf[:3, :3]
-    # scratch, filled per pose (new small arrays per pose were ~20 allocations each)
+    # scratch, filled per pose (new small arrays per pose would be ~20 allocations each)
     Rf, R_tool, R = np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3))
     Rz, Ry, RzRy, A = np.zeros((3, 3)), np.zeros((3, 3)), np.empty((3, 3)), np.empty((3, 3))
     axis, K, KK, R_fix, M = (np.empty(3), np.empty((3, 3)), np.empty((3, 3)), np.empty((3, 3)),

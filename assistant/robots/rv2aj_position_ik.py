@@ -2,8 +2,8 @@
 
 The elastic net asks this for every moved particle in every sweep (`RV2AJ.batch_position_ik`
 explains the geometry: J1 faces the point, a tool pitch fixes the wrist, J2/J3 solve a
-two-link triangle on the seed's elbow branch). As numpy it evaluated every candidate pitch
-of every failed row before picking the first that worked; the loop stops at the first, and
+two-link triangle on the seed's elbow branch). A numpy form evaluates every candidate pitch
+of every failed row before picking the first that works; the loop stops at the first, and
 costs no per-call array set-up.
 
 Serves (the user-felt figure): the net's IK next to its seeds: 0.4 s in Python in the thesis
@@ -30,10 +30,10 @@ def _planar(tx: float, ty: float, tz: float, seed: tuple, pitch: float, q6: floa
     the limits and within `max_jump` of the seed in every joint (angles nearest the seed's).
 
     Inlined (numba IR) into `solve_row`, which calls it up to 1 + 2 `n_steps` times per
-    move of the elastic net: as a call, its five array arguments were counted in and out
-    of use (atomic reference counts) each time - 17 % of the net's reference counting.
-    Inlined, numba still counted the arrays in and out per call (LLVM IR), so the seed,
-    arm lengths and limits come as tuples of floats (values, never counted).
+    move of the elastic net: as a call, its five array arguments would be counted in and
+    out of use (atomic reference counts) each time, a large share of the net's reference
+    counting. Even inlined, numba counts arrays in and out per call, so the seed, arm
+    lengths and limits come as tuples of floats (values, never counted).
     """
     L1, L2, L3, L6 = arm[0], arm[1], arm[2], arm[3]
     face = np.arctan2(ty, tx)

@@ -7,7 +7,7 @@ and a batch FK of every row - ~0.1 ms a query (2-3 %), nearly all of it per-call
 The steps are the numpy form's, operation for operation (the chord norms summed in order,
 the fractions k / parts as float divisions, a + f (b - a) per joint, the same closed-form
 FK), so the rows come out the same to the bit (tested against it). The resampling that
-follows (`resample_rows`: arc lengths, even targets, interpolation, FK) was another dozen
+follows (`resample_rows`: arc lengths, even targets, interpolation, FK) is another dozen
 numpy calls, ~60 us a query; it too follows the numpy form step for step.
 
 Serves (the user-felt figure): the net's particle resampling: under 0.1 s in Python in the
@@ -29,8 +29,8 @@ Array = np.ndarray
 @kernel(cache=True)
 def _positions(Q: Array, arm: Array, BP: Array, BM: Array, BK: Array, v: Array,
                tool_offset: bool) -> Array:
-    """`tcp_poses`' positions alone: its (N, 3, 3) rotations, unused here, cost the
-    replayed nets ~2 % when the subdivision called it instead."""
+    """`tcp_poses`' positions alone: its (N, 3, 3) rotations, unused here, would cost the
+    replayed nets ~2 %."""
     n = Q.shape[0]
     P = np.empty((n, 3))
     rot = np.empty((3, 3))

@@ -24,9 +24,9 @@ rejected - the particle stays - if the point or the midpoints of its two edges a
 `allowed` (octree: occupied or unreachable cell), if IK fails or jumps, or if the arm would
 collide (`ValidityChecker.is_valid_batch`). A rejected move is retried once at half length;
 a particle refused at both lengths is pinned against a constraint and proposes only half
-moves until one is accepted (in the benchmark's cells 96 % of refused moves came from a
-particle refused the sweep before, and 95 % of their retries were refused again, so the
-retry call mostly bought nothing: 12 % of the query time).
+moves until one is accepted (in the benchmark's cells nearly all refused moves come from a
+particle refused the sweep before, and nearly all their retries are refused again, so a
+retry call for them mostly buys nothing but time).
 A checker that also gives free margins (`validity.MarginValidity`) lets a particle skip
 the exact check while its arm travel since its last exact check stays inside that margin:
 the same answers, 36 % of the final transfer nets' checks certified in the benchmark's cells
@@ -53,8 +53,8 @@ Shrink strength of stage 1 is the explore/final switch: low while exploring (sta
 road, i.e. the clearance of the Voronoi roadmap), high once the final path is known. The
 final net over-relaxes (0.7 = relaxation 1.4): the shrink is a diffusion along the net whose
 slowest mode needs on the order of N^2 iterations on N particles, and over-relaxation is what
-cuts that; at 0.4 a 1 m path was still far from taut after 300 iterations, at 0.7 most nets
-settle in well under 200 with the same primitives (0.9 began to ripple).
+cuts that; at 0.4 a 1 m path is still far from taut after 300 iterations, at 0.7 most nets
+settle in well under 200 with the same primitives, and 0.9 ripples.
 
 Every budget counts iterations (and the moves checked in them), never seconds: the same
 input gives the same particles on any machine and under any load.
@@ -131,9 +131,9 @@ class ElasticNetParams:
     #: Stage 1 also ends once the net's TCP length shrank by less than `taut_length` (m)
     #: over the last `taut_window` iterations: it is taut, and what still moves slides
     #: along the path (equidistance), which stage 2 carries on with anyway. In the planning
-    #: benchmark's cells the iterations after this point shortened paths by under a
-    #: millimetre (the fit tolerance is 5 mm) and made up a third of stage 1; the fitted
-    #: primitives and lengths stayed those of the full run. 0 = off.
+    #: benchmark's cells the iterations after this point shorten paths by under a
+    #: millimetre (the fit tolerance is 5 mm) and make up a third of stage 1; the fitted
+    #: primitives and lengths stay those of the full run. 0 = off.
     taut_length: float = 1e-4
     taut_window: int = 10
     stage1_iterations: int = 300
@@ -489,7 +489,7 @@ COMPILED_SWEEPS = True
 #: Sweeps between two progress reports (each also a cancel check and, compiled, one call of
 #: `net_stage.run_sweeps`). A sweep is ~35 us on a transfer's ~25 particles, so 16 sweeps
 #: are ~0.6 ms: still instant for a cancel, while every report and call costs ~15 us of
-#: Python and numba dispatch (at 4, the former setting, ~0.1 ms a query). The particles do
+#: Python and numba dispatch (at 4 sweeps a report, ~0.1 ms a query). The particles do
 #: not depend on it (the compiled sweeps carry the net's whole state between calls).
 SWEEPS_PER_REPORT = 16
 

@@ -7,12 +7,12 @@ unwrapped angle sweep),
 and as numpy calls they cost ~100 us, a quarter of a planning query; compiled they cost a
 few microseconds. The control flow (growth, look-ahead, junction refinement) stays in Python.
 
-Each kernel follows its former numpy formulation step by step (the tests compare them case
-for case to 1e-9 m); the summation order inside dot products may differ in the last bit, and
+Each kernel follows a numpy formulation step by step (the tests compare them case for
+case to 1e-9 m); the summation order inside dot products may differ in the last bit, and
 the free circle's least squares goes through its 2x2 normal equations instead of numpy's
-`lstsq` (which alone took 3 s to compile). On the 134 recorded transfer fits of the planning
+`lstsq` (which alone costs ~3 s to compile). On the 134 recorded transfer fits of the planning
 benchmark both give the same primitives. A NaN deviation counts as a miss here (numpy's max
-let it through as "within tolerance"). The nodes' directions come from their 3x3 Gram matrix
+lets it through as "within tolerance"). The nodes' directions come from their 3x3 Gram matrix
 (`sym3_eigvec`, `sym2_major`) rather than LAPACK's SVD: the same directions to ~1e-13, and
 the same primitives and lengths (to 6e-15 m) on 480 generated transfers, at half the time.
 
@@ -177,8 +177,8 @@ def circle_through_kernel(a: Array, b: Array, c: Array) -> tuple[bool, Array, fl
 @kernel(**_JIT)
 def line_distances(start: Array, end: Array, points: Array) -> Array:
     """Distance of each point (m, 3) to the segment start-end. Scalars, not 3-vectors, per
-    point: the fitter asks this ~80 times a transfer, and an array per intermediate was an
-    allocation each (the same operations in the same order, so the same bits)."""
+    point: the fitter asks this ~80 times a transfer, and an array per intermediate would be
+    an allocation each (the same operations in the same order, so the same bits)."""
     s0, s1, s2 = start[0], start[1], start[2]
     d0, d1, d2 = end[0] - s0, end[1] - s1, end[2] - s2
     out = np.empty(len(points))
@@ -379,7 +379,7 @@ def _tangent_candidates(O: Array, t0: Array, X: Array, C: Array, N: Array, k: in
     m = len(X)
     # Scalars throughout (the same operations in the same order as the vector forms
     # `_unit(_cross(t0, helper))` etc.): the fitter asks this for every tangent arc guess,
-    # and a small array per intermediate was an allocation and reference counts each.
+    # and a small array per intermediate would be an allocation and reference counts each.
     h0, h1, h2 = (1.0, 0.0, 0.0) if abs(t0[0]) < 0.9 else (0.0, 1.0, 0.0)
     t_0, t_1, t_2 = t0[0], t0[1], t0[2]
     b10, b11, b12 = _unit3(t_1 * h2 - t_2 * h1, t_2 * h0 - t_0 * h2, t_0 * h1 - t_1 * h0)

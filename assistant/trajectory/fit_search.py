@@ -1,12 +1,12 @@
 """The primitive fitter's growth, look-ahead and junction refinement, compiled (numba).
 
-Why: with the line and arc fits compiled (`fit_kernels`), what was left of a transfer's fit
-(~2.5 ms) was Python control flow around them: ~250 fits, gallops, look-ahead scores,
+Why: with the line and arc fits compiled (`fit_kernels`), the rest of a transfer's fit is
+control flow around them, ~2.5 ms in Python: ~250 fits, gallops, look-ahead scores,
 shifted ends and their primitives as objects, a dict of remembered reaches. Here the same
 steps run in one compiled call and return the primitives as rows; `primitives` turns them
 into `LinePrimitive`/`ArcPrimitive` objects. The rules are `primitives`' (its module
 docstring), step for step and in the same order: the test fits recorded and synthetic node
-lists with this kernel and with the Python formulation it replaced (`tests/trajectory/
+lists with this kernel and with a Python formulation (`tests/trajectory/
 fit_reference.py`) and asks for the same primitives to the bit.
 
 A primitive is one row of `N_FIELDS` floats: kind (0 line, 1 arc), start, end, via, centre,

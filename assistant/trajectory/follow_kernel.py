@@ -68,7 +68,7 @@ def slerp_kernel(R0: Array, R1: Array, u: Array) -> Array:
     The turn R0^T R1 as a unit quaternion (Shepperd's choice of the largest diagonal term,
     as scipy's `Rotation.from_matrix`), taken with w >= 0 (the shorter way), gives axis and
     angle = 2 atan2(|xyz|, w), stable near 0 and pi; each fraction is then one Rodrigues
-    rotation. Through scipy and numpy this was ~0.2 ms per LINEAR/CIRCULAR move.
+    rotation. Through scipy and numpy this costs ~0.2 ms per LINEAR/CIRCULAR move.
     """
     out = np.empty((len(u), 3, 3))
     slerp_into(R0, R1, u, out)

@@ -1,7 +1,7 @@
 """`assemble.joint_interpolation` as one compiled loop (numba).
 
 Why: a straight joint move is sampled for every fallback joint move, every split the
-assembly tries and every check of one (several a query); as numpy it was eight calls
+assembly tries and every check of one (several a query); as numpy it is eight calls
 (~6 us each time). The steps are the numpy form's, number for number: the arm travel
 summed joint by joint in order (np.sum's order for a handful of joints), the count,
 np.linspace's fractions, q0 + f (q1 - q0).

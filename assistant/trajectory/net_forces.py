@@ -2,7 +2,7 @@
 
 `elastic_net._Net.iterate` evaluates the forces one colour class at a time on the tentative
 positions (Gauss-Seidel) and caps each move at `max_move`. As numpy calls on a few dozen
-particles this was ~40 small array operations per colour class, ~0.1 ms per sweep and a
+particles this is ~40 small array operations per colour class, ~0.1 ms per sweep and a
 quarter of the net's time; one compiled loop does the same sweep in a few microseconds.
 The formulas (equidistance, shrink, rotation, the line/curve switch) are documented in
 `elastic_net`; the test compares this kernel with that numpy formulation sweep for sweep.
@@ -84,7 +84,7 @@ def propose_moves(P: Array, stage: int, lam: float, c_eq: float, c_rot: float, c
             if i % 3 != colour:
                 continue
             # scalars per particle, each the numpy formulation's operation in its order
-            # (3-vector temporaries were a dozen allocations per particle and sweep)
+            # (3-vector temporaries would be a dozen allocations per particle and sweep)
             ab0, ab1, ab2 = (trial[i, 0] - trial[i - 1, 0], trial[i, 1] - trial[i - 1, 1],
                              trial[i, 2] - trial[i - 1, 2])
             bc0, bc1, bc2 = (trial[i + 1, 0] - trial[i, 0], trial[i + 1, 1] - trial[i, 1],

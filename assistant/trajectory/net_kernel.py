@@ -4,7 +4,7 @@
 point and its edge midpoints in free leaves, does the local position IK place the arm next
 to its joints, is the arm inside its limits, off the recorded collision postures, certified
 free by its last exact check's margin or else passed by the broad phase (and far enough,
-`min_gap`)? As numpy calls that was ~40 array operations and six module boundaries per call,
+`min_gap`)? As numpy calls that is ~40 array operations and six module boundaries per call,
 ~120 us for a few dozen particles and ~2/3 of the net's time; the arithmetic itself is a
 few microseconds. `check_moves` does all of it per move in one loop; only the moves whose
 broad phase leaves candidate pairs go back to Python for FCL (`ASK_FCL`, rare in the net).

@@ -1,17 +1,18 @@
 """Runs of elastic-net sweeps in one compiled call (numba), between progress reports.
 
-Why: a query's net makes ~40 sweeps, and each sweep was five compiled calls from Python
-(`net_sweep.sweep_moves`, `net_kernel.check_moves` once or twice, `halve_retries`,
-`repin`) plus the stop tests: numba's dispatch of the move test alone (two dozen arguments,
-among them tuples of arrays) and the Python in between cost ~0.6 ms a query. Here the
-sweeps between two progress reports (`elastic_net.SWEEPS_PER_REPORT`) run in one call.
+Why: a query's net makes ~40 sweeps, and run one by one each sweep is five compiled calls
+from Python (`net_sweep.sweep_moves`, `net_kernel.check_moves` once or twice,
+`halve_retries`, `repin`) plus the stop tests: numba's dispatch of the move test alone (two
+dozen arguments, among them tuples of arrays) and the Python in between cost ~0.6 ms a
+query. Here the sweeps between two progress reports (`elastic_net.SWEEPS_PER_REPORT`) run
+in one call.
 
 The steps are `elastic_net._Net.iterate`'s and `run_stage`'s, in the same order on the same
 arrays: the mean movement E and the taut test's lengths are summed as numpy sums them
 (`_np_sum`, its pairwise order), so the particles come out the same to the bit (the net
 tests compare with the sweep-by-sweep form). The one step that cannot run here is FCL, for
 the moves the broad phase cannot clear: a sweep that needs it is rolled back (its state was
-copied first) and handed to Python, which runs it the old way and then calls in again.
+copied first) and handed to Python, which runs it sweep by sweep and then calls in again.
 
 Serves (the user-felt figure): the elastic net's sweeps between progress reports: 0.15 s in
 Python in the thesis run; a candidate to drop (its compile costs far more than it saves a

@@ -1,10 +1,10 @@
 """The bookkeeping of one elastic-net sweep around its move tests, compiled (numba).
 
 `elastic_net._Net.iterate` proposes the sweep's moves, halves those of pinned particles,
-tests them, retries the refused ones at half length and re-pins. As numpy calls that was
+tests them, retries the refused ones at half length and re-pins. As numpy calls that is
 about a dozen array operations per sweep, more than the arithmetic; compiled, each of the
 ~40 sweeps of a query is ~6 us shorter. These three kernels do the same steps, element for
-element (tests/planning/test_net_kernel.py runs the net with the former numpy form as
+element (tests/planning/test_net_kernel.py runs the net with the numpy form as
 reference and compares the particles to the bit).
 
 Serves (the user-felt figure): the net's bookkeeping: under 0.1 s in Python in the thesis

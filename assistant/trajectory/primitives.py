@@ -227,7 +227,7 @@ def finished_fit(prims: list[Primitive], nodes: Array, breaks: int) -> Primitive
             tangency.append(None)
         else:
             c = float(a.tangent_end @ b.tangent_start)
-            # np.clip's bounds as floats (np.clip of one number cost ~5 us); NaN stays NaN
+            # np.clip's bounds as floats (np.clip of one number costs ~5 us); NaN stays NaN
             c = c if c != c else min(1.0, max(-1.0, c))
             tangency.append(float(np.arccos(c)))
     return PrimitiveFit(prims, dev, tangency, breaks)

@@ -37,7 +37,7 @@ class SelectionConfig:
     #: Positions checked per leaf in the first round; doubles each round.
     first_batch: int = 16
     #: Rounds before a leaf counts as unresolved (16 * (2^6 - 1) = 1008 positions checked).
-    #: On the thesis cell every leaf left unresolved had no valid position in its first
+    #: On the thesis cell every leaf left unresolved has no valid position in its first
     #: thousand, spread evenly over its list; treating it as blocked loses nothing there.
     max_rounds: int = 6
 
@@ -168,7 +168,7 @@ class CellPositions:
     def selected_joints(self) -> tuple[Array, Array, Array]:
         """`selected_csr` with joint values (rad) instead of ids: (cells, offsets, Q).
 
-        Remembered until the selection changes: decoding the ids cost ~2 ms of every
+        Remembered until the selection changes: decoding the ids costs ~2 ms of every
         planning query, a copy of the result ~0.1 ms (copies, so a caller may write to them;
         read-only arrays would also be new argument types for the compiled kernels)."""
         cells, offsets, Q = self.decode()

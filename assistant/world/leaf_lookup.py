@@ -2,7 +2,7 @@
 
 The elastic net asks "is each proposed TCP point (and its edge midpoints) in a free leaf?"
 once or twice per sweep, a few dozen points at a time; through `OctreeGrid.flat_of_points`
-that was six numpy calls and ~40 us per question. The arithmetic is the grid's own:
+that is six numpy calls and ~40 us per question. The arithmetic is the grid's own:
 leaf index floor((p - origin) / leaf) per axis, outside the cube (or NaN) -> False.
 
 Serves (the user-felt figure): the octree lookups of the net and the world build: 0.3 s in

@@ -24,7 +24,7 @@ class SceneLayers:
         scene = app.server.scene
         scene.set_up_direction("+z")
         # Nothing in our scene casts a shadow, but viser's default lights still render their
-        # cascaded shadow maps every frame: without a GPU that was 0.2 s of a 0.3 s frame.
+        # cascaded shadow maps every frame: without a GPU that is two thirds of a frame.
         scene.configure_default_lights(enabled=True, cast_shadow=False)
         scene.add_grid("/grid", width=1.6, height=1.6, cell_size=0.1, section_size=0.5,
                        plane="xy", shadow_opacity=0.0)

@@ -30,9 +30,8 @@ class ObjectsLayer(Layer):
 
     def refresh(self) -> None:
         """Parts are drawn with toon shading: their role colour is what matters, and without a
-        GPU the default PBR material made the parts (a table fills much of the view) cost
-        half of every frame (sample cell, 1400x900, software WebGL: 0.66 -> 0.33 s per frame
-        before planning, 0.86 -> 0.63 s with the plan and the octree drawn)."""
+        GPU the default PBR material makes the parts (a table fills much of the view) cost
+        about half of every frame (software WebGL)."""
         self.clear()
         for obj in self.session.scene_objects():
             wxyz, pos = wxyz_position(obj.T_world_object)

@@ -2,8 +2,8 @@
 
 Both signals get a handler of their own. A process started in the background of a
 non-interactive shell (a CI script's `... &`, `nohup`) inherits SIGINT *ignored*; Python
-then never raises KeyboardInterrupt, and the emulator could only be killed - which is how a
-test that stops it with Ctrl-C failed when the test run itself was started that way.
+then never raises KeyboardInterrupt, and the emulator could only be killed - so a test
+that stops it with Ctrl-C would fail whenever the test run itself is started that way.
 """
 
 from __future__ import annotations
