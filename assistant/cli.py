@@ -86,8 +86,8 @@ def open_session(cell: str | None, folder: Path | None, empty: bool):
     from assistant.session import Session
     from assistant.session.store import SESSION_JSON
 
-    if folder is not None and (folder / SESSION_JSON).exists():
-        return Session.load(folder)
+    if folder is not None and (folder.is_file() or (folder / SESSION_JSON).exists()):
+        return Session.load(folder)  # a file is refused there with what to give instead
     folder = folder or _default_session_dir()
     return Session.from_sample(cell or DEFAULT_SAMPLE, folder, with_objects=not empty,
                                with_mission=not empty)
@@ -99,9 +99,11 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
     try:
         session = open_session(args.cell, args.session, args.empty)
-    except (SampleError, SessionFileError, ValueError) as exc:
+    except (SampleError, SessionFileError, ValueError, OSError) as exc:
         print(f"cellteach: {exc}", file=sys.stderr)
         return 2
+    for note in session.load_notes:
+        print(f"cellteach: {note}", file=sys.stderr)
     if args.host not in ("127.0.0.1", "localhost", "::1"):
         print(f"cellteach: WARNING: listening on {args.host}: anyone who can reach this "
               "computer can drive the robot from a browser.", file=sys.stderr)

@@ -24,6 +24,7 @@ from assistant.session.store import (
     SESSION_JSON,
     SESSION_SCHEMA,
     SessionFileError,
+    check_session_keys,
     read_session_json,
     write_json_atomic,
 )
@@ -127,6 +128,7 @@ class Persistence:
         """Restore a saved session: scene, mission, world observations and plan."""
         folder = Path(folder)
         doc = read_session_json(folder)
+        notes = check_session_keys(doc, folder / SESSION_JSON)
         try:
             cell = load_cell(folder / CELL_DIR)
             s = cls(folder, autosave=False)
@@ -157,4 +159,5 @@ class Persistence:
         except (KeyError, TypeError, ValueError) as exc:
             raise SessionFileError(f"{folder / SESSION_JSON}: {exc}") from None
         s.autosave_enabled = autosave
+        s.load_notes = notes
         return s

@@ -87,6 +87,7 @@ class Session(SetupActions, CellActions, TeachActions, MotionActions, PlanningAc
         self._pointer: Any = None  # LivePointer while the camera step is open
         self.pending_point: Any = None  # the last dwell TaughtPoint, waiting for a name
         self.sample: str | None = None  # the sample cell this session started from
+        self.load_notes: list[str] = []  # what loading ignored (unknown keys), to report
 
     # ================================================================== queries
     @property

@@ -25,6 +25,34 @@ class SessionFileError(ValueError):
     """A session folder that cannot be loaded; names the file and the problem."""
 
 
+#: The keys of `session.json` and the JSON types each may hold (None: may be null).
+SESSION_KEYS: dict[str, tuple[type | None, ...]] = {
+    "schema_version": (int,), "saved_at": (int, float), "machine": (dict,),
+    "locations": (list,), "mission": (dict,), "link": (dict,), "hidden_obstacles": (list,),
+    "pointer": (dict,), "counters": (dict,), "recorded_collisions": (list,),
+    "robot_joints": (list, None), "trajectory": (dict, None), "plan_report": (dict, None),
+    "export_dialect": (str,), "sample": (str, None),
+}
+_TYPE_WORDS = {int: "a number", float: "a number", dict: "an object", list: "a list",
+               str: "a string", None: "null"}
+
+
+def check_session_keys(doc: dict[str, Any], path: Path) -> list[str]:
+    """Refuse a key of the wrong JSON type (naming it and what it should be); return one
+    sentence per unknown key (a newer version's, or a typo), which loading ignores."""
+    for key, types in SESSION_KEYS.items():
+        if key not in doc:
+            continue
+        value = doc[key]
+        ok = any((value is None) if t is None else
+                 (isinstance(value, t) and not isinstance(value, bool)) for t in types)
+        if not ok:
+            want = " or ".join(dict.fromkeys(_TYPE_WORDS[t] for t in types))
+            raise SessionFileError(f"{path}: {key!r} should be {want}, not "
+                                   f"{type(value).__name__} {json.dumps(value)[:40]}")
+    return [f"{path}: unknown key {key!r} ignored" for key in doc if key not in SESSION_KEYS]
+
+
 def write_json_atomic(path: Path, doc: dict[str, Any]) -> None:
     data = json.dumps(doc, indent=1, allow_nan=False).encode("utf-8")
     path.parent.mkdir(parents=True, exist_ok=True)
@@ -41,6 +69,11 @@ def write_json_atomic(path: Path, doc: dict[str, Any]) -> None:
 
 
 def read_session_json(folder: Path) -> dict[str, Any]:
+    if folder.is_file():
+        what = "a zip file" if folder.suffix.lower() == ".zip" else "a file"
+        raise SessionFileError(
+            f"{folder} is {what}, not a session folder: a session is a folder holding "
+            f"{SESSION_JSON} and {CELL_DIR}/ (unpack a zip into a folder and give that)")
     path = folder / SESSION_JSON
     if not path.is_file():
         raise SessionFileError(f"{folder}: no {SESSION_JSON} here - is this a session folder?")
