@@ -1,1 +1,2 @@
-"""The operator workflow as a finite-state machine. Knows nothing of viser or the domain objects."""
+"""The operator workflow as a finite-state machine: steps, guards that answer in sentences,
+Previous/Next over the numbered tree. Imports nothing of the assistant, the web page or viser."""
