@@ -22,7 +22,7 @@ def main() -> int:
     with contextlib.suppress(OSError, AttributeError):
         os.nice(10)
     import assistant  # noqa: F401 - points numba at the cache folder
-    from assistant.kernels.lazy import REGISTRY, cpu_name, marker_path
+    from assistant.kernels.lazy import REGISTRY, write_marker
 
     module, _, attr = os.environ.get("CELLTEACH_WARM_STEPS", DEFAULT_STEPS).partition(":")
     steps = getattr(importlib.import_module(module), attr)
@@ -42,9 +42,7 @@ def main() -> int:
     for _ in steps():
         report()
     report()
-    marker = marker_path()
-    marker.parent.mkdir(parents=True, exist_ok=True)
-    marker.write_text(f"{cpu_name()}\n{len(reported)} kernels\n", encoding="utf-8")
+    write_marker(len(reported))
     say("done")
     return 0
 

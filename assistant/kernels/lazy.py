@@ -118,6 +118,13 @@ def marker_path() -> Path:
     return Path(config.CACHE_DIR) / f"complete-{cpu_name()}"
 
 
+def write_marker(kernels: int) -> None:
+    """Say that every kernel of this source version is in the cache for this CPU."""
+    marker = marker_path()
+    marker.parent.mkdir(parents=True, exist_ok=True)
+    marker.write_text(f"{cpu_name()}\n{kernels} kernels\n", encoding="utf-8")
+
+
 def cache_complete() -> bool:
     try:
         return marker_path().is_file()
