@@ -1,7 +1,6 @@
 """Moving the robot by hand: jogging, Stop, Collision!, cancel and close.
 
-A part of `Session` (mixed into it): its methods run on the Session's state, under
-its lock and workflow, exactly as if written in the Session class."""
+A part mixed into `Session`."""
 
 from __future__ import annotations
 

@@ -1,7 +1,6 @@
 """Steps 5 and 6: the world model, exploration, planning and execution.
 
-A part of `Session` (mixed into it): its methods run on the Session's state, under
-its lock and workflow, exactly as if written in the Session class."""
+A part mixed into `Session`."""
 
 from __future__ import annotations
 

@@ -1,7 +1,6 @@
 """What the web page draws: objects, robot visuals, taught paths, the plan.
 
-A part of `Session` (mixed into it): its methods run on the Session's state, under
-its lock and workflow, exactly as if written in the Session class."""
+A part mixed into `Session`."""
 
 from __future__ import annotations
 

@@ -6,6 +6,9 @@ undo if it edits the document, counted, autosaved, and announced on the event bu
 that fails half-way is rolled back to the snapshot taken before it. Long work (world model,
 planning, execution, exploration) runs on the worker thread with progress and Cancel; the
 machine's busy/moving modes keep edits out meanwhile.
+
+The actions live in parts by concern (`*_part.py`), mixed into `Session`: their methods run
+on the Session's state, under its lock and workflow, exactly as if written here.
 """
 
 from __future__ import annotations

@@ -1,7 +1,6 @@
 """Step 1, set-up: the robot, its tool, the link to it, the hidden obstacles of a simulation.
 
-A part of `Session` (mixed into it): its methods run on the Session's state, under
-its lock and workflow, exactly as if written in the Session class."""
+A part mixed into `Session`."""
 
 from __future__ import annotations
 

@@ -1,7 +1,6 @@
 """Step 4: locations (typed, robot, CAD click, marker pointer), start/goal, application paths.
 
-A part of `Session` (mixed into it): its methods run on the Session's state, under
-its lock and workflow, exactly as if written in the Session class."""
+A part mixed into `Session`."""
 
 from __future__ import annotations
 
