@@ -178,8 +178,13 @@ def test_a_finer_octree_works(rv2aj, rng):
     table = build_table(rv2aj, fine, COARSE)
     idx = rng.choice(table.n_positions, 5000, replace=False)
     q = table.joints(table.positions[idx])
-    assert np.array_equal(fine.flat_of_points(rv2aj.batch_fk(q).positions),
-                          table.leaf_of_positions()[idx])
+    P = rv2aj.batch_fk(q).positions
+    differ = fine.flat_of_points(P) != table.leaf_of_positions()[idx]
+    # The table bins its own FK (another evaluation order, compiled for this CPU); a TCP
+    # may land within rounding of a leaf face and fall on either side, nowhere else.
+    rel = (P - fine.origin) / fine.leaf
+    to_face = np.abs(rel - np.round(rel)).min(axis=1) * fine.leaf
+    assert differ.sum() <= 5 and np.all(to_face[differ] < 1e-9)  # metres
     # each leaf splits into 8; near the reach boundary some of the 8 are not reachable
     coarse = build_table(rv2aj, OctreeGrid.for_leaf(2.0, 0.0625), COARSE)
     assert 5 * len(coarse.leaves) < len(table.leaves) < 9 * len(coarse.leaves)
