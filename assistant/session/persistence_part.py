@@ -18,6 +18,7 @@ from assistant.mission.model import (
     Mission,
 )
 from assistant.mission.motion import trajectory_from_json, trajectory_to_json
+from assistant.session.world_settings import WorldSettings
 from assistant.session.store import (
     CELL_DIR,
     SESSION_JSON,
@@ -109,6 +110,7 @@ class Persistence:
                 "trajectory": trajectory_to_json(self.trajectory) if self.trajectory else None,
                 "plan_report": self.plan_report,
                 "export_dialect": self.export_dialect,
+                "world_settings": self.world_settings.to_json(),
                 "sample": self.sample,
             }
             write_json_atomic(folder / SESSION_JSON, doc)
@@ -153,6 +155,7 @@ class Persistence:
             s.plan_report = doc.get("plan_report")
             s.export_dialect = str(doc.get("export_dialect", "melfa"))
             s.sample = doc.get("sample")
+            s.world_settings = WorldSettings.from_json(doc.get("world_settings", {}))
         except SessionFileError:
             raise
         except (KeyError, TypeError, ValueError) as exc:

@@ -72,6 +72,19 @@ class PlanningActions:
         return self._run_busy("build the world model", self._build_world,
                               ("explore", "plan", "teach", "place"))
 
+    def set_world_settings(self, **changes: Any) -> dict:
+        """Change world settings (`WorldSettings`: resolution_mm, joint_samples, memory_mb,
+        store, clearance_mm); the world model is rebuilt on the next build or plan."""
+        try:
+            settings = self.world_settings.changed(**changes)
+        except (TypeError, ValueError) as exc:
+            raise SessionError(str(exc)) from None
+        with self._lock:
+            self.world_settings = settings
+        self._autosave()
+        self._emit_state()
+        return settings.to_json()
+
     def build_world(self) -> dict:
         return self.start_build_world().result()
 
@@ -83,7 +96,8 @@ class PlanningActions:
         robot = self.robot
         obstacles = self.cell.collision_objects_in_base()
         key = self._obstacles_key()
-        world = WorldModel(robot, obstacles, WorldConfig())
+        world = WorldModel(robot, obstacles, self.world_settings.world_config(robot))
+        world.anchors = self._world_anchors()
         checker = CollisionChecker(robot, obstacles)
         roadmap = RoadmapPlanner(robot, checker, world)
         report = roadmap.build(progress.sub(0.0, 0.9))
@@ -98,6 +112,24 @@ class PlanningActions:
                 "table_from_cache": report.world.table_from_cache,
                 "road_cells": report.road_cells, "regions": report.regions,
                 "free_cells": report.world.leaves_free}
+
+    def _world_anchors(self) -> np.ndarray:
+        """Postures the world's joint positions gather around: the current one and each
+        taught location's (as taught from the robot, else by IK from the current one)."""
+        from assistant.transforms import inv_T
+
+        robot = self.robot
+        q0 = self.current_joints()
+        out = [q0]
+        T_base_world = inv_T(self.T_world_base())
+        for loc in self.locations.values():
+            if loc.q_hint is not None and np.shape(loc.q_hint) == (robot.dof,):
+                out.append(np.asarray(loc.q_hint, dtype=float))
+                continue
+            res = robot.ik(T_base_world @ np.asarray(loc.T_world_tool, dtype=float), seed=q0)
+            if res.ok:
+                out.append(np.asarray(res.best(q0), dtype=float))
+        return np.array(out)
 
     def _backend(self, progress: Progress | None = None) -> _Backend:
         """The world model for the current obstacles, (re)built if stale."""

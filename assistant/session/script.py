@@ -229,6 +229,7 @@ VERBS: dict[str, tuple[Verb, bool]] = {
     "remove_path": (lambda s, a: s.remove_path(a["name"]), False),
     "move_path": (lambda s, a: s.move_path(a["name"], int(a["index"])), False),
     "jog": (_jog, False),
+    "world_settings": (lambda s, a: s.set_world_settings(**a), False),
     "build_world": (lambda s, a: s.build_world(), False),
     "explore": (lambda s, a: s.explore(a.get("mode", "random"), int(a.get("moves", 5)),
                                        seed=int(a.get("seed", 0))), False),
@@ -269,6 +270,7 @@ ARGS: dict[str, set[str]] = {
     "move_path": {"name", "index"},
     "jog": {"joints_deg", "pose"},
     "explore": {"mode", "moves", "seed"},
+    "world_settings": {"resolution_mm", "joint_samples", "memory_mb", "store", "clearance_mm"},
     "export": {"dialect", "frame"},
 }
 REQUIRED: dict[str, set[str]] = {

@@ -30,6 +30,7 @@ from assistant.mission.model import (
 )
 from assistant.mission.motion import Trajectory
 from assistant.robots.model import Robot
+from assistant.session.world_settings import WorldSettings
 from assistant.session.cell_part import CellActions
 from assistant.session.document import Document
 from assistant.session.events import (
@@ -77,6 +78,7 @@ class Session(SetupActions, CellActions, TeachActions, MotionActions, PlanningAc
         self.autosave_enabled = autosave and self.folder is not None
         self.pointer_config: dict[str, Any] = {}
         self.export_dialect = "melfa"
+        self.world_settings = WorldSettings()
         self.trajectory: Trajectory | None = None
         self.plan_report: dict[str, Any] | None = None
         self.program: Any = None
@@ -124,9 +126,13 @@ class Session(SetupActions, CellActions, TeachActions, MotionActions, PlanningAc
         return self._q_sim.copy()
 
     def _home(self) -> Array:
-        r = self.robot
-        q = np.clip(np.zeros(r.dof), r.limits.lower, r.limits.upper)
-        return q
+        """Where the simulated robot starts: the zero posture (clipped to the limits) unless
+        that puts a moving link below the mounting plane (a UR arm at zero lies stretched
+        over its table), else the nearest posture that keeps every moving link 50 mm above
+        it (`home.raised_posture`)."""
+        from assistant.session.home import raised_posture
+
+        return raised_posture(self.robot)
 
     def T_world_base(self) -> Array:
         return np.asarray(self.cell.T_world_base, dtype=float)
@@ -179,7 +185,7 @@ class Session(SetupActions, CellActions, TeachActions, MotionActions, PlanningAc
             self.program = None
 
     def _obstacles_key(self) -> tuple:
-        return (self.document().obstacles_key(), self.cell.robot_spec)
+        return (self.document().obstacles_key(), self.cell.robot_spec, self.world_settings)
 
     def _error(self, message: str, hint: str = "") -> None:
         self._last_error = message

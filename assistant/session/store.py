@@ -32,6 +32,7 @@ SESSION_KEYS: dict[str, tuple[type | None, ...]] = {
     "pointer": (dict,), "counters": (dict,), "recorded_collisions": (list,),
     "robot_joints": (list, None), "trajectory": (dict, None), "plan_report": (dict, None),
     "export_dialect": (str,), "sample": (str, None),
+    "world_settings": (dict,),
 }
 _TYPE_WORDS = {int: "a number", float: "a number", dict: "an object", list: "a list",
                str: "a string", None: "null"}

@@ -21,7 +21,7 @@ import numpy as np
 
 from assistant.progress import Progress
 from assistant.world.chain_levels import ChainValidator
-from assistant.world.reachability import ReachabilityTable
+from assistant.world.leaf_store import JointStore
 
 Array = np.ndarray
 
@@ -36,10 +36,13 @@ class SelectionConfig:
     per_cell: int = 12
     #: Positions checked per leaf in the first round; doubles each round.
     first_batch: int = 16
-    #: Rounds before a leaf counts as unresolved (16 * (2^6 - 1) = 1008 positions checked).
+    #: Rounds before a leaf counts as unresolved (16 * (2^6 - 1) = 1008 positions checked;
+    #: the sampled store uses `sampled_rounds`: its leaves hold ~100 positions, nearest to
+    #: the taught postures first, and a leaf below a table would check all of them).
     #: On the thesis cell every leaf left unresolved has no valid position in its first
     #: thousand, spread evenly over its list; treating it as blocked loses nothing there.
     max_rounds: int = 6
+    sampled_rounds: int = 3
 
 
 @dataclass(frozen=True)
@@ -53,7 +56,7 @@ class FillReport:
 class CellPositions:
     """Per-position validity state and the selected positions per leaf."""
 
-    def __init__(self, table: ReachabilityTable, validator: ChainValidator,
+    def __init__(self, table: JointStore, validator: ChainValidator,
                  config: SelectionConfig | None = None):
         self.table = table
         self.validator = validator
@@ -81,7 +84,8 @@ class CellPositions:
         counts = np.diff(t.offsets)
         checked = 0
         batch = cfg.first_batch
-        for rnd in range(cfg.max_rounds):
+        rounds = cfg.sampled_rounds if t.kind == "samples" else cfg.max_rounds
+        for rnd in range(rounds):
             self._reselect(slots)
             need = slots[(self.n_selected[slots] < cfg.per_cell)
                          & (self.examined[slots] < counts[slots])]
@@ -92,7 +96,7 @@ class CellPositions:
             p = np.repeat(start - np.r_[0, np.cumsum(take)[:-1]], take) + np.arange(take.sum())
             todo = p[self.state[p] == UNKNOWN]
             if len(todo):
-                sub = (progress.sub(rnd / cfg.max_rounds, (rnd + 1) / cfg.max_rounds)
+                sub = (progress.sub(rnd / rounds, (rnd + 1) / rounds)
                        if progress is not None else None)
                 ok = self.validator.validate(t.positions[todo], sub)
                 self.state[todo] = np.where(ok, VALID, INVALID_CAD)

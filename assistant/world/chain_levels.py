@@ -26,7 +26,7 @@ from assistant.collision.checker import CollisionChecker
 from assistant.collision.reports import ObstacleView
 from assistant.progress import Progress
 from assistant.robots.model import BatchPoses, CollisionShape, IKResult, Robot, ShapeKind
-from assistant.world.reachability import ReachabilityTable
+from assistant.world.leaf_store import JointStore
 
 Array = np.ndarray
 
@@ -236,7 +236,7 @@ def link_levels(robot: Robot, *, seed: int = 3) -> list[int]:
 class ChainValidator:
     """Valid (collision-free against the obstacles and itself) table joint positions.
 
-    `validate(ids)` takes flat joint-grid ids of the table and returns a bool per id; every
+    `validate(ids)` takes ids of the joint-position store and returns a bool per id; every
     check goes through a `CollisionChecker`. Per level L the checkers are: one for the links
     new at L against the obstacles, and one per group of older links that can touch a new link
     (self-collision), the groups chosen so that no two older links in a group form a pair - an
@@ -244,19 +244,16 @@ class ChainValidator:
     configuration below it. Not thread-safe (the checkers are not).
     """
 
-    def __init__(self, robot: Robot, obstacles: Iterable[ObstacleView], table: ReachabilityTable,
+    def __init__(self, robot: Robot, obstacles: Iterable[ObstacleView], table: JointStore,
                  *, self_collision: bool = True):
         self.robot = robot
         self.table = table
         self.obstacles = list(obstacles)
         self.link_level = link_levels(robot)
-        counts = table.counts.astype(np.int64)
         n_links = len(robot.links)
         shaped = [i for i in range(n_links) if robot.links[i].collision]
         self.levels = sorted({self.link_level[i] for i in shaped if i > 0})
-        #: ids // divisor[L] is the prefix over the first L joints (C order, J1 slowest).
-        self._divisor = {L: int(np.prod(counts[L:])) for L in self.levels}
-        self._space = {L: int(np.prod(counts[:L])) for L in self.levels}
+        self._space = {L: table.prefix_space(L) for L in self.levels}
         memo = _FrameMemo(robot)
         self._checkers: dict[int, list[CollisionChecker]] = {}
         self._cache: dict[int, Array | dict[int, int]] = {}
@@ -314,11 +311,7 @@ class ChainValidator:
         return hit
 
     def _prefix_configs(self, L: int, prefixes: Array) -> Array:
-        counts = tuple(int(c) for c in self.table.counts[:L])
-        idx = np.stack(np.unravel_index(prefixes, counts), axis=1) if L else np.zeros((1, 0))
-        Q = np.tile(self._rest, (len(prefixes), 1))
-        Q[:, :L] = self.table.lower[:L] + idx * self.table.step[:L]
-        return Q
+        return self.table.prefix_configs(L, prefixes, self._rest)
 
     def _lookup(self, L: int, prefixes: Array) -> Array:
         cache = self._cache[L]
@@ -341,7 +334,7 @@ class ChainValidator:
         for li, L in enumerate(self.levels):
             if not alive.any():
                 break
-            pre = ids[alive] // self._divisor[L]
+            pre = self.table.prefixes(ids[alive], L)
             st = self._lookup(L, pre)
             todo = np.unique(pre[st == UNKNOWN])
             if len(todo):

@@ -20,8 +20,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from assistant.robots.model import Robot, ShapeKind
+from assistant.world.leaf_store import JointStore
 from assistant.world.octree import OctreeGrid
-from assistant.world.reachability import ReachabilityTable
 
 Array = np.ndarray
 
@@ -74,7 +74,7 @@ def indicated_cells(robot: Robot, grid: OctreeGrid, q: Array,
     return np.unique(flat[flat >= 0])
 
 
-def posture_box_half(table: ReachabilityTable, joint_steps: float) -> Array:
+def posture_box_half(table: JointStore, joint_steps: float) -> Array:
     """Half-widths (dof,) of a recorded collision's posture box: `joint_steps` grid steps in
     every varying table joint, inf in the joints the table does not vary."""
     varying = table.counts > 1
@@ -83,13 +83,13 @@ def posture_box_half(table: ReachabilityTable, joint_steps: float) -> Array:
     return half
 
 
-def near_posture(table: ReachabilityTable, Q: Array, q: Array, joint_steps: float) -> Array:
+def near_posture(table: JointStore, Q: Array, q: Array, joint_steps: float) -> Array:
     """Bool per row of Q: within `joint_steps` grid steps of q in every varying table joint."""
     d = np.abs(np.atleast_2d(np.asarray(Q)) - np.asarray(q))
     return np.all(d <= posture_box_half(table, joint_steps), axis=1)
 
 
-def nearby_positions(table: ReachabilityTable, q: Array, joint_steps: float) -> Array:
+def nearby_positions(table: JointStore, q: Array, joint_steps: float) -> Array:
     """Indices into `table.positions` of the positions near q (`near_posture`): the grid
     points in the box around q, looked up directly (no leaf scan)."""
     idx = table.index_of_ids(table.ids_in_box(np.asarray(q, dtype=float), joint_steps))

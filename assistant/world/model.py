@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -31,15 +31,10 @@ from assistant.world.indications import (
     near_posture,
     nearby_positions,
 )
+from assistant.world.leaf_store import JointStore
 from assistant.world.octree import LinearOctree, OctreeGrid
 from assistant.world.rasterise import rasterise_obstacles
-from assistant.world.reachability import (
-    ReachabilityConfig,
-    ReachabilityTable,
-    cache_dir,
-    load_or_build,
-    table_key,
-)
+from assistant.world.reachability import ReachabilityConfig, is_cached, load_or_build
 
 Array = np.ndarray
 
@@ -67,6 +62,29 @@ class WorldConfig:
 
     def grid(self) -> OctreeGrid:
         return OctreeGrid.for_leaf(self.size, self.leaf, self.centre)
+
+    @staticmethod
+    def for_robot(robot: Robot, *, leaf: float | None = None, **changes) -> WorldConfig:
+        """Defaults sized to the arm: a cube centred on the base that holds every TCP position
+        with a 0.1 m margin (at least the thesis' 2 m), 32 leaves a side unless `leaf` (m)
+        asks for finer ones; other fields as given (`reach=ReachabilityConfig(...)`, ...)."""
+        size = max(2.0, 2.0 * (tcp_reach(robot) + 0.1))
+        size = float(np.ceil(size * 8.0) / 8.0)  # a round figure (125 mm steps)
+        grid = OctreeGrid.for_leaf(size, leaf if leaf else size / 32.0)
+        # one joint step moves the TCP at most half a leaf (the thesis' d_step / leaf)
+        reach = replace(changes.pop("reach", ReachabilityConfig()), d_step=grid.leaf / 2.0)
+        return WorldConfig(size=size, leaf=grid.leaf, reach=reach, **changes)
+
+
+def tcp_reach(robot: Robot, n: int = 1 << 14) -> float:
+    """Largest TCP distance (m) from the base origin over Sobol samples of the limits
+    (within ~1 % of the true maximum; the cube's margin covers the rest)."""
+    from scipy.stats import qmc
+
+    lo, hi = robot.limits.lower, robot.limits.upper
+    U = qmc.Sobol(d=robot.dof, scramble=True, seed=0).random(n)
+    P = np.asarray(robot.batch_fk(lo + U * (hi - lo)).positions)
+    return float(np.linalg.norm(P, axis=1).max())
 
 
 @dataclass(frozen=True)
@@ -120,13 +138,16 @@ class WorldModel:
         self.cad = list(cad)
         self.octree = LinearOctree(self.grid)
         self.fusion = OccupancyFusion(self.config.fusion)
-        self.table: ReachabilityTable | None = None
+        self.table: JointStore | None = None
         self.positions: CellPositions | None = None
         self.cad_cells: dict[str, Array] = {}
         self.collisions: list[RecordedCollision] = []
         self.weights = robot.arm_radii()
         self._object_ids = np.zeros(self.grid.n_cells, dtype=np.int32)
         self._cad_leaves: tuple[Array, Array] | None = None  # `cad_leaves`
+        #: Postures (the taught ones) the sampled store's leaves list their positions
+        #: toward (`SampledTable.toward`); ignored by the joint grid.
+        self.anchors: Array | None = None
 
     @property
     def built(self) -> bool:
@@ -142,11 +163,14 @@ class WorldModel:
         model as it was."""
         progress = progress or Progress("world model")
         t0 = time.perf_counter()
-        key = table_key(self.robot, self.grid, self.config.reach)
-        cached = (self.config.use_cache
-                  and (cache_dir(self.config.cache) / "reachability" / f"{key}.npz").exists())
+        cached = (self.config.use_cache and is_cached(
+            self.robot, self.grid, self.config.reach, self.config.cache))
         table = load_or_build(self.robot, self.grid, self.config.reach, progress.sub(0.0, 0.4),
                               cache=self.config.cache, use_cache=self.config.use_cache)
+        if table.kind == "samples" and self.anchors is not None and len(self.anchors):
+            cfg = self.config.reach
+            table = table.focused(self.robot, self.anchors, cfg.focus_samples,
+                                  cfg.focus_margin).toward(self.anchors, self.weights)
         table.index_of_ids(np.zeros(0, dtype=np.int64))  # build the inverse map now, not
         # during the first collision indication
         t1 = time.perf_counter()
@@ -184,7 +208,7 @@ class WorldModel:
             leaves_occupied=int(occupied.sum()),
             leaves_blocked_by_arm=fill.exhausted_blocked, leaves_unresolved=fill.unresolved)
 
-    def _need(self) -> tuple[ReachabilityTable, CellPositions]:
+    def _need(self) -> tuple[JointStore, CellPositions]:
         if self.table is None or self.positions is None:
             raise RuntimeError("build the world model first (WorldModel.build)")
         return self.table, self.positions

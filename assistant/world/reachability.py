@@ -35,15 +35,22 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import tempfile
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from assistant.progress import Progress
 from assistant.robots.model import Robot
+from assistant.world.joint_samples import (
+    BYTES_PER_GRID_POINT,
+    SampledTable,
+    build_samples,
+    check_grid_budget,
+    samples_key,
+)
+from assistant.world.leaf_store import JointStore, save_npz
 from assistant.world.octree import OctreeGrid
 
 Array = np.ndarray
@@ -76,6 +83,20 @@ class ReachabilityConfig:
     skip_below: float = 1e-4
     #: Configurations per FK chunk on the generic path.
     chunk: int = 1 << 18
+    #: "grid" (the thesis' full joint grid), "samples" (a fixed budget of joint samples,
+    #: `joint_samples`) or "auto": the grid while it fits `grid_points` and the memory budget.
+    store: str = "auto"
+    #: Most joint-grid points "auto" accepts (the RV-2AJ's thesis grid has ~10 M).
+    grid_points: int = 40_000_000
+    #: Joint samples of the sampled store (before the top-up of thin leaves).
+    samples: int = 1 << 21
+    #: Samples added (per world build, not cached) in the box the taught postures span,
+    #: widened by `focus_margin` rad (`SampledTable.focused`).
+    focus_samples: int = 1 << 20
+    focus_margin: float = 0.8
+    #: Memory the store may take while it is built (MB); a request beyond it is refused
+    #: with a message naming this setting.
+    memory_mb: int = 1536
 
     def to_json(self) -> dict:
         return {"d_step": self.d_step, "radii": None if self.radii is None else list(self.radii),
@@ -83,40 +104,21 @@ class ReachabilityConfig:
 
 
 @dataclass
-class ReachabilityTable:
-    """Joint positions per reachable leaf (see the module docstring for the layout)."""
+class ReachabilityTable(JointStore):
+    """Joint positions per reachable leaf on the full joint grid (see the module docstring for
+    the layout). `lower`, `step`, `counts` define the grid."""
 
-    key: str
-    grid: OctreeGrid
-    radii: Array  # r_i (m) per joint
-    lower: Array  # first grid value per joint (rad)
-    step: Array  # grid spacing per joint (rad), 0 for fixed joints
-    counts: Array  # values per joint (1 for fixed joints)
-    leaves: Array  # (L,) int64 flat leaf ids, ascending
-    offsets: Array  # (L + 1,) int64
-    positions: Array  # (N,) int32 flat joint-grid ids, grouped by leaf, diversity order
-    build_seconds: float = 0.0
-    _slot: Array | None = field(default=None, repr=False)
-    _inverse: Array | None = field(default=None, repr=False)
+    kind = "grid"
 
     # ---------------------------------------------------------------- joint grid
-    @property
-    def dof(self) -> int:
-        return len(self.counts)
-
-    @property
-    def n_positions(self) -> int:
-        return len(self.positions)
-
     @property
     def grid_size(self) -> int:
         """Number of points of the joint grid (reachable or not)."""
         return int(np.prod(self.counts.astype(np.int64)))
 
     @property
-    def steps_deg(self) -> Array:
-        """The thesis' Table 8 view: step per joint in degrees (0 for fixed joints)."""
-        return np.degrees(self.step)
+    def id_space(self) -> int:
+        return self.grid_size
 
     def joint_index(self, ids: Array) -> Array:
         """(n, dof) per-joint grid indices of flat joint-grid ids (C order, J1 slowest)."""
@@ -130,15 +132,6 @@ class ReachabilityTable:
     def flat_id(self, joint_index: Array) -> Array:
         ji = np.asarray(joint_index, dtype=np.int64).reshape(-1, self.dof)
         return np.ravel_multi_index(tuple(ji.T), tuple(int(c) for c in self.counts))
-
-    def index_of_ids(self, ids: Array) -> Array:
-        """Index into `positions` of flat joint-grid ids, -1 where the id is not stored (its
-        TCP is outside the octree). The inverse map (4 bytes per grid point) is built once."""
-        if self._inverse is None:
-            inv = np.full(self.grid_size, -1, dtype=np.int32)
-            inv[self.positions] = np.arange(self.n_positions, dtype=np.int32)
-            self._inverse = inv
-        return self._inverse[np.asarray(ids, dtype=np.int64)].astype(np.int64)
 
     def ids_in_box(self, q: Array, half_steps: float) -> Array:
         """Flat ids of the grid points within `half_steps` steps of q in every varying joint
@@ -157,53 +150,28 @@ class ReachabilityTable:
         mesh = np.stack(np.meshgrid(*ranges, indexing="ij"), axis=-1).reshape(-1, self.dof)
         return self.flat_id(mesh)
 
-    # ---------------------------------------------------------------- leaves
-    def slot_of_leaf(self, flat_leaves: Array) -> Array:
-        """Index into `leaves` of flat leaf ids, -1 for unreachable leaves."""
-        if self._slot is None:
-            s = np.full(self.grid.n_cells, -1, dtype=np.int32)
-            s[self.leaves] = np.arange(len(self.leaves), dtype=np.int32)
-            self._slot = s
-        return self._slot[np.asarray(flat_leaves, dtype=np.int64)]
+    # ---------------------------------------------------------------- chain prefixes
+    def prefix_space(self, n_joints: int) -> int:
+        return int(np.prod(self.counts[:n_joints].astype(np.int64)))
 
-    def positions_in(self, flat_leaf: int) -> Array:
-        """Flat joint-grid ids binned into one leaf (diversity order); empty if unreachable."""
-        s = int(self.slot_of_leaf(np.array([flat_leaf]))[0])
-        if s < 0:
-            return self.positions[:0]
-        return self.positions[self.offsets[s]:self.offsets[s + 1]]
+    def prefixes(self, ids: Array, n_joints: int) -> Array:
+        """Flat ids of the grid over the first `n_joints` joints (C order: a division)."""
+        return np.asarray(ids, dtype=np.int64) // int(np.prod(self.counts[n_joints:]))
 
-    def counts_per_leaf(self) -> Array:
-        return np.diff(self.offsets)
-
-    def reachable(self) -> Array:
-        """Dense bool grid: the leaf holds at least one joint position."""
-        m = np.zeros(self.grid.n_cells, dtype=bool)
-        m[self.leaves] = True
-        return m.reshape(self.grid.shape)
-
-    def leaf_of_positions(self) -> Array:
-        """(N,) flat leaf id of every stored position (expanded from the CSR offsets)."""
-        return np.repeat(self.leaves, np.diff(self.offsets))
-
-    def nbytes(self) -> int:
-        return int(self.leaves.nbytes + self.offsets.nbytes + self.positions.nbytes)
+    def prefix_configs(self, n_joints: int, prefixes: Array, rest: Array) -> Array:
+        counts = tuple(int(c) for c in self.counts[:n_joints])
+        idx = (np.stack(np.unravel_index(prefixes, counts), axis=1) if n_joints
+               else np.zeros((1, 0)))
+        Q = np.tile(rest, (len(prefixes), 1))
+        Q[:, :n_joints] = self.lower[:n_joints] + idx * self.step[:n_joints]
+        return Q
 
     # ---------------------------------------------------------------- persistence
     def save(self, path: Path) -> None:
-        """Write atomically: a temporary file in the same folder, then a rename."""
-        path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=".reach-", suffix=".npz.tmp", dir=path.parent)
-        try:
-            with os.fdopen(fd, "wb") as f:
-                np.savez(f, key=np.array(self.key), grid=np.array(json.dumps(self.grid.to_json())),
-                         radii=self.radii, lower=self.lower, step=self.step, counts=self.counts,
-                         leaves=self.leaves, offsets=self.offsets, positions=self.positions,
-                         build_seconds=np.array(self.build_seconds))
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+        save_npz(path, key=np.array(self.key), grid=np.array(json.dumps(self.grid.to_json())),
+                 radii=self.radii, lower=self.lower, step=self.step, counts=self.counts,
+                 leaves=self.leaves, offsets=self.offsets, positions=self.positions,
+                 build_seconds=np.array(self.build_seconds))
 
     @staticmethod
     def load(path: Path) -> ReachabilityTable:
@@ -306,9 +274,8 @@ def build_table(robot: Robot, grid: OctreeGrid, config: ReachabilityConfig | Non
     radii = (np.asarray(config.radii, dtype=float) if config.radii is not None
              else joint_reach_radii(robot))
     lower, step, counts = joint_grid(robot, radii, config)
-    total = int(np.prod(counts))
-    if total >= 2**31:
-        raise ValueError(f"joint grid of {total} points is too large; raise d_step")
+    total = int(np.prod(counts.astype(float)))
+    check_grid_budget(total, config.memory_mb)
     leaf_of = np.empty(total, dtype=np.int32)
     rng = np.random.default_rng(1)
     if counts[0] > 1 and _turns_about_base_z(robot, rng):
@@ -409,22 +376,81 @@ def _diversity_order(ids: Array, offsets: Array) -> Array:
 
 
 # -------------------------------------------------------------------- cache
+def grid_points(robot: Robot, radii: Array, config: ReachabilityConfig) -> int:
+    """Points of the full joint grid the parameters ask for (a float product: may be huge)."""
+    return int(np.prod(joint_grid(robot, radii, config)[2].astype(float)))
+
+
+def store_kind(robot: Robot, radii: Array, config: ReachabilityConfig) -> str:
+    """"grid" or "samples": `config.store`, or for "auto" the grid while it has at most
+    `grid_points` points and fits the memory budget."""
+    if config.store in ("grid", "samples"):
+        return config.store
+    if config.store != "auto":
+        raise ValueError(f"unknown joint-position store {config.store!r}: "
+                         "use 'auto', 'grid' or 'samples'")
+    total = grid_points(robot, radii, config)
+    fits = total * BYTES_PER_GRID_POINT <= config.memory_mb * 2**20
+    return "grid" if total <= config.grid_points and fits else "samples"
+
+
+def store_path(robot: Robot, grid: OctreeGrid, config: ReachabilityConfig,
+               cache: str | os.PathLike | None, kind: str) -> Path:
+    key = table_key(robot, grid, config) if kind == "grid" else samples_key(robot, grid, config)
+    return cache_dir(cache) / ("reachability" if kind == "grid" else "joint_samples") / \
+        f"{key}.npz"
+
+
+def is_cached(robot: Robot, grid: OctreeGrid, config: ReachabilityConfig,
+              cache: str | os.PathLike | None = None) -> bool:
+    kinds = ("grid", "samples") if config.store == "auto" else (config.store,)
+    return any(store_path(robot, grid, config, cache, k).exists() for k in kinds)
+
+
+def cached_store(robot: Robot, grid: OctreeGrid, config: ReachabilityConfig,
+                 cache: str | os.PathLike | None = None) -> JointStore | None:
+    """The store from the disk cache, if one for these parameters is there and readable."""
+    kinds = ("grid", "samples") if config.store == "auto" else (config.store,)
+    for kind in kinds:
+        path = store_path(robot, grid, config, cache, kind)
+        if not path.exists():
+            continue
+        try:
+            store = (ReachabilityTable.load(path) if kind == "grid"
+                     else SampledTable.load(path))
+        except (OSError, ValueError, KeyError):
+            continue  # unreadable or stale: rebuilt and overwritten
+        if path.stem == store.key:
+            return store
+    return None
+
+
 def load_or_build(robot: Robot, grid: OctreeGrid, config: ReachabilityConfig | None = None,
                   progress: Progress | None = None, *,
                   cache: str | os.PathLike | None = None, use_cache: bool = True,
-                  ) -> ReachabilityTable:
-    """The table from the disk cache if present, else built (and then cached)."""
+                  ) -> JointStore:
+    """The joint-position store from the disk cache if present, else built (then cached):
+    the full grid or the sampled store (`store_kind`)."""
     config = config or ReachabilityConfig()
-    key = table_key(robot, grid, config)
-    path = cache_dir(cache) / "reachability" / f"{key}.npz"
-    if use_cache and path.exists():
-        try:
-            table = ReachabilityTable.load(path)
-            if table.key == key:
-                return table
-        except (OSError, ValueError, KeyError):
-            pass  # unreadable or stale: rebuild below and overwrite
-    table = build_table(robot, grid, config, progress)
     if use_cache:
-        table.save(path)
-    return table
+        store = cached_store(robot, grid, config, cache)
+        if store is not None:
+            return store
+    given = config
+    progress = progress or Progress("joint positions")
+    progress.update(0.0, "joint steps")
+    radii = (np.asarray(config.radii, dtype=float) if config.radii is not None
+             else joint_reach_radii(robot))
+    kind = store_kind(robot, radii, config)
+    config = replace(config, radii=tuple(float(r) for r in radii)) if config.radii is None \
+        else config
+    store: JointStore
+    if kind == "grid":
+        store = build_table(robot, grid, config, progress)
+    else:
+        store = build_samples(robot, grid, config, radii, progress.sub(0.05, 1.0))
+    # cached under the key of the parameters as given (radii measured or not)
+    store.key = store_path(robot, grid, given, cache, kind).stem
+    if use_cache:
+        store.save(store_path(robot, grid, given, cache, kind))
+    return store
