@@ -18,7 +18,6 @@ from assistant.mission.model import (
     Mission,
 )
 from assistant.mission.motion import trajectory_from_json, trajectory_to_json
-from assistant.session.world_settings import WorldSettings
 from assistant.session.store import (
     CELL_DIR,
     SESSION_JSON,
@@ -33,6 +32,7 @@ from assistant.session.types import (
     HiddenObstacle,
     sample_robot_spec,
 )
+from assistant.session.world_settings import WorldSettings
 from workflow.machine import Machine
 
 if TYPE_CHECKING:

@@ -90,7 +90,7 @@ class PlanningActions:
 
     def _build_world(self, progress: Progress) -> dict:
         from assistant.roadmap.planner import RoadmapPlanner
-        from assistant.world.model import WorldConfig, WorldModel
+        from assistant.world.model import WorldModel
 
         t0 = time.perf_counter()
         robot = self.robot

@@ -30,7 +30,6 @@ from assistant.mission.model import (
 )
 from assistant.mission.motion import Trajectory
 from assistant.robots.model import Robot
-from assistant.session.world_settings import WorldSettings
 from assistant.session.cell_part import CellActions
 from assistant.session.document import Document
 from assistant.session.events import (
@@ -53,6 +52,7 @@ from assistant.session.types import (
     hint_for,
 )
 from assistant.session.worker import Worker
+from assistant.session.world_settings import WorldSettings
 from workflow.machine import Facts, Machine, Mode, TransitionRefused
 
 Array = np.ndarray

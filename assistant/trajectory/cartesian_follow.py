@@ -80,6 +80,12 @@ def follow_poses(robot: Robot, poses: Array, q_start: Array, *, max_joint_step: 
                                 cands.reason(i, poses[i], robot.limits, robot.joint_names),
                                 worst)
         T = poses[i]
+        near = robot.ik_near(T, q_prev) if hasattr(robot, "ik_near") else None
+        if near is not None and np.abs(near - q_prev).max() <= max_joint_step:
+            out[i] = near
+            q_prev = near
+            i += 1
+            continue
         res = robot.ik(T, q_prev)
         if (not res.ok and project_orientation and res.failure == IKFailure.ORIENTATION
                 and res.nearest_T_base_tool is not None):

@@ -42,7 +42,7 @@ class SelectionConfig:
     #: On the thesis cell every leaf left unresolved has no valid position in its first
     #: thousand, spread evenly over its list; treating it as blocked loses nothing there.
     max_rounds: int = 6
-    sampled_rounds: int = 3
+    sampled_rounds: int = 2
 
 
 @dataclass(frozen=True)

@@ -16,9 +16,9 @@ Writes, next to this script (or into OUT_DIR):
   machine's site-packages.
 * ``mission.json`` - START, GOAL and the seam.
 
-Joint ranges: the UR5's joints turn +-360 deg; over that the reachability table would hold
-~350 M joint positions. The cell uses the ranges the task needs with margin (tool about
-vertical, elbow up, arm in front), ~9 M positions.
+Joint ranges: the UR5's own (+-360 deg, the elbow +-180 deg), as the URDF states them; the
+world model samples them (`world.joint_samples`) and gathers its positions around the taught
+postures.
 
 World = the UR5's ``base_link`` frame (x forward, z up), metres.
 Note: the UR controller's own base frame is the URDF's ``base`` link, turned 180 deg about z
@@ -53,9 +53,6 @@ from assistant.robots.catalog import RobotSpec, ToolSpec  # noqa: E402
 from assistant.transforms import make_T, stored_pose  # noqa: E402
 
 URDF = "example-robot-data/robots/ur_description/urdf/ur5_robot.urdf"
-#: shoulder_pan, shoulder_lift, elbow, wrist_1, wrist_2, wrist_3 (deg).
-CELL_LIMITS_DEG = ((-80.0, 50.0), (-130.0, -60.0), (60.0, 140.0), (-150.0, -50.0),
-                   (-100.0, -80.0), (-360.0, 360.0))
 NOZZLE_LENGTH, NOZZLE_RADIUS = 0.100, 0.025
 
 TABLE = ((0.2, 0.0, -0.01), (1.2, 1.2, 0.02))
@@ -64,8 +61,7 @@ PLATE_AT, PLATE = (0.50, 0.0, 0.0), (0.25, 0.35, 0.020)
 CLAMP = ((0.30, -0.30, 0.075), (0.12, 0.10, 0.15))
 POST = ((0.42, 0.26, 0.225), 0.03, 0.45)
 #: START, GOAL and the seam's start as the operator jogs to them (joints, deg); nozzle down,
-#: wrist 3 at 0 (the roadmap's table holds wrist 3 at 0: a posture far from it has no edge
-#: into the roadmap). The TCPs: START (300, -400, 350), GOAL (300, 400, 350), SEAM_A
+#: wrist 3 at 0 (the nozzle lies on the wrist 3 axis: the world model holds it at 0). The TCPs: START (300, -400, 350), GOAL (300, 400, 350), SEAM_A
 #: (500, -120, 45) mm, within the jog's rounding.
 START_Q_DEG = (-65.7, -89.8, 87.2, -87.3, -90.0, 0.0)
 GOAL_Q_DEG = (40.5, -89.8, 87.2, -87.3, -90.0, 0.0)
@@ -78,8 +74,7 @@ SEAM_SPEED = 0.05
 def robot_spec() -> RobotSpec:
     return RobotSpec(kind="urdf", urdf_path=URDF, base_link="base_link", tool_link="tool0",
                      tool=ToolSpec.straight(NOZZLE_LENGTH, NOZZLE_RADIUS, name="nozzle",
-                                            has_gripper=False),
-                     limits_deg=CELL_LIMITS_DEG)
+                                            has_gripper=False))
 
 
 def plate_stl() -> bytes:
