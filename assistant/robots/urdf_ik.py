@@ -52,6 +52,10 @@ class DLSInverseKinematics:
         first = np.clip(self._check_q(seed), lo, hi) if seed is not None else home
         rng = np.random.default_rng(st.rng_seed)
         starts = [first] + [rng.uniform(lo, hi) for _ in range(st.restarts)]
+        if self.dof > 6:
+            # redundant: the middle of the ranges before random restarts (they find
+            # contorted postures a 7-axis arm has plenty of)
+            starts.insert(1, 0.5 * (lo + hi))
         dist = float(np.linalg.norm(T[:3, 3] - self._reach_centre))
         out_of_reach = dist > self._reach + st.position_tolerance
         if out_of_reach:
@@ -196,6 +200,12 @@ class DLSInverseKinematics:
                 if not np.any(blocked & free):
                     break
                 free &= ~blocked
+            if self.dof > e.shape[0] and clamp:
+                # redundant arm: in the Jacobian's null space, drift toward the middle of the
+                # joint ranges (the 7th axis of a Panda keeps away from its limits instead of
+                # wandering into them along a Cartesian line)
+                N = np.eye(self.dof) - np.linalg.pinv(J, rcond=1e-4) @ J
+                dq = dq + N @ (0.1 * (0.5 * (lo + hi) - q))
             step = float(np.max(np.abs(dq)))
             if step > st.max_step:
                 dq *= st.max_step / step

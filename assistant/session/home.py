@@ -12,6 +12,8 @@ Array = np.ndarray
 
 #: Height (m) every moving link keeps above the mounting plane at home.
 CLEAR_OF_MOUNT = 0.05
+#: Smallest Jacobian singular value a home posture keeps (`dexterity`).
+MIN_DEXTERITY = 0.02
 
 
 def lowest_point(robot: Robot, q: Array, first_link: int = 3) -> float:
@@ -31,21 +33,46 @@ def lowest_point(robot: Robot, q: Array, first_link: int = 3) -> float:
     return low
 
 
+def dexterity(robot: Robot, q: Array, h: float = 1e-5) -> float:
+    """Smallest singular value of the TCP Jacobian (m/rad; rotation rows scaled by 0.1 m):
+    ~0 at a singularity (a stretched elbow, aligned wrist axes), where a Cartesian move from
+    the posture would make joints race."""
+    q = np.asarray(q, dtype=float)
+    T0 = robot.fk(q)
+    cols = []
+    for i in range(robot.dof):
+        dq = np.zeros(robot.dof)
+        dq[i] = h
+        T = robot.fk(q + dq)
+        dR = T0[:3, :3].T @ T[:3, :3]
+        w = 0.5 * np.array([dR[2, 1] - dR[1, 2], dR[0, 2] - dR[2, 0], dR[1, 0] - dR[0, 1]])
+        cols.append(np.r_[(T[:3, 3] - T0[:3, 3]) / h, 0.1 * (T0[:3, :3] @ w) / h])
+    J = np.array(cols).T
+    k = min(6, robot.dof)
+    return float(np.linalg.svd(J, compute_uv=False)[k - 1])
+
+
 def raised_posture(robot: Robot) -> Array:
     """The zero posture clipped to the limits if every moving link is `CLEAR_OF_MOUNT` above
-    the mounting plane and free of self-collision; else the nearest such posture (arm-radius
-    weighted joint distance) whose joints are each 0 or +-90 deg (a UR arm: upright), then
-    among Sobol samples of the limits; the zero posture if none is."""
+    the mounting plane, away from singularities (`dexterity`) and free of self-collision; else
+    the middle of the ranges, then the nearest such posture (arm-radius weighted joint
+    distance) whose joints are each 0, +-45 or +-90 deg, then among Sobol samples of the
+    limits; the zero posture if none is. Arms of fewer than 6 axes skip the singularity test
+    (the RV-2AJ starts upright at zero, as in the thesis)."""
     lo, hi = robot.limits.lower, robot.limits.upper
     zero = np.clip(np.zeros(robot.dof), lo, hi)
     checker = CollisionChecker(robot, ())
-    right = np.radians([0.0, -90.0, 90.0])
+    right = np.radians([0.0, -45.0, 45.0, -90.0, 90.0])
     grid = np.stack(np.meshgrid(*[right] * robot.dof, indexing="ij"), -1).reshape(-1, robot.dof)
     U = qmc.Sobol(d=robot.dof, scramble=True, seed=0).random(256)
-    Q = np.vstack([zero, np.clip(grid, lo, hi)])
+    Q = np.clip(grid, lo, hi)
     w = robot.arm_radii()
     order = np.argsort(np.linalg.norm((Q - zero) * w, axis=1), kind="stable")
-    for q in [*Q[order], *(lo + U * (hi - lo))]:
-        if lowest_point(robot, q) >= CLEAR_OF_MOUNT and checker.is_valid(q):
+    # 5-axis arms (the RV-2AJ) start at zero as in the thesis: they follow no 6-D pose
+    dexterous = robot.dof < 6
+    for q in [zero, 0.5 * (lo + hi), *Q[order], *(lo + U * (hi - lo))]:
+        if (lowest_point(robot, q) >= CLEAR_OF_MOUNT
+                and (dexterous or dexterity(robot, q) >= MIN_DEXTERITY)
+                and checker.is_valid(q)):
             return q
     return zero

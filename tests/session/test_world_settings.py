@@ -1,0 +1,59 @@
+"""World settings: set by the Session or a script, checked with a clear message, saved with the
+session, and they make the world model stale."""
+
+from __future__ import annotations
+
+import pytest
+
+from assistant.session import Session
+from assistant.session.types import SessionError
+from assistant.session.world_settings import WorldSettings
+
+
+def test_defaults_suit_every_robot_and_resolve_per_robot(rv2aj):
+    ws = WorldSettings()
+    cfg = ws.world_config(rv2aj)
+    assert (cfg.size, cfg.grid().leaf) == (2.0, 0.0625)  # the thesis' octree for the RV-2AJ
+    assert cfg.reach.store == "auto" and cfg.reach.memory_mb == 1536
+    fine = ws.changed(resolution_mm=31.25).world_config(rv2aj)
+    assert fine.grid().leaf == pytest.approx(0.03125) and fine.reach.d_step == pytest.approx(
+        0.015625)
+
+
+@pytest.mark.parametrize("changes, words", [
+    ({"resolution_mm": 1}, "10-250 mm"),
+    ({"joint_samples": 5}, "joint samples"),
+    ({"memory_mb": 1}, "memory budget"),
+    ({"store": "octree"}, "auto, grid, samples"),
+    ({"clearence_mm": 5}, "unknown world setting clearence_mm"),
+])
+def test_a_bad_setting_is_refused_naming_what_is_allowed(tmp_path, changes, words):
+    s = Session.from_sample("thesis_rv2aj", tmp_path / "s")
+    with pytest.raises(SessionError, match=words):
+        s.set_world_settings(**changes)
+    assert s.world_settings == WorldSettings()  # nothing changed
+
+
+def test_settings_are_saved_and_make_the_world_stale(tmp_path):
+    folder = tmp_path / "s"
+    s = Session.from_sample("thesis_rv2aj", folder)
+    key = s._obstacles_key()
+    out = s.set_world_settings(joint_samples=100_000, memory_mb="800", resolution_mm="")
+    assert out["joint_samples"] == 100_000 and out["memory_mb"] == 800
+    assert out["resolution_mm"] is None
+    assert s._obstacles_key() != key  # a built world would be rebuilt
+    s.save(folder)
+    back = Session.load(folder, autosave=False)
+    assert back.world_settings == s.world_settings
+
+
+def test_the_script_verb_sets_them(tmp_path):
+    from assistant.session.script import parse_script, run_action
+
+    script = tmp_path / "s.yaml"
+    script.write_text("cell: thesis_rv2aj\nactions:\n"
+                      "  - world_settings: {memory_mb: 1024, store: grid}\n", encoding="utf-8")
+    sc = parse_script(script)
+    s = Session.from_sample("thesis_rv2aj", tmp_path / "f")
+    run_action(s, sc.actions[0], tmp_path, script)
+    assert s.world_settings.memory_mb == 1024 and s.world_settings.store == "grid"
