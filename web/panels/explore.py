@@ -29,11 +29,31 @@ class ExplorePanel(Panel):
         self.collision = g.add_button("Collision!", color="red", icon=viser.Icon.ALERT_OCTAGON,
                                       disabled=True, hint="Space key. Stops the robot and "
                                                           "remembers this posture as blocked")
+        with g.add_folder("Advanced", expand_by_default=False):
+            ws = self.session.world_settings
+            self.resolution = g.add_number("Cell size (mm, 0 = auto)", ws.resolution_mm or 0.0,
+                                           min=0.0, max=250.0, step=0.5,
+                                           hint="Edge of an octree leaf; 0 sizes the cube to "
+                                                "the arm with 32 leaves a side")
+            self.samples = g.add_number("Joint samples", ws.joint_samples, min=10_000,
+                                        max=50_000_000, step=10_000,
+                                        hint="Joint positions sampled for 6- and 7-axis arms")
+            self.memory = g.add_number("Memory budget (MB)", ws.memory_mb, min=64,
+                                       max=65_536, step=64)
+            self.clearance = g.add_number("Clearance (mm)", ws.clearance_mm, min=0.0,
+                                          max=200.0, step=1.0)
+            self.apply_settings = g.add_button("Apply settings",
+                                               hint="The world model is rebuilt on the next "
+                                                    "build or plan")
         with g.add_folder("Show", expand_by_default=True):
             self.show_occ = g.add_checkbox("Occupied cells", True)
             self.min_p = g.add_slider("From probability", 0.0, 1.0, 0.05, 0.05)
             self.show_roads = g.add_checkbox("Roads", True)
         self.bind(self.build_world, lambda e: self.session.start_build_world())
+        self.bind(self.apply_settings, lambda e: self.session.set_world_settings(
+            resolution_mm=float(self.resolution.value) or None,
+            joint_samples=int(self.samples.value), memory_mb=int(self.memory.value),
+            clearance_mm=float(self.clearance.value)))
         self.bind(self.explore, lambda e: self.session.start_explore(
             EXPLORE_MODES[self.mode.value], int(self.moves.value), seed=0))
         self.bind(self.collision, lambda e: self.session.fire("collision"))
@@ -54,6 +74,14 @@ class ExplorePanel(Panel):
         mode = s.machine.mode.value
         idle = mode == "idle"
         self.build_world.disabled = not idle
+        self.apply_settings.disabled = not idle
+        ws = s.world_settings
+        if ws != getattr(self, "_shown", None):  # changed (applied, loaded): show it; else
+            self._shown = ws  # leave what the operator is typing alone
+            for handle, value in ((self.resolution, ws.resolution_mm or 0.0),
+                                  (self.samples, ws.joint_samples), (self.memory, ws.memory_mb),
+                                  (self.clearance, ws.clearance_mm)):
+                handle.value = value
         self.explore.disabled = not idle or not s.world_ready
         self.collision.disabled = mode != "moving"
         if s.world_ready:
