@@ -141,7 +141,8 @@ def run_robot(name: str, n_cells: int, n_queries: int, seed: int, ompl_limit: fl
         def f(r: Result) -> str:
             return (f"{'yes' if r.ok else 'NO':4s} {r.seconds:6.2f} s {r.tcp_length:6.3f} m "
                     f"{r.primitives:3d} prim {r.clearance * 1000:6.1f} mm")
-        print(f"{robot_name:6s} cell {c} | ours {f(a)} | OMPL {f(b)}")
+        why = "" if a.ok else f"  ({a.extra.get('reason', '')})"
+        print(f"{robot_name:6s} cell {c} | ours {f(a)} | OMPL {f(b)}{why}")
     so = sum(r.ok for r in ours) / max(1, len(ours))
     sp = sum(r.ok for r in ompl) / max(1, len(ompl))
     return {

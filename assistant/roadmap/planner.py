@@ -97,6 +97,9 @@ class RoadmapConfig:
     occupancy_penalty: float = 0.2
     #: Longest edge (m of weighted joint distance); longer jumps are left out of the graph.
     max_edge: float = 0.35
+    #: The same on the sampled store of 6- and 7-axis arms: its leaves' positions lie
+    #: farther apart (a few per IK branch and turn); every edge is still checked exactly.
+    max_edge_sampled: float = 0.8
     budget: SearchBudget = field(default_factory=SearchBudget)
     #: 1 = optimal A*; > 1 = weighted A* (cost within that factor of the optimum). 1.5 cuts
     #: expansions and edge checks ~5x on the thesis cell; the elastic net shortens the path
@@ -409,6 +412,11 @@ class RoadmapPlanner:
                            edge_checks=res.edge_checks, rejected_edges=res.rejected_edges,
                            timings=timings)
 
+    def _max_edge(self) -> float:
+        table = self.world.table
+        sampled = table is not None and table.kind == "samples"
+        return self.config.max_edge_sampled if sampled else self.config.max_edge
+
     def _weighted(self, a: Array, b: Array) -> float:
         return float(np.linalg.norm((b - a) * self._weights()))
 
@@ -492,7 +500,7 @@ class RoadmapPlanner:
         def build(exempt: Sequence[int]) -> tuple[JointGraph, list[int]]:
             return JointGraph.over(base, searchable, squeeze, penalty, self._weights(),
                                    extra=[(sc, q_s), (gc, q_g)],
-                                   max_edge=self.config.max_edge, squeeze_exempt=exempt)
+                                   max_edge=self._max_edge(), squeeze_exempt=exempt)
 
         graph, (s_id, g_id) = build((sc, gc) if exempt_terminals else ())
         cut_off = [c for c, i in ((sc, s_id), (gc, g_id)) if not len(graph.successors(i)[0])]
