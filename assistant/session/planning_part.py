@@ -186,11 +186,29 @@ class PlanningActions:
             if not plan.ok:
                 self.trajectory, self.plan_report, self.program = None, None, None
                 raise SessionError(f"no plan: {plan.reason}")
+        short = self._clearance_notes(plan, backend)
+        with self._lock:
             self.trajectory = plan.trajectory
             self.plan_report = _report_json(plan.report)
+            self.plan_report["clearance_required_mm"] = self.world_settings.clearance_mm
+            self.plan_report["clearance_shortfalls"] = short
+            if short:
+                self.plan_report["description"] += "\n  clearance: " + "; ".join(short)
             self.program = None
+        for line in short:
+            self.bus.emit(Notice(f"Closer than the required clearance: {line}"))
         self.bus.emit(PlanReady(dict(self.plan_report)))
         return dict(self.plan_report)
+
+    def _clearance_notes(self, plan: Any, backend: _Backend) -> list[str]:
+        """Each transfer closer to a known obstacle than `WorldSettings.clearance_mm`: where
+        and by how much (`planning.clearance`)."""
+        from assistant.planning.clearance import clearance_shortfalls
+
+        found = clearance_shortfalls(plan.pieces, backend.checker,
+                                     self.world_settings.clearance_mm / 1000.0,
+                                     self.T_world_base())
+        return [f.describe() for f in found]
 
     def start_execute(self) -> Future:
         """Drive the mission on the robot; collisions (button or hidden obstacle) are learnt,

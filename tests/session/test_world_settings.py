@@ -57,3 +57,19 @@ def test_the_script_verb_sets_them(tmp_path):
     s = Session.from_sample("thesis_rv2aj", tmp_path / "f")
     run_action(s, sc.actions[0], tmp_path, script)
     assert s.world_settings.memory_mb == 1024 and s.world_settings.store == "grid"
+
+
+def test_a_plan_says_where_a_transfer_is_closer_than_the_required_clearance(tmp_path):
+    s = Session.from_sample("thesis_rv2aj", tmp_path / "s", with_objects=True,
+                            with_mission=True)
+    s.goto("plan")
+    s.set_world_settings(clearance_mm=200)  # more than any transfer of the thesis cell keeps
+    rep = s.plan()
+    assert rep["clearance_required_mm"] == 200
+    short = rep["clearance_shortfalls"]
+    assert short and all("short of the required 200 mm" in line for line in short)
+    assert all(" -> " in line and "TCP near" in line for line in short)
+    assert "clearance: " in rep["description"]
+    s.set_world_settings(clearance_mm=0)  # 0: no requirement, nothing to report
+    rep = s.plan()
+    assert rep["clearance_shortfalls"] == []
