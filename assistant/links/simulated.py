@@ -98,6 +98,14 @@ class SimulatedRobot(RobotLink):
         """Programs uploaded so far, by the unique name they were stored under."""
         return dict(self._programs)
 
+    def set_joints(self, q: Array) -> None:
+        """Stand the simulated arm at q (the session's posture when the link is made again,
+        e.g. after the hidden obstacles changed): within the limits, not while moving."""
+        q = np.asarray(q, dtype=float).reshape(-1)
+        if q.shape != (self.robot.dof,) or not np.isfinite(q).all():
+            raise ValueError(f"set_joints needs {self.robot.dof} finite joint values")
+        self._q = np.clip(q, self.robot.limits.lower, self.robot.limits.upper)
+
     # ------------------------------------------------------------------ RobotLink
     def connect(self) -> None:
         self._connected = True
