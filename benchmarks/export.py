@@ -67,6 +67,8 @@ def _two_sided(curve: np.ndarray, path: np.ndarray) -> float:
 def bench_program(name, prog, robot, *, curve=None, max_step=0.002):
     rows = {}
     for d in DIALECT_NAMES:
+        if robot.dof not in get_dialect(d).axis_counts:
+            continue  # the dialect refuses this robot's axis count (URScript: 6-axis only)
         t = time.perf_counter()
         rep = round_trip(prog, d, robot, max_step=max_step)
         row = {

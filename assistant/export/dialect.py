@@ -1,9 +1,11 @@
 """The one interface every program dialect implements, and what they share.
 
 Modelled on trimesh's exchange modules: one module per dialect (`melfa`, `krl`, `rapid`,
-`urscript`), each a small class with `name`, `file_extensions`, `rules`, `write` and `read`;
-`get_dialect` picks one by name. Shared here: the file type, splitting a long program into
-parts with a main that calls them, frames, comments and the step labels that become comments.
+`urscript`), each a small class with `name`, `file_extensions`, `rules`, `axis_counts`,
+`write` and `read`; `get_dialect` picks one by name. Shared here: the file type, the check
+that the robot has an axis count the dialect's controller runs (`check_axis_count`),
+splitting a long program into parts with a main that calls them, frames, comments and the
+step labels that become comments.
 """
 
 from __future__ import annotations
@@ -47,6 +49,12 @@ class Dialect(Protocol):
     title: str
     file_extensions: tuple[str, ...]
     rules: DialectRules
+    #: Robot axis counts (`Robot.dof`) the controller runs, e.g. (6,) for UR arms.
+    axis_counts: tuple[int, ...]
+    #: What the dialect writes, for the refusal: "URScript runs on 6-axis UR arms".
+    axis_rule: str
+    #: Why more axes than the largest count are not written ("" when there is nothing to say).
+    axes_beyond: str
 
     def write(self, program: NeutralProgram, robot: Robot) -> list[ProgramFile]:
         """Controller files for the program; `ExportError` for anything it would reject."""
@@ -55,6 +63,54 @@ class Dialect(Protocol):
     def read(self, files: Sequence[ProgramFile], robot: Robot) -> NeutralProgram:
         """The neutral program back from files this dialect wrote (robot: axis map, flags)."""
         ...
+
+
+# ------------------------------------------------------------------------------ axes
+def check_axis_count(dialect: Dialect, robot: Robot) -> None:
+    """Refuse a robot whose number of axes the dialect's controller does not run.
+
+    A program with the wrong number of joint values (a 7-value ``movej`` list, a 5-axis arm
+    as a UR) would be written without complaint and rejected, or misread, on the controller.
+    The `ExportError` says what the dialect runs and names the dialects that do take the
+    robot's axis count, if any. Dialects without `axis_counts` are not checked.
+    """
+    counts = tuple(getattr(dialect, "axis_counts", ()) or ())
+    n = robot.dof
+    if not counts or n in counts:
+        return
+    # The registry imports every dialect module, which import this one: imported late.
+    from assistant.export.registry import DIALECT_NAMES, dialect_label, get_dialect
+
+    rule = getattr(dialect, "axis_rule", "") or \
+        f"{dialect_label(dialect.name)} runs on arms with {_count_text(counts)} axes"
+    text = f"{rule}; this robot ({robot.name}) has {n} axes."
+    beyond = getattr(dialect, "axes_beyond", "")
+    if beyond and n > max(counts):
+        text += f" {beyond[0].upper()}{beyond[1:]}."
+    takes: dict[tuple[int, ...], list[str]] = {}
+    for name in DIALECT_NAMES:
+        takes.setdefault(tuple(get_dialect(name).axis_counts), []).append(dialect_label(name))
+    others = [label for c, labels in takes.items() if n in c for label in labels
+              if label != dialect_label(dialect.name)]
+    if others:
+        text += f" Choose {_or_list(others)} for a {n}-axis arm."
+    else:
+        summary = "; ".join(f"{_and_list(labels)} take{'s' if len(labels) == 1 else ''} "
+                            f"{_count_text(c)} axes" for c, labels in takes.items())
+        text += f" No dialect here writes a {n}-axis arm: {summary}."
+    raise ExportError(text, dialect=dialect.name)
+
+
+def _count_text(counts: Sequence[int]) -> str:
+    return _or_list([str(c) for c in sorted(counts)])
+
+
+def _or_list(words: Sequence[str]) -> str:
+    return words[0] if len(words) == 1 else ", ".join(words[:-1]) + " or " + words[-1]
+
+
+def _and_list(words: Sequence[str]) -> str:
+    return words[0] if len(words) == 1 else ", ".join(words[:-1]) + " and " + words[-1]
 
 
 # ------------------------------------------------------------------------------ text

@@ -1,6 +1,7 @@
 """What the session hands to the browser: files as bytes with names and MIME types.
 
-`export_files` checks the program (limits, reach, drivable paths), writes the dialect,
+`export_files` checks that the dialect's controller runs a robot with this many axes, checks
+the program (limits, reach, drivable paths), writes the dialect,
 reads it straight back to prove the text says what was planned (positions within the number
 format, same moves), and bundles multi-file programs (MELFA .MB4 + .POS, KRL .src + .dat,
 split programs) into a zip too. The zip is deterministic (fixed timestamps), so the same
@@ -16,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from assistant.export.checks import check_program
-from assistant.export.dialect import Dialect, ProgramFile
+from assistant.export.dialect import Dialect, ProgramFile, check_axis_count
 from assistant.export.errors import ExportError
 from assistant.export.program import NeutralProgram
 from assistant.export.registry import get_dialect
@@ -64,9 +65,11 @@ def export_files(program: NeutralProgram, dialect: str | Dialect, robot: Robot, 
         verify: read the written files back and compare positions and moves.
     Raises:
         ExportError naming the step for anything a controller would reject or run
-        differently from the plan.
+        differently from the plan; first of all when the dialect's controller does not run
+        a robot with `robot.dof` axes (a 7-axis arm in URScript).
     """
     d = get_dialect(dialect)
+    check_axis_count(d, robot)
     if check:
         check_program(program, robot)
     files = d.write(program, robot)

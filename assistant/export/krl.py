@@ -31,6 +31,7 @@ from assistant.export.configuration import ArmConfig, JointRange, arm_configurat
 from assistant.export.dialect import (
     ProgramFile,
     ascii_text,
+    check_axis_count,
     comment_lines,
     cut_long_splines,
     flatten,
@@ -114,6 +115,11 @@ class KrlDialect:
     name = "krl"
     title = "KUKA KRL"
     file_extensions = (".src", ".dat")
+    #: Main axes A1..A6 only; further axes would be external axes E1..E6, not written.
+    axis_counts = (4, 5, 6)
+    axis_rule = "KRL writes the main axes A1..A6 of 4-, 5- and 6-axis KUKA arms"
+    axes_beyond = ("axes beyond A6 would be external axes E1.., which this exporter does "
+                   "not write")
 
     def __post_init__(self) -> None:
         self.rules = krl_rules(self.max_positions_per_file)
@@ -132,6 +138,7 @@ class KrlDialect:
         return replace(program, instructions=out)
 
     def write(self, program: NeutralProgram, robot: Robot) -> list[ProgramFile]:
+        check_axis_count(self, robot)
         program = self.lower(program)
         name = check_identifier(program.name, self.rules, what="program name", program=True)
         names = self._names(program)

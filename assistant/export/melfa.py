@@ -48,6 +48,7 @@ from assistant.export.configuration import (
 from assistant.export.dialect import (
     ProgramFile,
     ascii_text,
+    check_axis_count,
     comment_lines,
     flatten,
     lower_splines,
@@ -129,6 +130,11 @@ class MelfaDialect:
     name = "melfa"
     title = "Mitsubishi MELFA BASIC"
     file_extensions = (".MB4", ".POS")
+    #: MELFA arms: 4-axis RH SCARA, 5-axis RV (RV-2AJ), 6-axis RV; joints J1..J6.
+    axis_counts = (4, 5, 6)
+    axis_rule = ("MELFA BASIC runs on 4-, 5- and 6-axis Mitsubishi arms (RH SCARA, 5-axis "
+                 "RV such as the RV-2AJ, 6-axis RV)")
+    axes_beyond = ""
 
     def __post_init__(self) -> None:
         if self.variant not in ("IV", "V"):
@@ -143,6 +149,7 @@ class MelfaDialect:
         return lower_splines(program)
 
     def write(self, program: NeutralProgram, robot: Robot) -> list[ProgramFile]:
+        check_axis_count(self, robot)
         program = self.lower(program)
         pname = check_identifier(program.name.upper(), self.rules, what="program name",
                                  program=True)

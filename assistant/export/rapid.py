@@ -39,6 +39,7 @@ from assistant.export.configuration import (
 from assistant.export.dialect import (
     ProgramFile,
     ascii_text,
+    check_axis_count,
     comment_lines,
     lower_splines,
     parse_step_comment,
@@ -124,6 +125,11 @@ class RapidDialect:
     name = "rapid"
     title = "ABB RAPID"
     file_extensions = (".mod",)
+    #: Robot axes rax_1..rax_6; a 7-axis arm's 7th axis is the external axis eax_a.
+    axis_counts = (4, 5, 6)
+    axis_rule = "RAPID writes the robot axes rax_1..rax_6 of 4-, 5- and 6-axis ABB arms"
+    axes_beyond = ("a 7-axis arm (IRB 14000 YuMi) needs its 7th axis as the external axis "
+                   "eax_a, which this exporter does not write")
 
     def __post_init__(self) -> None:
         self.rules = rapid_rules(self.max_positions_per_file)
@@ -134,6 +140,7 @@ class RapidDialect:
         return lower_splines(program)
 
     def write(self, program: NeutralProgram, robot: Robot) -> list[ProgramFile]:
+        check_axis_count(self, robot)
         program = self.lower(program)
         name = check_identifier(program.name, self.rules, what="module name", program=True)
         names = self._names(program)

@@ -11,6 +11,14 @@ from assistant.export.urscript import URScriptDialect
 #: Default instance of each dialect (settings as in the modules' docstrings).
 DIALECT_NAMES = ("melfa", "krl", "rapid", "urscript")
 
+#: Short names for messages ("choose MELFA, KRL or RAPID").
+_LABELS = {"melfa": "MELFA", "krl": "KRL", "rapid": "RAPID", "urscript": "URScript"}
+
+
+def dialect_label(name: str) -> str:
+    """The short name an operator knows a dialect by: "melfa" -> "MELFA"."""
+    return _LABELS.get(name, name)
+
 
 def get_dialect(dialect: str | Dialect) -> Dialect:
     """A dialect instance by name ("melfa", "krl", "rapid", "urscript"), or the one given."""

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from assistant.export.dialect import Dialect, ProgramFile
+from assistant.export.dialect import Dialect, ProgramFile, check_axis_count
 from assistant.export.errors import ExportError
 from assistant.export.program import Comment, Move, NeutralProgram
 from assistant.export.registry import get_dialect
@@ -41,8 +41,10 @@ class RoundTripReport:
 
 def round_trip(program: NeutralProgram, dialect: str | Dialect, robot: Robot, *,
                max_step: float = 0.002) -> RoundTripReport:
-    """Write, read back, simulate both; raises `ExportError` if the structure changed."""
+    """Write, read back, simulate both; raises `ExportError` if the structure changed or
+    the dialect's controller does not run a robot with that many axes."""
     d = get_dialect(dialect)
+    check_axis_count(d, robot)
     reference = d.lower(program)
     files = d.write(program, robot)
     back = d.read(files, robot)

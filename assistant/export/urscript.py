@@ -31,6 +31,7 @@ from scipy.spatial.transform import Rotation
 from assistant.export.dialect import (
     ProgramFile,
     ascii_text,
+    check_axis_count,
     comment_lines,
     lower_splines,
     parse_step_comment,
@@ -111,6 +112,10 @@ class URScriptDialect:
     name = "urscript"
     title = "Universal Robots URScript"
     file_extensions = (".script",)
+    #: UR arms have six axes: joint lists and get_inverse_kin are 6-vectors.
+    axis_counts = (6,)
+    axis_rule = "URScript runs on 6-axis UR arms"
+    axes_beyond = ""
 
     def __post_init__(self) -> None:
         self.rules = ur_rules()
@@ -121,6 +126,7 @@ class URScriptDialect:
 
     # ====================================================================== writing
     def write(self, program: NeutralProgram, robot: Robot) -> list[ProgramFile]:
+        check_axis_count(self, robot)
         program = self.lower(program)
         name = check_identifier(program.name, self.rules, what="program name", program=True)
         work = None if program.work.is_identity else self._ident(program.work.name, "work")

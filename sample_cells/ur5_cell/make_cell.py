@@ -61,8 +61,9 @@ PLATE_AT, PLATE = (0.50, 0.0, 0.0), (0.25, 0.35, 0.020)
 CLAMP = ((0.30, -0.30, 0.075), (0.12, 0.10, 0.15))
 POST = ((0.42, 0.26, 0.225), 0.03, 0.45)
 #: START, GOAL and the seam's start as the operator jogs to them (joints, deg); nozzle down,
-#: wrist 3 at 0 (the nozzle lies on the wrist 3 axis: the world model holds it at 0). The TCPs: START (300, -400, 350), GOAL (300, 400, 350), SEAM_A
-#: (500, -120, 45) mm, within the jog's rounding.
+#: wrist 3 at 0 (the nozzle lies on the wrist 3 axis: the world model holds it at 0). The
+#: TCPs: START (300, -400, 350), GOAL (300, 400, 350), SEAM_A (500, -120, 45) mm, within the
+#: jog's rounding.
 START_Q_DEG = (-65.7, -89.8, 87.2, -87.3, -90.0, 0.0)
 GOAL_Q_DEG = (40.5, -89.8, 87.2, -87.3, -90.0, 0.0)
 SEAM_A_Q_DEG = (-25.8, -73.3, 116.6, -133.3, -90.0, 0.0)

@@ -12,8 +12,10 @@ from assistant.export.dialect import ProgramFile
 
 
 @pytest.mark.parametrize("dialect", DIALECT_NAMES)
-def test_export_files_gives_bytes_names_and_mime(rv2aj, thesis_program, dialect):
-    res = export_files(thesis_program, dialect, rv2aj)
+def test_export_files_gives_bytes_names_and_mime(robot_for, program_for, dialect):
+    """The thesis program on an arm the dialect's controller runs (URScript: a UR5)."""
+    robot = robot_for(dialect)
+    res = export_files(program_for("thesis", robot), dialect, robot)
     assert res.dialect == dialect and res.primitives == 7
     names = [f.name for f in res.files]
     expected = {"melfa": ["THESIS.MB4", "THESIS.POS"], "krl": ["thesis.src", "thesis.dat"],
@@ -31,10 +33,10 @@ def test_export_files_gives_bytes_names_and_mime(rv2aj, thesis_program, dialect)
         assert res.zip is None and res.download is res.files[0]
 
 
-def test_controller_files_use_crlf_and_scripts_lf(rv2aj, thesis_program):
+def test_controller_files_use_crlf_and_scripts_lf(rv2aj, thesis_program, ur5, program_for):
     krl = export_files(thesis_program, "krl", rv2aj)
     assert b"\r\nDEF thesis( )\r\n" in krl.files[0].data
-    ur = export_files(thesis_program, "urscript", rv2aj)
+    ur = export_files(program_for("thesis", ur5), "urscript", ur5, check=False)
     assert b"\r\n" not in ur.files[0].data
 
 

@@ -1,4 +1,7 @@
-"""Round trip for every move type in every dialect: write -> read -> simulate -> compare."""
+"""Round trip for every move type in every dialect: write -> read -> simulate -> compare.
+
+MELFA, KRL and RAPID run on the thesis RV-2AJ (5 axes), URScript on a UR5 (UR arms have 6
+axes; `robot_for` in conftest picks the arm)."""
 
 from __future__ import annotations
 
@@ -31,27 +34,47 @@ ALL = ("melfa", "krl", "rapid", "urscript")
 #: What each number format allows: MELFA 0.01 mm / 0.01 deg; KRL and RAPID 0.001 mm and
 #: 0.001 deg joints (0.0005 deg at 0.4 m is 3.5 um); URScript 1 um and 1 urad.
 TOLERANCE = {"melfa": 2e-5, "krl": 5e-6, "rapid": 5e-6, "urscript": 3e-6}
+#: Simulation step (m): the UR5's numerical IK (every solution, each sample) is slow, so its
+#: paths are compared every 20 mm rather than every 2 mm; the number format shows either way.
+MAX_STEP = {"urscript": 0.02}
 
 
-def _pos(robot, name, xyz, seed, rng, *, tilt=0.0):
+def _pos(robot, name, xyz, seed, rng, *, R=R_DOWN):
     """A non-round target (jitter below a millimetre) with the IK solution nearest `seed`."""
     p = np.asarray(xyz) + rng.uniform(-5e-4, 5e-4, 3)
-    R = rot_z(rng.uniform(-0.3, 0.3)) @ R_DOWN
+    R = rot_z(rng.uniform(-0.3, 0.3)) @ R
     T = make_T(R, p)
     res = robot.ik(T, seed)
     assert res.ok, res.message
     return Position(name, T, res.best(seed))
 
 
+#: Per axis count: IK seed near PA, the HOME joints, where the figure is moved (m) and the
+#: tool orientation it is drawn with (turned about base z at random). The RV-2AJ draws in
+#: front of its base, elbow up, tool pointing down; the UR5 in its usual posture, shoulder
+#: and elbow at +-90 deg, wrist 2 at -90 deg, its flange (x of ee_link) pointing down.
+_UR5_POSTURE = np.radians([0.0, -90.0, 90.0, -90.0, -90.0, 0.0])
+ARMS = {
+    5: (np.radians([-20.0, 40.0, 80.0, 60.0, 0.0]), np.radians([5.0, 25.0, 85.0, 60.0, 10.0]),
+        (0.0, 0.0, 0.0), R_DOWN),
+    6: (_UR5_POSTURE, _UR5_POSTURE + np.radians([5.0, 5.0, -5.0, 5.0, 5.0, 10.0]),
+        (0.30, 0.15, 0.25), np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])),
+}
+
+
 def every_move_program(robot, rng, *, work: Frame | None = None) -> NeutralProgram:
-    seed = np.radians([-20.0, 40.0, 80.0, 60.0, 0.0])
-    a = _pos(robot, "PA", (0.26, -0.12, 0.20), seed, rng)
-    b = _pos(robot, "PB", (0.30, -0.05, 0.16), a.q, rng)
-    v = _pos(robot, "PV", (0.33, 0.00, 0.15), b.q, rng)
-    c = _pos(robot, "PC", (0.30, 0.06, 0.14), v.q, rng)
-    s = [_pos(robot, f"S{k}", (0.30 - 0.01 * k, 0.06 + 0.012 * k, 0.14 + 0.003 * k * k),
-              c.q, rng) for k in range(1, 6)]
-    home_q = np.radians([5.0, 25.0, 85.0, 60.0, 10.0]) + rng.uniform(-0.01, 0.01, 5)
+    seed, home, shift, R = ARMS[robot.dof]
+
+    def pos(name, xyz, seed):
+        return _pos(robot, name, np.add(xyz, shift), seed, rng, R=R)
+
+    a = pos("PA", (0.26, -0.12, 0.20), seed)
+    b = pos("PB", (0.30, -0.05, 0.16), a.q)
+    v = pos("PV", (0.33, 0.00, 0.15), b.q)
+    c = pos("PC", (0.30, 0.06, 0.14), v.q)
+    s = [pos(f"S{k}", (0.30 - 0.01 * k, 0.06 + 0.012 * k, 0.14 + 0.003 * k * k), c.q)
+         for k in range(1, 6)]
+    home_q = home + rng.uniform(-0.01, 0.01, robot.dof)
     home = Position("HOME", None, home_q, joint_target=True)
     ins = [
         Comment("every move type"),
@@ -85,9 +108,30 @@ def program_in_work_frame(rv2aj) -> NeutralProgram:
     return every_move_program(rv2aj, np.random.default_rng(8), work=work)
 
 
+@pytest.fixture(scope="module")
+def programs(rv2aj, ur5, program, program_in_work_frame):
+    """(robot, work frame?) -> the every-move program for that arm, checked."""
+    made = {(rv2aj.name, False): program, (rv2aj.name, True): program_in_work_frame}
+
+    def get(robot, in_work_frame: bool = False) -> NeutralProgram:
+        key = (robot.name, in_work_frame)
+        if key not in made:
+            work = Frame("table", make_T(rot_z(0.3), [0.05, -0.02, 0.03])) \
+                if in_work_frame else None
+            prog = every_move_program(robot, np.random.default_rng(8 if in_work_frame else 7),
+                                      work=work)
+            check_program(prog, robot)
+            made[key] = prog
+        return made[key]
+
+    return get
+
+
 @pytest.mark.parametrize("dialect", ALL)
-def test_every_move_type_round_trips(rv2aj, program, dialect):
-    rep = round_trip(program, dialect, rv2aj)
+def test_every_move_type_round_trips(robot_for, programs, dialect):
+    robot = robot_for(dialect)
+    program = programs(robot)
+    rep = round_trip(program, dialect, robot, max_step=MAX_STEP.get(dialect, 0.002))
     kinds = [m.kind for m in get_dialect(dialect).lower(program).moves()]
     assert set(kinds) >= {MoveKind.JOINT, MoveKind.LINEAR, MoveKind.CIRCULAR}
     assert rep.primitives == len(kinds)
@@ -98,10 +142,12 @@ def test_every_move_type_round_trips(rv2aj, program, dialect):
 
 
 @pytest.mark.parametrize("dialect", ALL)
-def test_settings_read_back(rv2aj, program, dialect):
+def test_settings_read_back(robot_for, programs, dialect):
+    robot = robot_for(dialect)
+    program = programs(robot)
     d = get_dialect(dialect)
     planned = d.lower(program).moves()
-    back = d.read(d.write(program, rv2aj), rv2aj).moves()
+    back = d.read(d.write(program, robot), robot).moves()
     for a, b in zip(planned, back, strict=True):
         assert a.kind == b.kind
         assert b.blend_radius == pytest.approx(a.blend_radius, abs=5e-5)
@@ -115,10 +161,13 @@ def test_settings_read_back(rv2aj, program, dialect):
 
 
 @pytest.mark.parametrize("dialect", ["krl", "rapid", "urscript"])
-def test_work_frame_round_trips(rv2aj, program_in_work_frame, dialect):
-    rep = round_trip(program_in_work_frame, dialect, rv2aj)
+def test_work_frame_round_trips(robot_for, programs, dialect):
+    robot = robot_for(dialect)
+    program_in_work_frame = programs(robot, in_work_frame=True)
+    rep = round_trip(program_in_work_frame, dialect, robot,
+                     max_step=MAX_STEP.get(dialect, 0.002))
     assert rep.max_tcp_deviation <= TOLERANCE[dialect]
-    files = get_dialect(dialect).write(program_in_work_frame, rv2aj)
+    files = get_dialect(dialect).write(program_in_work_frame, robot)
     text = "\n".join(f.text for f in files)
     assert {"krl": "$BASE = {X 50.000", "rapid": "wobjdata wTable", "urscript": "TABLE = p["}[
         dialect] in text
@@ -176,9 +225,11 @@ _TAMPER = {
 
 
 @pytest.mark.parametrize("dialect", ALL)
-def test_a_millimetre_changed_in_the_text_is_seen(rv2aj, program, dialect, monkeypatch):
+def test_a_millimetre_changed_in_the_text_is_seen(robot_for, programs, dialect, monkeypatch):
+    robot = robot_for(dialect)
+    program = programs(robot)
     d = get_dialect(dialect)
-    files = d.write(program, rv2aj)
+    files = d.write(program, robot)
     rx, bump = _TAMPER[dialect]
     changed = []
     for f in files:
@@ -190,7 +241,7 @@ def test_a_millimetre_changed_in_the_text_is_seen(rv2aj, program, dialect, monke
         pytest.fail("tamper pattern did not match")
     changed += files[len(changed):]
     monkeypatch.setattr(type(d), "write", lambda self, prog, robot: changed)
-    rep: RoundTripReport = round_trip(program, d, rv2aj)
+    rep: RoundTripReport = round_trip(program, d, robot, max_step=MAX_STEP.get(dialect, 0.002))
     assert 0.9e-3 < rep.max_tcp_deviation < 1.5e-3
 
 
@@ -256,6 +307,7 @@ def test_dialects_implement_the_protocol():
     for name in ALL:
         d = get_dialect(name)
         assert isinstance(d, Dialect) and d.name == name and d.file_extensions
+        assert d.axis_counts and d.axis_rule
 
 
 def test_melfa_single_file_and_basic_v(rv2aj, program):

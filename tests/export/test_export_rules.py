@@ -1,4 +1,7 @@
-"""Controller rules with offending input: numbers, names, line lengths, positions per file."""
+"""Controller rules with offending input: numbers, names, line lengths, positions per file.
+
+Each dialect is tested on an arm its controller runs (`robot_for`): the thesis RV-2AJ, and
+the UR5 for URScript."""
 
 from __future__ import annotations
 
@@ -47,20 +50,22 @@ def test_absurd_numbers_are_refused_not_written(bad):
         format_fixed(bad, 3, what="X of P7", step="P7->P8")
 
 
-def test_exponent_prone_values_in_a_program_come_out_fixed(rv2aj, thesis_program):
+@pytest.mark.parametrize("dialect", ALL)
+def test_exponent_prone_values_in_a_program_come_out_fixed(robot_for, program_for, dialect):
     """Coordinates like 1e-20 m and -0.0 m reach the text as plain zeros in every dialect."""
+    robot = robot_for(dialect)
+    thesis_program = program_for("thesis", robot)
     p = thesis_program.moves()[3].target  # P5 at y = -20 mm
     assert p.name == "P5"
     T = p.T_base_tool.copy()
     T[1, 3] = -1e-20  # a tiny negative coordinate, joints kept consistent with it
-    q = rv2aj.ik(T, p.q).best(p.q)
+    q = robot.ik(T, p.q).best(p.q)
     prog = _with_target(thesis_program, 3, replace(p, T_base_tool=T, q=q))
-    for name in ALL:
-        for f in get_dialect(name).write(prog, rv2aj):
-            text = f.text.replace("9E+09", "")
-            assert not re.search(r"\d[eE][+-]?\d", text), f.name
-            assert not re.search(r"(?<![\d.])-0\.0*(?![0-9.])", text), f.name
-            assert re.search(r"(?<![\d.])-0\.0*(?![0-9.])", "Y -0.000,") is not None
+    for f in get_dialect(dialect).write(prog, robot):
+        text = f.text.replace("9E+09", "")
+        assert not re.search(r"\d[eE][+-]?\d", text), f.name
+        assert not re.search(r"(?<![\d.])-0\.0*(?![0-9.])", text), f.name
+    assert re.search(r"(?<![\d.])-0\.0*(?![0-9.])", "Y -0.000,") is not None
 
 
 def test_check_lines_catches_an_exponent_and_long_lines():
@@ -75,10 +80,11 @@ def test_check_lines_catches_an_exponent_and_long_lines():
 
 # ------------------------------------------------------------------------------ names
 @pytest.mark.parametrize("dialect", ALL)
-def test_an_illegal_position_name_is_refused_naming_the_step(rv2aj, thesis_program, dialect):
-    prog = _rename(thesis_program, "P8", "pick 1")
+def test_an_illegal_position_name_is_refused_naming_the_step(robot_for, program_for, dialect):
+    robot = robot_for(dialect)
+    prog = _rename(program_for("thesis", robot), "P8", "pick 1")
     with pytest.raises(ExportError) as e:
-        get_dialect(dialect).write(prog, rv2aj)
+        get_dialect(dialect).write(prog, robot)
     assert str(e.value).startswith("step 'P7->P8': ")
     assert "pick 1" in str(e.value)
 
@@ -99,11 +105,11 @@ def test_melfa_basic_iv_names_are_short_and_have_no_underscore_second(rv2aj, the
     MelfaDialect(variant="V").write(_rename(thesis_program, "P5", "P5ABCDEFG"), rv2aj)
 
 
-def test_reserved_words_and_case_collisions(rv2aj, thesis_program):
+def test_reserved_words_and_case_collisions(rv2aj, thesis_program, ur5, program_for):
     with pytest.raises(ExportError, match="reserved"):
         RapidDialect().write(_rename(thesis_program, "P5", "fine"), rv2aj)
     with pytest.raises(ExportError, match="reserved"):
-        URScriptDialect().write(_rename(thesis_program, "P5", "def"), rv2aj)
+        URScriptDialect().write(_rename(program_for("thesis", ur5), "P5", "def"), ur5)
     with pytest.raises(ExportError, match="not case-sensitive"):
         KrlDialect().write(_rename(thesis_program, "P5", "p4"), rv2aj)
 
@@ -116,13 +122,15 @@ def test_program_names_follow_the_controller(rv2aj, thesis_program):
 
 
 # ------------------------------------------------------------------------------ lines
-def test_long_comments_are_wrapped_to_the_line_limit(rv2aj, thesis_program):
+@pytest.mark.parametrize("dialect", ALL)
+def test_long_comments_are_wrapped_to_the_line_limit(robot_for, program_for, dialect):
+    robot = robot_for(dialect)
+    thesis_program = program_for("thesis", robot)
     text = "check the gripper fingers before the next cycle " * 10
     prog = replace(thesis_program, instructions=[Comment(text)] + thesis_program.instructions)
-    for name in ALL:
-        d = get_dialect(name)
-        for f in d.write(prog, rv2aj):
-            assert max(len(line) for line in f.text.splitlines()) <= d.rules.max_line
+    d = get_dialect(dialect)
+    for f in d.write(prog, robot):
+        assert max(len(line) for line in f.text.splitlines()) <= d.rules.max_line
 
 
 def test_a_tighter_line_limit_is_enforced(rv2aj, thesis_program):
