@@ -156,8 +156,18 @@ class MissionPlanner:
         if not plan.ok:
             rep = PieceReport(label, "transfer", False, plan.reason, seconds=t1 - t0)
             return TransferResult(False, None, rep, plan, t1 - t0)
-        asm, notes = self._smooth(plan.joint_path, exploring, label,
-                                  progress.sub(0.2, 1.0) if progress else None)
+        asm = None
+        if plan.searched == "direct" and self._sampled_store():
+            # A free straight joint move on a 6- or 7-axis arm: the programmer's PTP as it
+            # is, verified, without the net and the fit (seconds on those arms)
+            traj = _joint_moves(self.robot, plan.joint_path, label, self.config.assembly)
+            checked = verify(self.robot, traj, self.verifier,
+                             clearance_step=self.config.assembly.clearance_step)
+            if checked.ok:
+                asm, notes = checked, ["one joint move: the straight joint motion is free"]
+        if asm is None:
+            asm, notes = self._smooth(plan.joint_path, exploring, label,
+                                      progress.sub(0.2, 1.0) if progress else None)
         t2 = time.perf_counter()
         if asm.trajectory is None:
             rep = PieceReport(label, "transfer", False,
@@ -169,6 +179,10 @@ class MissionPlanner:
         rep = PieceReport(label, "transfer", True, "", asm.report, t2 - t0, plan.searched,
                           tuple(notes))
         return TransferResult(True, piece, rep, plan, t1 - t0, t2 - t1)
+
+    def _sampled_store(self) -> bool:
+        table = self.world.table
+        return table is not None and table.kind == "samples"
 
     def _smooth(self, joint_path: list[Array], exploring: bool, label: str,
                 progress: Progress | None) -> tuple[AssemblyResult, list[str]]:
