@@ -7,7 +7,7 @@ from typing import Any
 
 import viser
 
-from assistant.export.registry import DIALECT_NAMES
+from assistant.export.registry import DIALECT_NAMES, get_dialect
 from assistant.session.events import Event, ProgramReady, SceneChanged, StateChanged
 from web.panels.base import Panel
 
@@ -69,8 +69,19 @@ class ExportPanel(Panel):
         frames = (BASE, *s.cell.frames)
         if tuple(self.frame.options) != frames:
             self.frame.options = frames
+        # only the languages whose controllers run this robot's axis count (URScript: 6)
+        langs = tuple(DIALECT_LABELS.get(d, d) for d in DIALECT_NAMES
+                      if s.robot.dof in get_dialect(d).axis_counts)
+        if langs and tuple(self.dialect.options) != langs:
+            self.dialect.options = langs
         result = s.program
-        self.write.disabled = s.trajectory is None or s.machine.mode.value != "idle"
+        self.write.disabled = (s.trajectory is None or s.machine.mode.value != "idle"
+                               or not langs)
+        if not langs:
+            self.summary.content = (f"*No robot language here writes a {s.robot.dof}-axis "
+                                    "arm; the plan is verified and saved with the session.*")
+            self.preview.content = ""
+            return
         self.download.disabled = result is None
         if result is None:
             self.summary.content = "*No program yet.*" if s.trajectory is not None else \
