@@ -157,9 +157,10 @@ class MissionPlanner:
             rep = PieceReport(label, "transfer", False, plan.reason, seconds=t1 - t0)
             return TransferResult(False, None, rep, plan, t1 - t0)
         asm = None
-        if plan.searched == "direct" and self._sampled_store():
+        if plan.searched == "direct" and self._sampled_store() and not exploring:
             # A free straight joint move on a 6- or 7-axis arm: the programmer's PTP as it
-            # is, verified, without the net and the fit (seconds on those arms)
+            # is, verified, without the net and the fit (seconds on those arms). Not while
+            # exploring: the smoothed road keeps its clearance from what is not known yet.
             traj = _joint_moves(self.robot, plan.joint_path, label, self.config.assembly)
             checked = verify(self.robot, traj, self.verifier,
                              clearance_step=self.config.assembly.clearance_step)

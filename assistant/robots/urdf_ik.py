@@ -201,11 +201,14 @@ class DLSInverseKinematics:
                     break
                 free &= ~blocked
             if self.dof > e.shape[0] and clamp:
-                # redundant arm: in the Jacobian's null space, drift toward the middle of the
-                # joint ranges (the 7th axis of a Panda keeps away from its limits instead of
+                # redundant arm, in the Jacobian's null space: stay near the start (a seeded
+                # solve answers next to its seed) and push out of the outer 3 % of each
+                # range (the 7th axis of a Panda keeps away from its limits instead of
                 # wandering into them along a Cartesian line)
                 N = np.eye(self.dof) - np.linalg.pinv(J, rcond=1e-4) @ J
-                dq = dq + N @ (0.1 * (0.5 * (lo + hi) - q))
+                margin = 0.03 * (hi - lo)
+                push = np.maximum(lo + margin - q, 0.0) - np.maximum(q - (hi - margin), 0.0)
+                dq = dq + N @ (0.1 * (q0 - q) + 0.3 * push)
             step = float(np.max(np.abs(dq)))
             if step > st.max_step:
                 dq *= st.max_step / step
