@@ -31,7 +31,7 @@ from scipy.stats import qmc
 
 from assistant.progress import Progress
 from assistant.robots.model import Robot
-from assistant.world.leaf_store import JointStore, WorldBudgetError, save_npz
+from assistant.world.leaf_store import JointStore, WorldBudgetError
 from assistant.world.octree import OctreeGrid
 
 Array = np.ndarray
@@ -54,6 +54,7 @@ class SampledTable(JointStore):
     index: Array | None = None  # (S, dof) int32 per-joint grid indices; ids are its rows
 
     kind = "samples"
+    extra_arrays = ("index",)
 
     @property
     def id_space(self) -> int:
@@ -157,22 +158,6 @@ class SampledTable(JointStore):
     def nbytes(self) -> int:
         assert self.index is not None
         return super().nbytes() + int(self.index.nbytes)
-
-    def save(self, path) -> None:
-        save_npz(path, key=np.array(self.key), grid=np.array(json.dumps(self.grid.to_json())),
-                 radii=self.radii, lower=self.lower, step=self.step, counts=self.counts,
-                 leaves=self.leaves, offsets=self.offsets, positions=self.positions,
-                 index=self.index, build_seconds=np.array(self.build_seconds))
-
-    @staticmethod
-    def load(path) -> SampledTable:
-        with np.load(path) as z:
-            g = json.loads(str(z["grid"]))
-            return SampledTable(
-                key=str(z["key"]), grid=OctreeGrid(g["size"], g["depth"], tuple(g["centre"])),
-                radii=z["radii"], lower=z["lower"], step=z["step"], counts=z["counts"],
-                leaves=z["leaves"], offsets=z["offsets"], positions=z["positions"],
-                index=z["index"], build_seconds=float(z["build_seconds"]))
 
 
 def samples_key(robot: Robot, grid: OctreeGrid, config) -> str:

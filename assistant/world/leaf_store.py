@@ -14,11 +14,12 @@ whose every prefix is spread over the whole list.
 
 from __future__ import annotations
 
+import json
 import os
 import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import ClassVar
+from typing import ClassVar, Self
 
 import numpy as np
 
@@ -128,6 +129,28 @@ class JointStore:
 
     def nbytes(self) -> int:
         return int(self.leaves.nbytes + self.offsets.nbytes + self.positions.nbytes)
+
+    # ---------------------------------------------------------------- persistence
+    #: Arrays a subclass keeps beyond the common ones (saved and loaded by field name).
+    extra_arrays: ClassVar[tuple[str, ...]] = ()
+
+    def save(self, path: Path) -> None:
+        save_npz(path, key=np.array(self.key), grid=np.array(json.dumps(self.grid.to_json())),
+                 radii=self.radii, lower=self.lower, step=self.step, counts=self.counts,
+                 leaves=self.leaves, offsets=self.offsets, positions=self.positions,
+                 build_seconds=np.array(self.build_seconds),
+                 **{name: getattr(self, name) for name in self.extra_arrays})
+
+    @classmethod
+    def load(cls, path: Path) -> Self:
+        with np.load(path) as z:
+            g = json.loads(str(z["grid"]))
+            return cls(key=str(z["key"]),
+                       grid=OctreeGrid(g["size"], g["depth"], tuple(g["centre"])),
+                       radii=z["radii"], lower=z["lower"], step=z["step"], counts=z["counts"],
+                       leaves=z["leaves"], offsets=z["offsets"], positions=z["positions"],
+                       build_seconds=float(z["build_seconds"]),
+                       **{name: z[name] for name in cls.extra_arrays})
 
 
 def save_npz(path: Path, **arrays: Array) -> None:

@@ -50,7 +50,7 @@ from assistant.world.joint_samples import (
     check_grid_budget,
     samples_key,
 )
-from assistant.world.leaf_store import JointStore, save_npz
+from assistant.world.leaf_store import JointStore
 from assistant.world.octree import OctreeGrid
 
 Array = np.ndarray
@@ -165,23 +165,6 @@ class ReachabilityTable(JointStore):
         Q = np.tile(rest, (len(prefixes), 1))
         Q[:, :n_joints] = self.lower[:n_joints] + idx * self.step[:n_joints]
         return Q
-
-    # ---------------------------------------------------------------- persistence
-    def save(self, path: Path) -> None:
-        save_npz(path, key=np.array(self.key), grid=np.array(json.dumps(self.grid.to_json())),
-                 radii=self.radii, lower=self.lower, step=self.step, counts=self.counts,
-                 leaves=self.leaves, offsets=self.offsets, positions=self.positions,
-                 build_seconds=np.array(self.build_seconds))
-
-    @staticmethod
-    def load(path: Path) -> ReachabilityTable:
-        with np.load(path) as z:
-            g = json.loads(str(z["grid"]))
-            return ReachabilityTable(
-                key=str(z["key"]), grid=OctreeGrid(g["size"], g["depth"], tuple(g["centre"])),
-                radii=z["radii"], lower=z["lower"], step=z["step"], counts=z["counts"],
-                leaves=z["leaves"], offsets=z["offsets"], positions=z["positions"],
-                build_seconds=float(z["build_seconds"]))
 
 
 # -------------------------------------------------------------------- radii

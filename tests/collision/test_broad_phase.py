@@ -281,9 +281,7 @@ def test_pruned_pairs_keep_fcls_answers(crowded, rv2aj):
                           np.array([crowded.in_collision_naive(q) for q in near]))
 
 
-@pytest.mark.skipif(os.environ.get("CELLTEACH_FRESH_COMPILE_TESTS") != "1",
-                    reason="compiles every kernel into an empty cache (~3.5 min): .ci/run's "
-                           "generic-CPU pass runs it (CELLTEACH_FRESH_COMPILE_TESTS=1)")
+@pytest.mark.fresh_compile  # ~3.5 min: selected by .ci/run's generic-CPU pass only
 def test_warm_up_compiles_every_kernel(tmp_path):
     """In a fresh process with an empty numba cache, nothing is compiled until `warm_up`,
     and after it every kernel is (so `cellteach serve` compiles them all up front)."""
