@@ -157,7 +157,7 @@ class MissionPlanner:
             rep = PieceReport(label, "transfer", False, plan.reason, seconds=t1 - t0)
             return TransferResult(False, None, rep, plan, t1 - t0)
         asm = None
-        if plan.searched == "direct" and self._sampled_store() and not exploring:
+        if plan.searched == "direct" and self.world.sampled and not exploring:
             # A free straight joint move on a 6- or 7-axis arm: the programmer's PTP as it
             # is, verified, without the net and the fit (seconds on those arms). Not while
             # exploring: the smoothed road keeps its clearance from what is not known yet.
@@ -180,10 +180,6 @@ class MissionPlanner:
         rep = PieceReport(label, "transfer", True, "", asm.report, t2 - t0, plan.searched,
                           tuple(notes))
         return TransferResult(True, piece, rep, plan, t1 - t0, t2 - t1)
-
-    def _sampled_store(self) -> bool:
-        table = self.world.table
-        return table is not None and table.kind == "samples"
 
     def _smooth(self, joint_path: list[Array], exploring: bool, label: str,
                 progress: Progress | None) -> tuple[AssemblyResult, list[str]]:

@@ -333,8 +333,7 @@ class RoadmapPlanner:
         # instead of a search that would bend it into several moves. At any distance on the
         # sampled store (6- and 7-axis arms); the RV-2AJ's grid keeps the thesis' rule (one
         # edge long), whose scenario and tests show the roads.
-        any_distance = self.world.table is not None and self.world.table.kind == "samples"
-        if (sc == gc or direct <= self.config.max_edge or any_distance) and \
+        if (sc == gc or direct <= self.config.max_edge or self.world.sampled) and \
                 self._edge.first_invalid_fraction(q_s, q_g) is None:
             timings["total"] = time.perf_counter() - t0
             return self._plan_from([q_s, q_g], None, "direct", timings, direct)
@@ -413,9 +412,7 @@ class RoadmapPlanner:
                            timings=timings)
 
     def _max_edge(self) -> float:
-        table = self.world.table
-        sampled = table is not None and table.kind == "samples"
-        return self.config.max_edge_sampled if sampled else self.config.max_edge
+        return self.config.max_edge_sampled if self.world.sampled else self.config.max_edge
 
     def _weighted(self, a: Array, b: Array) -> float:
         return float(np.linalg.norm((b - a) * self._weights()))

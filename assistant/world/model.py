@@ -154,6 +154,12 @@ class WorldModel:
         return self.positions is not None
 
     @property
+    def sampled(self) -> bool:
+        """Whether the built store holds joint samples (6- and 7-axis arms) rather than the
+        thesis' joint grid: the planners' rules for direct moves and edge length differ."""
+        return self.table is not None and self.table.kind == "samples"
+
+    @property
     def threshold(self) -> float:
         return self.config.fusion.threshold
 
