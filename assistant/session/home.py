@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import numpy as np
-from scipy.stats import qmc
 
 from assistant.collision.checker import CollisionChecker
 from assistant.robots.model import Robot, ShapeKind
@@ -64,15 +65,27 @@ def raised_posture(robot: Robot) -> Array:
     checker = CollisionChecker(robot, ())
     right = np.radians([0.0, -45.0, 45.0, -90.0, 90.0])
     grid = np.stack(np.meshgrid(*[right] * robot.dof, indexing="ij"), -1).reshape(-1, robot.dof)
-    U = qmc.Sobol(d=robot.dof, scramble=True, seed=0).random(256)
     Q = np.clip(grid, lo, hi)
     w = robot.arm_radii()
     order = np.argsort(np.linalg.norm((Q - zero) * w, axis=1), kind="stable")
     # 5-axis arms (the RV-2AJ) start at zero as in the thesis: they follow no 6-D pose
     dexterous = robot.dof < 6
-    for q in [zero, 0.5 * (lo + hi), *Q[order], *(lo + U * (hi - lo))]:
+    for q in _candidates(zero, 0.5 * (lo + hi), Q[order], lo, hi):
         if (lowest_point(robot, q) >= CLEAR_OF_MOUNT
                 and (dexterous or dexterity(robot, q) >= MIN_DEXTERITY)
                 and checker.is_valid(q)):
             return q
     return zero
+
+
+
+def _candidates(zero: Array, middle: Array, right_angles: Array, lo: Array,
+                hi: Array) -> Iterator[Array]:
+    """Home candidates, best first; 256 Sobol postures over the limits last (scipy.stats
+    is imported only then: its import costs ~1.5 s a run that never reaches them pays)."""
+    yield zero
+    yield middle
+    yield from right_angles
+    from scipy.stats import qmc
+
+    yield from lo + qmc.Sobol(d=len(lo), scramble=True, seed=0).random(256) * (hi - lo)

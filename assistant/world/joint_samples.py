@@ -27,7 +27,6 @@ import time
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.stats import qmc
 
 from assistant.progress import Progress
 from assistant.robots.model import Robot
@@ -109,7 +108,7 @@ class SampledTable(JointStore):
         lo = np.maximum(A.min(axis=0) - margin, robot.limits.lower)
         hi = np.minimum(A.max(axis=0) + margin, robot.limits.upper)
         m = max(1, int(np.ceil(np.log2(max(n, 2)))))
-        U = qmc.Sobol(d=self.dof, scramble=True, seed=1).random_base2(m)[:n]
+        U = _sobol(self.dof, m, seed=1)[:n]
         X = self.snap(lo + U * (hi - lo))
         leaf = _bin(robot, self.grid, self, X, None)
         keep = np.flatnonzero(leaf >= 0)
@@ -223,8 +222,7 @@ def build_samples(robot: Robot, grid: OctreeGrid, config, radii: Array,
                          np.zeros(0, np.int64), np.zeros(1, np.int64), np.zeros(0, np.int32),
                          index=np.zeros((0, dof), np.int32))
     m = max(1, int(np.ceil(np.log2(max(n, 2)))))
-    index = store.snap(lo + qmc.Sobol(d=dof, scramble=True, seed=0).random_base2(m)[:n]
-                       * (hi - lo))
+    index = store.snap(lo + _sobol(dof, m, seed=0)[:n] * (hi - lo))
     leaf = _bin(robot, grid, store, index, progress.sub(0.0, 0.7))
     index, leaf = _top_up(robot, grid, store, index, leaf, n // 4, progress.sub(0.7, 0.95))
     progress.update(0.95, "grouping joint positions per leaf")
@@ -271,3 +269,11 @@ def _top_up(robot: Robot, grid: OctreeGrid, store: SampledTable, index: Array, l
         added += len(keep)
     progress.update(1.0, "topping up thin leaves")
     return index, leaf
+
+
+def _sobol(dof: int, m: int, seed: int) -> Array:
+    """2^m scrambled Sobol points in [0, 1)^dof. scipy.stats is imported here, not with the
+    module: its import costs ~1.5 s that the RV-2AJ's runs (joint grid) never need."""
+    from scipy.stats import qmc
+
+    return qmc.Sobol(d=dof, scramble=True, seed=seed).random_base2(m)
