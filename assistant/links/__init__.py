@@ -1,4 +1,5 @@
-"""Robot links: the simulated robot, a Mitsubishi MELFA controller and a KUKA REST bridge.
+"""Robot links: the simulated robot, a Mitsubishi MELFA controller, a KUKA REST bridge, a
+Universal Robots controller (RTDE + URScript) and an ABB IRC5 over Robot Web Services.
 
 Everything here implements `assistant.links.link.RobotLink`; `settings.make_link` builds the
 one a session chose. `emulators/` holds TCP/HTTP peers driven by our kinematic model so the

@@ -8,6 +8,7 @@ are the thesis' CR1 set-up (003 Appendix C): commands on 10001, the data link ``
 
 from __future__ import annotations
 
+import re
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, fields
 from typing import Any, Literal
@@ -16,8 +17,8 @@ from assistant.collision.reports import ObstacleView
 from assistant.links.link import RobotLink
 from assistant.robots.model import Robot
 
-LinkKind = Literal["simulated", "melfa", "kuka_rest"]
-KINDS: tuple[str, ...] = ("simulated", "melfa", "kuka_rest")
+LinkKind = Literal["simulated", "melfa", "kuka_rest", "ur", "abb"]
+KINDS: tuple[str, ...] = ("simulated", "melfa", "kuka_rest", "ur", "abb")
 
 
 class LinkSettingsError(ValueError):
@@ -42,6 +43,17 @@ class LinkSettings:
     #: KUKA: how far on the arm the decimated PTP path may leave the planned one.
     decimation_tol_m: float = 0.002
     kuka_base_path: str = "/krl"
+    #: Universal Robots: secondary interface (URScript), RTDE and dashboard server ports,
+    #: and the RTDE state rate (500 Hz on e-Series, 125 Hz on CB3).
+    ur_script_port: int = 30002
+    ur_rtde_port: int = 30004
+    ur_dashboard_port: int = 29999
+    ur_rtde_hz: float = 500.0
+    #: ABB (Robot Web Services on `port`, 80 on an IRC5): the login - the controller's
+    #: default user unless the cell has its own - and the RAPID motion task.
+    rws_user: str = "Default User"
+    rws_password: str = "robotics"
+    rws_task: str = "T_ROB1"
     #: Simulated robot: robot seconds per wall second.
     time_scale: float = 1.0
     event_period_s: float = 0.05
@@ -49,7 +61,8 @@ class LinkSettings:
     def __post_init__(self) -> None:
         if self.kind not in KINDS:
             raise LinkSettingsError(f"kind must be one of {KINDS}, got {self.kind!r}")
-        for name in ("port", "datalink_port"):
+        for name in ("port", "datalink_port", "ur_script_port", "ur_rtde_port",
+                     "ur_dashboard_port"):
             v = getattr(self, name)
             if not 0 <= v <= 65535:
                 raise LinkSettingsError(f"{name} {v} is not a TCP port")
@@ -61,8 +74,14 @@ class LinkSettings:
                      "time_scale", "event_period_s"):
             if not getattr(self, name) > 0:
                 raise LinkSettingsError(f"{name} must be > 0")
+        if not 0.0 < self.ur_rtde_hz <= 500.0:
+            raise LinkSettingsError("ur_rtde_hz must be in (0, 500]")
         if self.stream_window < 1:
             raise LinkSettingsError("stream_window must be >= 1")
+        if not self.rws_user.strip():
+            raise LinkSettingsError("rws_user is empty (ABB)")
+        if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]{0,31}", self.rws_task):
+            raise LinkSettingsError(f"rws_task {self.rws_task!r} is not a RAPID task name")
         if not self.host.strip():
             raise LinkSettingsError("host is empty")
 
@@ -104,6 +123,22 @@ def make_link(settings: LinkSettings, robot: Robot,
                          timeout_s=settings.timeout_s, stream_cycle_s=settings.stream_cycle_s,
                          stream_window=settings.stream_window,
                          event_period_s=settings.event_period_s)
+    if settings.kind == "abb":
+        from assistant.links.abb_rws import AbbRwsLink
+
+        return AbbRwsLink(robot, host=settings.host, port=settings.port,
+                          username=settings.rws_user, password=settings.rws_password,
+                          task=settings.rws_task, timeout_s=settings.timeout_s,
+                          decimation_tol_m=settings.decimation_tol_m)
+    if settings.kind == "ur":
+        from assistant.links.ur import URLink
+
+        return URLink(robot, host=settings.host, script_port=settings.ur_script_port,
+                      rtde_port=settings.ur_rtde_port,
+                      dashboard_port=settings.ur_dashboard_port, rtde_hz=settings.ur_rtde_hz,
+                      connect_timeout_s=settings.connect_timeout_s,
+                      timeout_s=settings.timeout_s, decimation_tol_m=settings.decimation_tol_m,
+                      event_period_s=settings.event_period_s)
     from assistant.links.kuka_rest import KukaRestLink
 
     return KukaRestLink(robot, host=settings.host, port=settings.port,

@@ -30,7 +30,7 @@ def test_settings_round_trip_through_json():
 
 
 @pytest.mark.parametrize("data, field", [
-    ({"kind": "abb"}, "kind"),
+    ({"kind": "fanuc"}, "kind"),
     ({"port": 70000}, "port"),
     ({"timeout_s": 0}, "timeout_s"),
     ({"slot": 40}, "slot"),

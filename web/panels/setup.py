@@ -9,7 +9,13 @@ from web.panels.base import Panel
 
 ROBOTS = {"Mitsubishi RV-2AJ (built in)": "rv2aj", "URDF file": "urdf"}
 LINK_LABELS = {"simulated": "Simulated robot", "melfa": "Mitsubishi CR1 (MELFA, TCP)",
-               "kuka_rest": "KUKA via REST bridge"}
+               "kuka_rest": "KUKA via REST bridge",
+               "ur": "Universal Robots (RTDE + URScript)",
+               "abb": "ABB IRC5 (Robot Web Services)"}
+#: The port a link kind usually listens on, offered when the operator picks the kind.
+DEFAULT_PORTS = {"melfa": 10001, "kuka_rest": 8000, "abb": 80}
+#: Links whose ports are fixed by the controller (UR: 30002, 30004, 29999): address only.
+FIXED_PORTS = frozenset({"ur"})
 
 
 class SetupPanel(Panel):
@@ -33,12 +39,16 @@ class SetupPanel(Panel):
             self.link_kind = g.add_dropdown("Link", tuple(LINK_LABELS[k] for k in KINDS))
             self.host = g.add_text("Address", "127.0.0.1", visible=False)
             self.port = g.add_number("Port", 10001, min=1, max=65535, step=1, visible=False)
+            self.rws_user = g.add_text("RWS user", "Default User", visible=False,
+                                       hint="The IRC5's default login unless the cell "
+                                            "has its own")
+            self.rws_password = g.add_text("RWS password", "robotics", visible=False)
             self.time_scale = g.add_number("Simulation speed", 1.0, min=0.1, max=50.0, step=0.1,
                                            hint="Robot seconds per wall second")
             self.apply_link = g.add_button("Use this link")
             self.connect = g.add_button("Connect now")
         self.robot.on_update(lambda e: self._robot_kind_changed())
-        self.link_kind.on_update(lambda e: self._link_kind_changed())
+        self.link_kind.on_update(lambda e: self._link_kind_picked())
         self.bind(self.apply_robot, lambda e: self._choose_robot())
         self.bind(self.apply_link, lambda e: self._set_link())
         self.bind(self.connect, lambda e: self._connect(e.client))
@@ -49,9 +59,18 @@ class SetupPanel(Panel):
     def _link_kind(self) -> str:
         return next(k for k, v in LINK_LABELS.items() if v == self.link_kind.value)
 
+    def _link_kind_picked(self) -> None:
+        port = DEFAULT_PORTS.get(self._link_kind())
+        if port is not None:
+            self.port.value = port
+        self._link_kind_changed()
+
     def _link_kind_changed(self) -> None:
-        sim = self._link_kind() == "simulated"
-        self.host.visible = self.port.visible = not sim
+        kind = self._link_kind()
+        self.rws_user.visible = self.rws_password.visible = kind == "abb"
+        sim = kind == "simulated"
+        self.host.visible = not sim
+        self.port.visible = not sim and kind not in FIXED_PORTS
         self.time_scale.visible = sim
 
     def _choose_robot(self) -> None:
@@ -69,7 +88,11 @@ class SetupPanel(Panel):
             kw["time_scale"] = float(self.time_scale.value)
         else:
             kw["host"] = self.host.value.strip()
-            kw["port"] = int(self.port.value)
+            if kind not in FIXED_PORTS:
+                kw["port"] = int(self.port.value)
+        if kind == "abb":
+            kw["rws_user"] = self.rws_user.value.strip()
+            kw["rws_password"] = self.rws_password.value
         self.session.set_link(LinkSettings(**kw))
 
     def _connect(self, client) -> None:  # noqa: ANN001
@@ -87,7 +110,8 @@ class SetupPanel(Panel):
         lines = [f"**Robot:** {r.name}, {r.dof} axes ({', '.join(r.joint_names)})",
                  f"**Tool:** {tool.name}, TCP {tcp_mm:.1f} mm from the flange",
                  f"**Link:** {LINK_LABELS[ls.kind]}"
-                 + ("" if ls.kind == "simulated" else f" at {ls.host}:{ls.port}")]
+                 + ("" if ls.kind == "simulated" else f" at {ls.host}" if ls.kind in FIXED_PORTS
+                    else f" at {ls.host}:{ls.port}")]
         if r.dof < 6:
             lines.append(f"*{r.dof}-axis arm: taught orientations are turned into the arm's "
                          "plane; the page says by how much.*")
@@ -102,6 +126,8 @@ class SetupPanel(Panel):
         self.time_scale.value = float(ls.time_scale)
         self.host.value = ls.host
         self.port.value = int(ls.port)
+        self.rws_user.value = ls.rws_user
+        self.rws_password.value = ls.rws_password
         self._robot_kind_changed()
         self._link_kind_changed()
 

@@ -1,0 +1,413 @@
+"""Drive a Universal Robots arm: state over RTDE, motion and programs as URScript.
+
+State - joints, TCP, robot mode, safety mode, the running program's progress registers -
+comes over RTDE (30004) at up to 500 Hz from our own small client (`ur_rtde_client` says why
+not ur-rtde's). Motion goes as URScript programs over the secondary interface (30002,
+`ur_script`): ur-rtde's control interface would need its own control script running on
+the controller and RTDE input registers, i.e. a full controller; plain programs work on every
+UR and are what the exporter writes anyway. A joint path is decimated (`decimate.py`) and sent
+as one program of exact-stop ``movej`` - one round trip per path, not per target.
+
+How moves end, mapped onto the session's states as the MELFA and KUKA links do:
+- the finish register reaches the program's number: REACHED;
+- a protective stop (the UR's reaction to a contact): COLLISION_INDICATED, source
+  "controller"; before the next move the link unlocks it through the dashboard (a UR refuses
+  for 5 s; the link retries for `unlock_wait_s`);
+- an emergency stop: LINK_LOST - the robot is powered off and stays still; `connect()` is
+  refused until the e-stop is released, then powers the arm on and releases the brakes;
+- a safeguard stop, our `stop()` or a program ended by someone else: STOPPED (the operator's
+  Collision! button: COLLISION_INDICATED, source "operator");
+- a runtime exception from the controller (a refused target, a script it cannot run): ERROR
+  quoting the controller's message;
+- a silent or dropped stream, or no finish within the move's time + `timeout_s`: LINK_LOST;
+  a garbled stream: ERROR quoting the bytes (RTDE is re-opened on the next call).
+"""
+
+from __future__ import annotations
+
+import contextlib
+import itertools
+import re
+import threading
+import time
+
+import numpy as np
+
+from assistant.links import ur_rtde_wire as w
+from assistant.links import ur_script as us
+from assistant.links.decimate import decimate_joint_path
+from assistant.links.errors import ControllerRefused, ProtocolError
+from assistant.links.link import LinkError, LinkEvent, LinkEventKind, LinkLost, RobotLink
+from assistant.links.operator_button import OperatorButton
+from assistant.links.timing import time_parametrize, validate_path
+from assistant.links.ur_channels import ScriptChannel, dashboard
+from assistant.links.ur_rtde_client import RtdeClient, RtdeState
+from assistant.robots.model import Robot
+
+Array = np.ndarray
+#: Program numbers (in the progress registers): time-based, so registers a previous session
+#: left on the controller never match a new program's number.
+_program_seq = itertools.count(int(time.time()) % 100000 * 100)
+TCP_CHECK_M = 0.002  # the robot's TCP must agree with our model within this
+
+
+class URLink(OperatorButton, RobotLink):
+    """RTDE + secondary interface + dashboard client for a UR (CB3 or e-Series).
+
+    Args:
+        robot: the model of the arm (a UR URDF: kinematics, limits, speeds, tool).
+        host: the controller's address; `script_port`, `rtde_port`, `dashboard_port` its
+            secondary interface (30002), RTDE (30004) and dashboard server (29999).
+        rtde_hz: state rate asked for (500 on e-Series, 125 on CB3).
+        timeout_s: longest silence of the state stream, and the slack beyond a move's time.
+        decimation_tol_m: how far on the arm the movej path may leave the planned one.
+        unlock_wait_s: how long to keep asking to unlock a protective stop.
+    """
+
+    def __init__(self, robot: Robot, *, host: str = "127.0.0.1", script_port: int = 30002,
+                 rtde_port: int = 30004, dashboard_port: int = 29999, rtde_hz: float = 500.0,
+                 connect_timeout_s: float = 2.0, timeout_s: float = 1.0,
+                 decimation_tol_m: float = 0.002, unlock_wait_s: float = 6.0,
+                 joint_accel_rad_s2: float = 4.0, tool_speed_m_s: float = 0.25,
+                 event_period_s: float = 0.05, keep_arrivals: int = 0):
+        super().__init__()
+        if timeout_s <= 0 or decimation_tol_m <= 0 or unlock_wait_s < 0:
+            raise ValueError("timeout_s, decimation_tol_m must be > 0, unlock_wait_s >= 0")
+        self.robot = robot
+        self.host = host
+        self.dashboard_port = int(dashboard_port)
+        self.timeout_s, self.connect_timeout_s = float(timeout_s), float(connect_timeout_s)
+        self.decimation_tol_m, self.unlock_wait_s = float(decimation_tol_m), float(unlock_wait_s)
+        self.joint_accel, self.tool_speed = float(joint_accel_rad_s2), float(tool_speed_m_s)
+        self.event_period_s = float(event_period_s)
+        self.rtde = RtdeClient(host, rtde_port, frequency_hz=rtde_hz, timeout_s=timeout_s,
+                               connect_timeout_s=connect_timeout_s, keep_arrivals=keep_arrivals)
+        self.script = ScriptChannel(host, script_port, connect_timeout_s)
+        self._radii = robot.arm_radii()
+        self._flange = robot.with_tool(np.eye(4))
+        self._connected = False
+        self._stop = threading.Event()
+        self._moving = threading.Lock()
+        self._last_q = np.zeros(robot.dof)
+        self.last_command_count = 0
+        self.last_program = ""
+
+    # ------------------------------------------------------------------ connection
+    def connect(self) -> None:
+        self.close()
+        try:
+            st = self.rtde.connect()
+            st = self._ready(st, on_connect=True)
+            self.script.connect()
+            self._check_tcp(st)
+        except Exception:
+            self.close()
+            raise
+        self._last_q = st.q
+        self._connected = True
+
+    def _ready(self, st: RtdeState, *, on_connect: bool = False) -> RtdeState:
+        """Make the arm able to move: unlock a protective stop, power on after an e-stop."""
+        smode = st["safety_mode"]
+        if smode in w.EMERGENCY_STOPS:
+            raise LinkLost("the robot's emergency stop is pressed: release it, then "
+                           "Reconnect")
+        if smode == w.SafetyMode.PROTECTIVE_STOP:
+            self._unlock_protective_stop()
+        elif smode != w.SafetyMode.NORMAL and smode != w.SafetyMode.REDUCED:
+            raise LinkError(f"the robot is in {w.mode_name(w.SafetyMode, smode)}: clear it on "
+                            "the teach pendant")
+        if not on_connect and st["robot_mode"] != w.RobotMode.RUNNING:
+            raise LinkLost(f"the robot is {w.mode_name(w.RobotMode, st['robot_mode'])}: "
+                           "Reconnect to power it on and release the brakes")
+        if on_connect and st["robot_mode"] != w.RobotMode.RUNNING:
+            for cmd, want in (("power on", "Powering on"), ("brake release", "Brake releasing")):
+                reply = dashboard(self.host, self.dashboard_port, cmd, self.timeout_s)
+                if not reply.startswith(want):
+                    raise ControllerRefused(f"the robot refused {cmd!r}: {reply!r}",
+                                            code=cmd, raw=reply)
+            self.rtde.wait_for(lambda s: s["robot_mode"] == w.RobotMode.RUNNING,
+                               self.unlock_wait_s + self.timeout_s)
+        return self.rtde.wait_for(lambda s: s["safety_mode"] in (w.SafetyMode.NORMAL,
+                                                                 w.SafetyMode.REDUCED)
+                                  and s["robot_mode"] == w.RobotMode.RUNNING,
+                                  self.timeout_s)
+
+    def _unlock_protective_stop(self) -> None:
+        deadline = time.monotonic() + self.unlock_wait_s
+        while True:
+            reply = dashboard(self.host, self.dashboard_port, "unlock protective stop",
+                              self.timeout_s)
+            if reply.startswith("Protective stop releasing"):
+                return
+            if not reply.startswith("Cannot unlock protective stop"):
+                raise ProtocolError(f"unexpected dashboard reply to 'unlock protective stop': "
+                                    f"{reply[:200]!r}", raw=reply)
+            if time.monotonic() > deadline:
+                raise ControllerRefused(f"the protective stop could not be unlocked within "
+                                        f"{self.unlock_wait_s:.1f} s: {reply!r}",
+                                        code="protective_stop", raw=reply)
+            time.sleep(0.1)
+
+    def _check_tcp(self, st: RtdeState) -> None:
+        """The robot's reported TCP must be where our model puts the tool or the flange."""
+        T = us.from_controller_pose(self.robot, st.tcp_pose)
+        off = min(float(np.linalg.norm(m.fk(st.q)[:3, 3] - T[:3, 3]))
+                  for m in (self.robot, self._flange))
+        if off > TCP_CHECK_M:
+            raise LinkError(f"the robot reports its TCP {off * 1000:.1f} mm from where our "
+                            f"{self.robot.name} model puts it: wrong robot model or tool?")
+
+    def close(self) -> None:
+        self._connected = False
+        self.rtde.close()
+        self.script.close()
+
+    @property
+    def connected(self) -> bool:
+        return self._connected
+
+    def _state(self) -> RtdeState:
+        """The newest state; a stream broken by garbage is re-opened once."""
+        try:
+            return self.rtde.latest()
+        except ProtocolError:
+            self._reopen()
+            raise
+        except LinkLost:
+            self._connected = False
+            raise
+
+    def _reopen(self) -> None:
+        """After garbage: reported once; the stream cannot re-synchronise, so re-open it."""
+        with contextlib.suppress(LinkError):
+            self.rtde.connect()
+
+    def _halt(self) -> None:
+        """The link cannot follow the robot any more: stop it (best effort)."""
+        with contextlib.suppress(LinkError):
+            self.script.send(us.stop_line(self.joint_accel))
+
+    def current_joints(self) -> Array:
+        if self._connected:
+            self._last_q = self._state().q
+        return self._last_q.copy()
+
+    def current_pose(self) -> Array:
+        """The TCP pose the robot reports, in the model base."""
+        return us.from_controller_pose(self.robot, self._state().tcp_pose)
+
+    def robot_state(self) -> dict[str, str]:
+        st = self._state()
+        return {"robot_mode": w.mode_name(w.RobotMode, st["robot_mode"]),
+                "safety_mode": w.mode_name(w.SafetyMode, st["safety_mode"]),
+                "runtime_state": w.mode_name(w.RuntimeState, st["runtime_state"])}
+
+    def stop(self) -> None:
+        self._stop.set()
+        with contextlib.suppress(LinkError):
+            self.script.send(us.stop_line(self.joint_accel))
+
+    # ------------------------------------------------------------------ motions
+    def plan_targets(self, path: Array) -> tuple[Array, Array]:
+        """The movej targets (decimated) for a validated path and their path indices."""
+        lead = 0 if np.allclose(path[0], self._last_q, atol=1e-6) else 1
+        full = path if lead == 0 else np.vstack([self._last_q[None], path])
+        keep = decimate_joint_path(full, self._radii, self.decimation_tol_m)
+        keep = keep[keep > 0] if len(keep) > 1 else keep
+        return full[keep], np.maximum(keep - lead, 0)
+
+    def move_path(self, joint_path: Array, *, speed_scale: float = 1.0) -> LinkEvent:
+        path = validate_path(self.robot, joint_path)
+        time_parametrize(path[:1], self.robot.limits.velocity, speed_scale)  # checks the scale
+        return self._motion(lambda: self._joint_program(path, speed_scale))
+
+    def _joint_program(self, path: Array, speed_scale: float) -> tuple[str, int, float, Array]:
+        targets, index = self.plan_targets(path)
+        self.last_command_count = len(targets)
+        v = speed_scale * float(np.min(self.robot.limits.velocity))
+        timed = time_parametrize(np.vstack([self._last_q[None], targets]),
+                                 self.robot.limits.velocity, speed_scale)
+        number = next(_program_seq)
+        name = f"ct_{number}"
+        text = us.joint_program(name, number, self.robot, targets, v, self.joint_accel)
+        return text, number, timed.duration, index
+
+    def move_linear(self, T_base_tool: Array, *, speed_scale: float = 1.0) -> LinkEvent:
+        """Straight TCP line (``movel``) to a pose our model can reach from here."""
+        T = np.asarray(T_base_tool, dtype=float)
+        if not self.robot.ik(T, self._last_q).ok:
+            raise LinkError("movel target refused before sending: our model cannot reach it")
+        d = float(np.linalg.norm(T[:3, 3] - self.robot.fk(self._last_q)[:3, 3]))
+        return self._motion(lambda: self._cart_program("movel", [T], d, speed_scale))
+
+    def move_circ(self, T_via: Array, T_to: Array, *, speed_scale: float = 1.0) -> LinkEvent:
+        """Circular TCP motion through `T_via` to `T_to` (``movec``, mode 0)."""
+        for what, T in (("via", T_via), ("target", T_to)):
+            if not self.robot.ik(np.asarray(T, dtype=float), self._last_q).ok:
+                raise LinkError(f"movec {what} pose refused before sending: unreachable")
+        p0 = self.robot.fk(self._last_q)[:3, 3]
+        d = float(np.linalg.norm(T_via[:3, 3] - p0) + np.linalg.norm(T_to[:3, 3] - T_via[:3, 3]))
+        return self._motion(lambda: self._cart_program("movec", [T_via, T_to], d * 1.6,
+                                                       speed_scale))
+
+    def _cart_program(self, kind: str, Ts: list[Array], length: float, speed_scale: float,
+                      ) -> tuple[str, int, float, Array]:
+        number = next(_program_seq)
+        poses = [us.to_controller_pose(self.robot, T) for T in Ts]
+        v = speed_scale * self.tool_speed
+        text = us.linear_program(f"ct_{number}", number, self.robot, kind, poses, v, 1.2)
+        return text, number, 2.0 * length / v, np.zeros(1, dtype=np.int64)
+
+    def _motion(self, build) -> LinkEvent:  # noqa: ANN001
+        if not self._connected:
+            raise LinkError("UR link is not connected; call connect() first")
+        if not self._moving.acquire(blocking=False):
+            raise LinkError("the robot is already moving")
+        self._stop.clear()
+        self._pressed = None
+        try:
+            try:
+                st = self._state()
+                self._last_q = st.q
+                self._ready(st)
+            except LinkLost as exc:
+                return self._lost(str(exc), 0)
+            except ProtocolError as exc:
+                return self._event(LinkEventKind.ERROR, str(exc), 0, {"raw": exc.raw})
+            text, number, expected_s, index = build()
+            return self._run(text, number, expected_s, index)
+        finally:
+            self._moving.release()
+
+    # ------------------------------------------------------------------ running a program
+    def _run(self, text: str, number: int, expected_s: float, index: Array) -> LinkEvent:
+        """Send a program and follow it on RTDE until it ends; the end as an event."""
+        self.last_program = text
+        try:
+            t_sent = self.script.send(text)
+            started = self.rtde.wait_for(
+                lambda s: s["output_int_register_24"] == number or self._refused(t_sent)
+                or s["safety_mode"] != w.SafetyMode.NORMAL, self.timeout_s)
+        except LinkLost as exc:
+            return self._lost(str(exc), 0)
+        except ProtocolError as exc:
+            self._halt()
+            self._reopen()
+            return self._event(LinkEventKind.ERROR, f"{exc}; the robot was stopped", 0,
+                               {"raw": exc.raw})
+        if started["output_int_register_24"] != number:
+            return self._ended(started, number, t_sent, index)
+        deadline = time.monotonic() + expected_s * 1.5 + self.timeout_s
+        last_event, seq = 0.0, started.seq
+        while True:
+            try:
+                st = self.rtde.wait_for(lambda s: True, self.timeout_s, after_seq=seq)
+            except LinkLost as exc:
+                self._halt()
+                return self._lost(str(exc), self._index(None, index))
+            except ProtocolError as exc:
+                self._halt()
+                self._reopen()
+                return self._event(LinkEventKind.ERROR, f"{exc}; the robot was stopped",
+                                   self._index(None, index), {"raw": exc.raw})
+            seq = st.seq
+            self._last_q = st.q
+            running = st["runtime_state"] == w.RuntimeState.PLAYING
+            if st["output_int_register_25"] == number or not running or \
+                    st["safety_mode"] != w.SafetyMode.NORMAL or self._refused(t_sent):
+                return self._ended(st, number, t_sent, index)
+            now = time.monotonic()
+            if now > deadline:
+                self.stop()
+                return self._lost(f"the UR did not finish {expected_s:.2f} s of motion within "
+                                  f"{expected_s * 1.5 + self.timeout_s:.2f} s",
+                                  self._index(st, index))
+            if now - last_event >= self.event_period_s:
+                last_event = now
+                self._emit(LinkEvent(LinkEventKind.MOVED, st.q, now, "moving",
+                                     self._index(st, index)))
+
+    def _refused(self, since: float) -> bool:
+        return any(m.kind == 10 for m in self.script.messages_since(since))
+
+    def _index(self, st: RtdeState | None, index: Array) -> int:
+        k = 0 if st is None else int(st["output_int_register_26"])
+        return int(index[int(np.clip(k, 0, len(index) - 1))])
+
+    def _ended(self, st: RtdeState, number: int, t_sent: float, index: Array) -> LinkEvent:
+        self._last_q = st.q
+        # Register 26 is this program's only once it has started (24 = its number).
+        at = self._index(st, index) if st["output_int_register_24"] == number else int(index[0])
+        smode = st["safety_mode"]
+        details = {"safety_mode": w.mode_name(w.SafetyMode, smode),
+                   "runtime_state": w.mode_name(w.RuntimeState, st["runtime_state"]),
+                   "program": f"ct_{number}"}
+        if st["output_int_register_25"] == number:
+            return self._event(LinkEventKind.REACHED, "reached", int(index[-1]), details)
+        if smode in w.EMERGENCY_STOPS:
+            return self._lost("emergency stop pressed on the robot; release it, then "
+                              "Reconnect", at)
+        if smode == w.SafetyMode.PROTECTIVE_STOP and self._pressed is None:
+            details["source"] = "controller"
+            return self._event(LinkEventKind.COLLISION_INDICATED,
+                               "collision indicated by the robot: protective stop", at, details)
+        if not self._stop.is_set():
+            # A runtime exception may arrive just after RTDE shows the program stopped.
+            end = time.monotonic() + min(0.2, self.timeout_s)
+            while time.monotonic() < end and not self._refused(t_sent):
+                time.sleep(0.01)
+        refusals = [m for m in self.script.messages_since(t_sent) if m.kind == 10]
+        if refusals and not self._stop.is_set():
+            msg = refusals[0].describe()
+            details["controller_message"] = msg
+            return self._event(LinkEventKind.ERROR, f"the robot refused the program: {msg}",
+                               at, details)
+        if self._stop.is_set():
+            kind, text, details = self._stopped_as(details)
+            return self._event(kind, text, at, details)
+        return self._event(LinkEventKind.STOPPED, "the program was stopped on the robot "
+                           f"({details['safety_mode']})", at, details)
+
+    def _lost(self, message: str, path_index: int) -> LinkEvent:
+        self.close()
+        return self._event(LinkEventKind.LINK_LOST, f"UR at {self.host} lost: {message}",
+                           path_index)
+
+    def _event(self, kind: LinkEventKind, message: str, path_index: int,
+               details: dict | None = None) -> LinkEvent:
+        ev = LinkEvent(kind, self._last_q.copy(), time.monotonic(), message, path_index,
+                       details or {})
+        self._emit(ev)
+        return ev
+
+    # ------------------------------------------------------------------ programs
+    def upload_program(self, name: str, files: dict[str, bytes]) -> str:
+        """Run an exported ``.script`` under a fresh name; returns that name once it ended.
+
+        UR programs sent to the secondary interface run at once (storing one needs the
+        controller's file system); the program is renamed and reports its start and end
+        through RTDE registers, so the link knows it ran to its end.
+        """
+        scripts = [f for f in files if f.lower().endswith(".script")]
+        if len(scripts) != 1 or len(files) != 1:
+            raise LinkError(f"need exactly one .script file, got {sorted(files)}")
+        text = files[scripts[0]].decode("utf-8")
+        base = re.sub(r"[^A-Za-z0-9_]", "_", name).strip("_")[:20] or "prog"
+        number = next(_program_seq)
+        unique = f"{base if base[0].isalpha() else 'p' + base}_{number}"
+        try:
+            program = us.instrument_upload(text, unique, number)
+        except ValueError as exc:
+            raise LinkError(f"{scripts[0]}: {exc}") from None
+        ev = self._motion(lambda: (program, number, 3600.0, np.zeros(1, dtype=np.int64)))
+        if ev.kind == LinkEventKind.REACHED:
+            return unique
+        if ev.kind == LinkEventKind.LINK_LOST:
+            raise LinkLost(f"program {unique}: {ev.message}")
+        raw = ev.details.get("controller_message", ev.message)
+        where = re.search(r"script line (\d+)", raw)
+        line = f" (line {int(where.group(1)) - 1} of {scripts[0]})" \
+            if where and int(where.group(1)) > 1 else ""  # one line was inserted after def
+        raise ControllerRefused(f"program {unique} did not run to its end{line}: {ev.message}",
+                                code=ev.kind.value, raw=raw)

@@ -1,0 +1,142 @@
+"""The UR link's two text channels: the secondary interface (URScript out, robot messages
+in) and the dashboard server (one command, one reply line).
+
+Both have deadlines on every read; a dead peer is `LinkLost`, an answer outside the protocol
+a `ProtocolError` quoting it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import socket
+import threading
+import time
+from dataclasses import dataclass
+
+from assistant.links import ur_primary as up
+from assistant.links.errors import ProtocolError
+from assistant.links.link import LinkError, LinkLost
+
+
+@dataclass(frozen=True)
+class Heard:
+    """A robot message and when it arrived (monotonic)."""
+
+    t: float
+    message: up.RobotMessage
+
+
+class ScriptChannel:
+    """Sends URScript to 30002 and collects the robot messages the controller sends back."""
+
+    def __init__(self, host: str, port: int, connect_timeout_s: float):
+        self.host, self.port = host, int(port)
+        self.connect_timeout_s = connect_timeout_s
+        self._sock: socket.socket | None = None
+        self._send_lock = threading.Lock()
+        self._cond = threading.Condition()
+        self.heard: list[Heard] = []
+        self.failure: LinkError | None = None
+        self._thread: threading.Thread | None = None
+        self._closing = False
+
+    def connect(self) -> None:
+        self.close()
+        self._closing, self.failure = False, None
+        try:
+            self._sock = socket.create_connection((self.host, self.port), self.connect_timeout_s)
+        except OSError as exc:
+            raise LinkLost(f"cannot reach the UR secondary interface at {self.host}:"
+                           f"{self.port}: {exc}") from None
+        self._sock.settimeout(0.2)
+        self._thread = threading.Thread(target=self._read, daemon=True, name="ur-secondary")
+        self._thread.start()
+
+    def send(self, text: str) -> float:
+        """Send a script; returns the send time. LinkLost if the socket is gone."""
+        with self._send_lock:
+            if self._sock is None or self.failure is not None:
+                raise self.failure or LinkLost("UR secondary interface is not connected")
+            try:
+                t = time.monotonic()
+                self._sock.sendall(text.encode("utf-8"))
+                return t
+            except OSError as exc:
+                raise LinkLost(f"UR secondary interface {self.host}:{self.port}: {exc}") \
+                    from None
+
+    def messages_since(self, t: float) -> list[up.RobotMessage]:
+        with self._cond:
+            return [h.message for h in self.heard if h.t >= t]
+
+    def _read(self) -> None:
+        sock, reader = self._sock, up.PrimaryReader()
+        assert sock is not None
+        why: LinkError | None = None
+        while not self._closing:
+            try:
+                data = sock.recv(65536)
+            except TimeoutError:
+                continue
+            except OSError as exc:
+                why = LinkLost(f"UR secondary interface: {exc}")
+                break
+            if not data:
+                why = LinkLost("the UR closed the secondary interface connection")
+                break
+            try:
+                msgs = list(reader.feed(data))
+            except ProtocolError as exc:
+                why = exc
+                break
+            with self._cond:
+                self.heard += [Heard(time.monotonic(), m) for m in msgs]
+                del self.heard[:-100]
+                self._cond.notify_all()
+        with self._cond:
+            if not self._closing:
+                self.failure = why
+        with contextlib.suppress(OSError):
+            sock.close()
+
+    def close(self) -> None:
+        self._closing = True
+        if self._sock is not None:
+            with contextlib.suppress(OSError):
+                self._sock.shutdown(socket.SHUT_RDWR)
+            with contextlib.suppress(OSError):
+                self._sock.close()
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+        self._sock, self._thread = None, None
+
+
+def dashboard(host: str, port: int, command: str, timeout_s: float) -> str:
+    """One dashboard command on its own connection; returns the reply line."""
+    try:
+        with socket.create_connection((host, port), timeout_s) as s:
+            s.settimeout(timeout_s)
+            buf = b""
+            lines: list[str] = []
+            sent = False
+            while len(lines) < 2:
+                chunk = s.recv(4096)
+                if not chunk:
+                    raise LinkLost(f"the UR dashboard server closed the connection during "
+                                   f"{command!r}")
+                buf += chunk
+                while b"\n" in buf:
+                    line, buf = buf.split(b"\n", 1)
+                    lines.append(line.decode("utf-8", errors="replace").strip())
+                if lines and not sent:
+                    if not lines[0].startswith("Connected: Universal Robots Dashboard Server"):
+                        raise ProtocolError(f"not a UR dashboard server: {lines[0][:120]!r}",
+                                            raw=lines[0])
+                    s.sendall(command.encode() + b"\n")
+                    sent = True
+            return lines[1]
+    except TimeoutError:
+        raise LinkLost(f"the UR dashboard server did not answer {command!r} within "
+                       f"{timeout_s:.2f} s") from None
+    except OSError as exc:
+        raise LinkLost(f"UR dashboard server {host}:{port}: {exc}") from None
