@@ -2,6 +2,7 @@
 
     cellteach                          serve the default sample cell at http://127.0.0.1:8080
     cellteach serve [--cell NAME|PATH] [--session DIR] [--empty] [--host H] [--port P]
+                    [--max-upload-mb N] [--token-file F] [--certfile C [--keyfile K]]
     cellteach run SCRIPT.yaml --out DIR
     cellteach cells
 
@@ -45,9 +46,17 @@ def _serve_args(p: argparse.ArgumentParser) -> None:
                    help="take only the sample's robot, link and cameras: import and teach "
                         "everything yourself")
     p.add_argument("--host", default="127.0.0.1",
-                   help="interface to listen on (default 127.0.0.1: this computer only)")
+                   help="interface to listen on (default 127.0.0.1: this computer only, no "
+                        "login); any other address needs the printed access link")
     p.add_argument("--port", type=int, default=DEFAULT_PORT)
     p.add_argument("--max-upload-mb", type=float, default=50.0)
+    p.add_argument("--token-file", type=Path, default=None,
+                   help="keep the access tokens here (operator, then viewer; created if "
+                        "missing) so the links survive a restart")
+    p.add_argument("--certfile", type=Path, default=None, help="serve HTTPS with this "
+                   "certificate (PEM)")
+    p.add_argument("--keyfile", type=Path, default=None,
+                   help="the certificate's private key (PEM), if not in --certfile")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -104,17 +113,41 @@ def cmd_serve(args: argparse.Namespace) -> int:
         return 2
     for note in session.load_notes:
         print(f"cellteach: {note}", file=sys.stderr)
-    if args.host not in ("127.0.0.1", "localhost", "::1"):
-        print(f"cellteach: WARNING: listening on {args.host}: anyone who can reach this "
-              "computer can drive the robot from a browser.", file=sys.stderr)
     from assistant.kernels import lazy
     from web.app import serve
+    from web.gate import AccessTokens, GateConfig, Role, TokenFileError, is_loopback
 
+    gate = None
+    if not is_loopback(args.host) or args.token_file or args.certfile or args.keyfile:
+        try:
+            tokens = AccessTokens.from_file(args.token_file) if args.token_file else \
+                AccessTokens.new()
+            gate = GateConfig(args.host, args.port, tokens, args.certfile, args.keyfile)
+            gate.ssl_context()  # a wrong certificate or key is named before anything runs
+        except (TokenFileError, ValueError) as exc:
+            session.close()
+            print(f"cellteach: {exc}", file=sys.stderr)
+            return 2
     if lazy.start():
         print("cellteach: first run after an install: compiling the fast kernels in the "
               "background (a few minutes); everything works meanwhile", file=sys.stderr)
-    app = serve(session, host=args.host, port=args.port, max_upload_mb=args.max_upload_mb)
+    try:
+        app = serve(session, host=args.host, port=args.port, max_upload_mb=args.max_upload_mb,
+                    gate=gate)
+    except (OSError, ValueError) as exc:
+        session.close()
+        print(f"cellteach: {exc}", file=sys.stderr)
+        return 2
     print(f"cellteach: serving {session.sample or 'a session'} at {app.url}", file=sys.stderr)
+    if app.access is not None:
+        # The links carry the tokens: printed here once, never logged.
+        print(f"cellteach: operator link (can move the robot): "
+              f"{app.access.link(Role.OPERATOR)}", file=sys.stderr)
+        print(f"cellteach: viewer link (watch only):           "
+              f"{app.access.link(Role.VIEWER)}", file=sys.stderr)
+        if gate is not None and gate.exposed and not gate.tls:
+            print("cellteach: WARNING: the connection is not encrypted: anyone on this network "
+                  "can read the page and the links; use --certfile/--keyfile", file=sys.stderr)
     print(f"cellteach: session folder {session.folder} (autosaved)", file=sys.stderr)
     try:
         while True:

@@ -3,6 +3,8 @@
 viser only greys a disabled button out in the browser; a stale or hostile page can still
 send the click. So every callback re-checks that its control is enabled and visible before it
 acts, and the session's workflow machine refuses anything the step does not allow.
+Behind the gate (`web.gate`) every callback also asks whether its page may act: a viewer never,
+a control marked `motion` only from the page that holds motion authority.
 """
 
 from __future__ import annotations
@@ -35,9 +37,10 @@ class Actions:
         self._lock = threading.Lock()
 
     def bind(self, handle: Any, fn: Callable[[viser.GuiEvent], Any], *,
-             when: Callable[[], bool] | None = None) -> None:
-        """Run fn on a click (buttons, commands) or an operator edit (inputs, uploads)."""
-        cb = self.guarded(handle, fn, when)
+             when: Callable[[], bool] | None = None, motion: bool = False) -> None:
+        """Run fn on a click (buttons, commands) or an operator edit (inputs, uploads);
+        `motion`: the control starts robot motion (needs motion authority behind the gate)."""
+        cb = self.guarded(handle, fn, when, motion)
         if hasattr(handle, "on_upload"):
             handle.on_upload(cb)
         elif hasattr(handle, "on_click"):
@@ -48,11 +51,14 @@ class Actions:
             handle.on_update(cb)
 
     def guarded(self, handle: Any, fn: Callable[[Any], Any],
-                 when: Callable[[], bool] | None) -> Callable[[Any], None]:
+                 when: Callable[[], bool] | None, motion: bool = False
+                 ) -> Callable[[Any], None]:
         def cb(event: Any) -> None:
             client = getattr(event, "client", None)
             if client is None:
                 return  # the server set the value itself: not an operator action
+            if not self.permitted(client, motion=motion):
+                return
             if getattr(handle, "disabled", False) or not getattr(handle, "visible", True) or \
                     (when is not None and not when()):
                 self._app.notifier.error(NOT_AVAILABLE, client=client)
@@ -71,9 +77,22 @@ class Actions:
 
         return cb
 
-    def run(self, fn: Callable[[], Any], client: viser.ClientHandle | None = None) -> Any:
-        """Call fn; any failure becomes a notification (once), never a broken page."""
+    def permitted(self, client: viser.ClientHandle, *, motion: bool = False) -> bool:
+        """May this page act (always, unless the gate says why not - shown to that page)?"""
+        access = getattr(self._app, "access", None)
+        why = "" if access is None else access.refusal(client, motion=motion)
+        if why:
+            self._app.notifier.error(why, client=client)
+            self._app.refresh()  # e.g. a refused jog gizmo goes back to the robot
+        return not why
+
+    def run(self, fn: Callable[[], Any], client: viser.ClientHandle | None = None, *,
+            motion: bool = False) -> Any:
+        """Call fn; any failure becomes a notification (once), never a broken page.
+        `motion` (with a client): only from the page that may move the robot."""
         notifier = self._app.notifier
+        if motion and client is not None and not self.permitted(client, motion=True):
+            return None
         try:
             return fn()
         except TransitionRefused as exc:

@@ -3,6 +3,8 @@
 All GUI and scene handles are server-wide, so every open browser shows the same state and an
 action in one page appears in the others. The session's events are applied by one UI thread
 (`EventPump`); page callbacks call session methods through `Actions` (guarded, errors shown).
+Off loopback the page sits behind the gate (`web.gate`): viser on 127.0.0.1, the front on the
+exposed address, and `App.access` says which page may act and which may move the robot.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from assistant.session.events import (
     StateChanged,
 )
 from web.actions import Actions
+from web.gate import Access, GateConfig
 from web.notify import Notifier
 from web.panels.base import Panel
 from web.panels.cad import CadPanel
@@ -54,6 +57,8 @@ class App:
     server: viser.ViserServer
     max_upload_bytes: int
     _session: Session
+    #: The gate in front of the page (None on loopback: open, as before).
+    access: Access | None = None
     notifier: Notifier = field(init=False)
     actions: Actions = field(init=False)
     pump: EventPump = field(init=False)
@@ -75,6 +80,8 @@ class App:
             TeachPanel(self), PathsPanel(self), ExplorePanel(self), PlanPanel(self),
             ExportPanel(self), JogPanel(self), SessionPanel(self))}
         install_early_limit(self)
+        if self.access is not None:
+            self.access.attach(self)
         self.pump.attach(self._session.bus)
         self.refresh()
 
@@ -136,6 +143,8 @@ class App:
     # ------------------------------------------------------------------ lifetime
     @property
     def url(self) -> str:
+        if self.access is not None:
+            return self.access.url
         host = self.server.get_host()
         shown = "127.0.0.1" if host in ("0.0.0.0", "") else host
         return f"http://{shown}:{self.server.get_port()}"
@@ -146,29 +155,49 @@ class App:
 
     def stop(self) -> None:
         """Stop the page; the robot, link and cameras of the session stop too."""
+        if self.access is not None:
+            self.access.stop()
         self.pump.stop()
         self._session.close()
         self.server.stop()
 
 
 def build_app(session: Session, server: viser.ViserServer, *,
-              max_upload_mb: float = DEFAULT_MAX_UPLOAD_MB) -> App:
-    """The page for `session` on an existing viser server."""
+              max_upload_mb: float = DEFAULT_MAX_UPLOAD_MB, access: Access | None = None
+              ) -> App:
+    """The page for `session` on an existing viser server (behind `access` if given)."""
     if max_upload_mb <= 0:
         raise ValueError("max_upload_mb must be > 0")
-    return App(server, int(max_upload_mb * 2**20), session)
+    return App(server, int(max_upload_mb * 2**20), session, access)
 
 
 def serve(session: Session, *, host: str = "127.0.0.1", port: int = 8080,
-          max_upload_mb: float = DEFAULT_MAX_UPLOAD_MB) -> App:
+          max_upload_mb: float = DEFAULT_MAX_UPLOAD_MB, gate: GateConfig | None = None) -> App:
     """Start the page on host:port (127.0.0.1 by default: only this computer can connect).
 
+    With `gate` the page is served by the authenticating front on `gate.host:gate.port` and
+    viser listens on a free loopback port behind it (host/port are then not used).
     Returns at once; the server runs on background threads until `App.stop()`. If the port
-    is taken viser tries the next ones - `App.url` is where it really listens.
+    is taken the next ones are tried - `App.url` is where it really listens.
     """
+    if gate is not None:
+        if max_upload_mb <= 0:
+            raise ValueError("max_upload_mb must be > 0")
+        gate.max_upload_bytes = int(max_upload_mb * 2**20)
+        host, port = "127.0.0.1", 0
     server = viser.ViserServer(host=host, port=port, label="cellteach", verbose=False)
+    access: Access | None = None
     try:
-        return build_app(session, server, max_upload_mb=max_upload_mb)
+        if gate is not None:
+            access = Access.create(gate, server.get_port())
+        app = build_app(session, server, max_upload_mb=max_upload_mb, access=access)
     except BaseException:
         server.stop()
+        raise
+    try:
+        if access is not None:
+            access.open()  # only now: every client it lets in meets an attached page
+        return app
+    except BaseException:
+        app.stop()
         raise

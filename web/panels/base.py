@@ -45,9 +45,10 @@ class Panel:
         if self.folder.visible != visible:
             self.folder.visible = visible
 
-    def bind(self, handle: Any, fn: Any) -> None:
-        """A control of this panel: acts only while the panel is on screen."""
-        self.app.actions.bind(handle, fn, when=lambda: self.visible)
+    def bind(self, handle: Any, fn: Any, *, motion: bool = False) -> None:
+        """A control of this panel: acts only while the panel is on screen (`motion`: it
+        starts robot motion - behind the gate only the holder of motion authority may)."""
+        self.app.actions.bind(handle, fn, when=lambda: self.visible, motion=motion)
 
     # -- to override -----------------------------------------------------------------------
     def build(self) -> None:

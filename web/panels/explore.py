@@ -55,7 +55,7 @@ class ExplorePanel(Panel):
             joint_samples=int(self.samples.value), memory_mb=int(self.memory.value),
             clearance_mm=float(self.clearance.value)))
         self.bind(self.explore, lambda e: self.session.start_explore(
-            EXPLORE_MODES[self.mode.value], int(self.moves.value), seed=0))
+            EXPLORE_MODES[self.mode.value], int(self.moves.value), seed=0), motion=True)
         self.bind(self.collision, lambda e: self.session.fire("collision"))
         world = self.app.scene_layers.world
         self.show_occ.on_update(lambda e: world.set_visibility(occupancy=bool(self.show_occ.value)))

@@ -29,7 +29,7 @@ class JogPanel(Panel):
         self.tcp_gizmo = self.gui.add_checkbox("TCP gizmo in the scene", False)
         self._gizmo: viser.TransformControlsHandle | None = None
         self._robot_key: Any = None
-        self.bind(self.move, lambda e: self._move())
+        self.bind(self.move, lambda e: self._move(), motion=True)
         self.bind(self.home, lambda e: self._sliders_to_robot())
         self.tcp_gizmo.on_update(lambda e: self._sync_gizmo())
 
@@ -81,7 +81,8 @@ class JogPanel(Panel):
         if ev.phase != "end" or ev.client is None or self._gizmo is None:
             return
         T = T_from_wxyz_position(self._gizmo.wxyz, self._gizmo.position)
-        self.app.actions.run(lambda: self.session.jog_tcp(T, wait=False), ev.client)
+        self.app.actions.run(lambda: self.session.jog_tcp(T, wait=False), ev.client,
+                             motion=True)
 
     # ------------------------------------------------------------------ redraw
     def _readout(self, q: np.ndarray) -> None:

@@ -63,10 +63,12 @@ class PlanPanel(Panel):
         with g.add_folder("Planner report", expand_by_default=False):
             self.report = g.add_markdown("")
         self.bind(self.plan, lambda e: self.session.start_plan())
-        self.bind(self.execute, lambda e: self.session.start_execute())
+        self.bind(self.execute, lambda e: self.session.start_execute(),
+                  motion=True)
         self.bind(self.collision, lambda e: self.session.fire("collision"))
         self.bind(self.stop, lambda e: self.session.fire("stop"))
-        self.bind(self.resume, lambda e: self.session.resume_execution())
+        self.bind(self.resume, lambda e: self.session.resume_execution(),
+                  motion=True)
         self._resumable = False
 
     def refresh(self) -> None:

@@ -1,0 +1,115 @@
+"""The gated page for tests: a real `web.serve(..., gate=...)`, real HTTP/websocket clients
+(aiohttp) and viser's own wire format for the messages a browser sends."""
+
+from __future__ import annotations
+
+import asyncio
+import datetime
+import ipaddress
+import ssl
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import aiohttp
+import msgspec
+import pytest
+
+from web.gate import AccessTokens, GateConfig
+
+VISER_PROTOCOL = "viser-v" + __import__("viser").__version__
+#: What viser's client sends first: a camera (viser counts a client as connected after it).
+CAMERA = {"type": "ViewerCameraMessage", "wxyz": [1.0, 0.0, 0.0, 0.0],
+          "position": [1.0, 1.0, 1.0], "fov": 1.0, "near": 0.01, "far": 100.0,
+          "image_height": 600, "image_width": 800, "look_at": [0.0, 0.0, 0.0],
+          "up_direction": [0.0, 0.0, 1.0]}
+
+
+def encode(msg: dict[str, Any]) -> bytes:
+    return msgspec.msgpack.encode(msg)
+
+
+def click(uuid: str) -> bytes:
+    """A button press exactly as viser's client sends it (components/Button.tsx)."""
+    return encode({"type": "GuiUpdateMessage", "uuid": uuid, "updates": {"value": True}})
+
+
+def uuid_of(handle: Any) -> str:
+    return handle._impl.uuid  # noqa: SLF001 - the id the browser knows the control by
+
+
+@pytest.fixture(name="gated")
+def gated_fixture() -> Iterator[Callable[..., Any]]:
+    """Start the page behind the gate (loopback unless `host` is given); stopped afterwards."""
+    from web import serve
+
+    apps: list[Any] = []
+
+    def start(session: Any, *, host: str = "127.0.0.1", tokens: AccessTokens | None = None,
+              max_upload_mb: float = 50.0, **cfg: Any) -> Any:
+        gate = GateConfig(host, 0, tokens or AccessTokens.new(), **cfg)
+        app = serve(session, gate=gate, max_upload_mb=max_upload_mb)
+        apps.append(app)
+        return app
+
+    yield start
+    for app in apps:
+        app.stop()
+
+
+def local_url(app: Any) -> str:
+    """The front's address as this computer reaches it (also when bound to 0.0.0.0)."""
+    return f"{app.access.front.scheme}://127.0.0.1:{app.access.front.port}"
+
+
+def client(*, cookie: str | None = None, source: str | None = None,
+           ssl_ctx: ssl.SSLContext | None = None) -> aiohttp.ClientSession:
+    """A fresh HTTP client (cookies kept also for an IP address), optionally from another
+    loopback source address (127.0.0.2: another "computer" for the rate limit)."""
+    conn = aiohttp.TCPConnector(local_addr=(source, 0) if source else None,
+                                ssl=ssl_ctx if ssl_ctx is not None else True)
+    jar = aiohttp.CookieJar(unsafe=True)
+    s = aiohttp.ClientSession(connector=conn, cookie_jar=jar)
+    if cookie is not None:
+        s.cookie_jar.update_cookies({"cellteach_access": cookie})
+    return s
+
+
+async def wait_for(pred: Callable[[], bool], timeout: float = 20.0) -> bool:
+    """Until pred() holds (polls the in-process app; False on timeout)."""
+    loop = asyncio.get_running_loop()
+    end = loop.time() + timeout
+    while loop.time() < end:
+        if pred():
+            return True
+        await asyncio.sleep(0.05)
+    return pred()
+
+
+def run(coro: Any) -> Any:
+    return asyncio.run(coro)
+
+
+def self_signed_cert(tmp: Path) -> tuple[Path, Path]:
+    """A certificate for 127.0.0.1 and its key, made here (PEM files in `tmp`)."""
+    from cryptography import x509
+    from cryptography.hazmat.primitives import hashes, serialization
+    from cryptography.hazmat.primitives.asymmetric import ec
+    from cryptography.x509.oid import NameOID
+
+    key = ec.generate_private_key(ec.SECP256R1())
+    name = x509.Name([x509.NameAttribute(NameOID.COMMON_NAME, "cellteach test")])
+    now = datetime.datetime.now(datetime.timezone.utc)
+    cert = (x509.CertificateBuilder().subject_name(name).issuer_name(name)
+            .public_key(key.public_key()).serial_number(x509.random_serial_number())
+            .not_valid_before(now - datetime.timedelta(minutes=5))
+            .not_valid_after(now + datetime.timedelta(days=1))
+            .add_extension(x509.SubjectAlternativeName(
+                [x509.IPAddress(ipaddress.ip_address("127.0.0.1"))]), critical=False)
+            .sign(key, hashes.SHA256()))
+    certfile, keyfile = tmp / "cert.pem", tmp / "key.pem"
+    certfile.write_bytes(cert.public_bytes(serialization.Encoding.PEM))
+    keyfile.write_bytes(key.private_bytes(serialization.Encoding.PEM,
+                                          serialization.PrivateFormat.PKCS8,
+                                          serialization.NoEncryption()))
+    return certfile, keyfile

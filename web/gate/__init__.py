@@ -1,0 +1,36 @@
+"""Who may use the page and who may move the robot: the authenticating front, the two roles and
+the one holder of motion authority. No domain logic.
+
+On loopback (the default) the page is open as before and nothing here runs. On any other
+address (or with `--token-file` / `--certfile`) viser listens on 127.0.0.1 only and `Front`
+(aiohttp) listens on the exposed address: every HTTP path and the websocket need an access
+token (a link `?token=...` once, then an HttpOnly cookie), failed tokens are rate-limited per
+address, request bodies and uploads are bounded, TLS is served with `--certfile/--keyfile`.
+
+Two tokens, two roles: the *operator* link drives the page, the *viewer* link watches it. A
+viewer's websocket messages that would change anything (GUI edits and clicks, commands,
+uploads, scene clicks and drags) are dropped at the front; only its own camera and the answers
+to the server's requests pass (`messages.py`).
+
+Which browser pressed a button: the front opens one upstream websocket per browser and puts a
+fresh random connection id in its handshake header (`X-Cellteach-Conn`). The app reads that
+header from viser's connection for the `ClientHandle` of a callback (`Access.peer`), so every
+`event.client` maps to its role, without a second channel and without trusting the browser.
+A websocket that reaches viser's loopback port without an id the front issued is closed at
+once. Motion authority (`authority.py`) is held by one operator connection at a time; the page
+checks it in `web.actions` for the controls that move the robot; Collision! and Stop stay
+available to every operator.
+
+    app = web.serve(session, gate=GateConfig(host="0.0.0.0", port=8080,
+                                             tokens=AccessTokens.new()))
+    print(app.access.link(Role.OPERATOR), app.access.link(Role.VIEWER))
+
+Imports: aiohttp, viser, the standard library and `web` helpers below it; never `assistant`,
+`workflow` or `vision` (it knows nothing of robots beyond "this control moves it").
+"""
+
+from web.gate.access import Access
+from web.gate.config import GateConfig, is_loopback
+from web.gate.tokens import AccessTokens, Role, TokenFileError
+
+__all__ = ["Access", "AccessTokens", "GateConfig", "Role", "TokenFileError", "is_loopback"]

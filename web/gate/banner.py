@@ -1,0 +1,36 @@
+"""A line on the page itself, added by the front to viser's index.html: "view only" for a
+viewer, "not encrypted" for a plain-HTTP page on the network. It never takes clicks."""
+
+from __future__ import annotations
+
+import html
+
+from web.gate.tokens import Role
+
+BANNER_ID = "cellteach-gate-banner"
+VIEW_ONLY = "View only: this link shows the cell live; nothing on this page changes or moves " \
+    "anything."
+UNENCRYPTED = "Not encrypted: anyone on this network can read this page and its access link. " \
+    "Restart cellteach with --certfile and --keyfile to serve HTTPS."
+
+
+def banner_lines(*, role: Role, unencrypted: bool) -> list[str]:
+    lines = []
+    if unencrypted:
+        lines.append(UNENCRYPTED)
+    if role == Role.VIEWER:
+        lines.append(VIEW_ONLY)
+    return lines
+
+
+def with_banner(page: bytes, *, role: Role, unencrypted: bool) -> bytes:
+    lines = banner_lines(role=role, unencrypted=unencrypted)
+    if not lines:
+        return page
+    color = "#b3261e" if unencrypted else "#3b5bdb"
+    div = (f'<div id="{BANNER_ID}" role="status" style="position:fixed;left:0;right:0;'
+           f'bottom:0;z-index:2147483647;background:{color};color:#fff;'
+           'font:13px/1.4 sans-serif;padding:3px 10px;text-align:center;pointer-events:none">'
+           + "<br>".join(html.escape(s) for s in lines) + "</div>").encode()
+    at = page.rfind(b"</body>")
+    return page + div if at < 0 else page[:at] + div + page[at:]

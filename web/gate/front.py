@@ -1,0 +1,280 @@
+"""The authenticating front: aiohttp on the exposed address, viser behind it on loopback.
+
+aiohttp is the one well-kept package with an HTTP server, an HTTP client and websockets on
+both sides, all on asyncio (what viser's own server runs on): the front needs exactly those
+four and nothing else. It runs its own event loop on a daemon thread.
+
+Every request: a blocked address gets 429; a body announced larger than `max_body_bytes` gets
+413 unread; anything but GET/HEAD 405; `?token=` is checked, answered with an HttpOnly cookie
+and a redirect to the same address without the token (so it leaves the address bar and
+history); without a valid cookie nothing is served (401, the websocket handshake too). The
+access log is off: a URL with a token must never reach a log.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import secrets
+import threading
+from dataclasses import dataclass
+from urllib.parse import urlsplit
+
+import aiohttp
+from aiohttp import web
+
+from web.gate.banner import with_banner
+from web.gate.config import GateConfig, shown_host
+from web.gate.limits import UploadSlots
+from web.gate.messages import CloseConnection, MessageGuard
+from web.gate.tokens import Role
+
+log = logging.getLogger(__name__)
+
+COOKIE = "cellteach_access"
+CONN_HEADER = "X-Cellteach-Conn"
+#: How many following ports are tried when the one asked for is taken (as viser does).
+PORT_TRIES = 20
+
+DENIED_PAGE = """<!doctype html><html><head><meta charset="utf-8"><title>cellteach</title>
+</head><body style="font-family:sans-serif;max-width:40em;margin:3em auto">
+<h1>This page needs its access link</h1><p>The cellteach assistant on this computer only opens
+with the link its operator was given (it carries an access token). Ask the person who
+started it for the operator or the viewer link.</p></body></html>"""
+
+
+@dataclass(frozen=True)
+class Peer:
+    """One browser connection as the front admitted it."""
+
+    role: Role
+    address: str
+
+
+class Front:
+    """Start with `start()`; `peer(conn_id)` tells the app who is behind an upstream socket."""
+
+    def __init__(self, cfg: GateConfig, upstream_port: int):
+        self.cfg = cfg
+        self.upstream = f"http://127.0.0.1:{upstream_port}"
+        self.port = 0
+        self.dropped = 0  # messages a role was not allowed to send (tests, diagnostics)
+        self._peers: dict[str, Peer] = {}
+        self._slots = UploadSlots(cfg.uploads_total)
+        self._ssl = cfg.ssl_context()  # a bad certificate fails here, before anything runs
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._thread: threading.Thread | None = None
+        self._runner: web.AppRunner | None = None
+        self._client: aiohttp.ClientSession | None = None
+        self._sockets: set[web.WebSocketResponse] = set()
+
+    # ------------------------------------------------------------------ lifetime
+    def start(self) -> None:
+        """Listen (blocking until bound); an OSError says why not."""
+        ready = threading.Event()
+        failure: list[BaseException] = []
+
+        def main() -> None:
+            loop = asyncio.new_event_loop()
+            self._loop = loop
+            try:
+                loop.run_until_complete(self._listen())
+            except BaseException as exc:  # noqa: BLE001 - handed to the starting thread
+                failure.append(exc)
+                ready.set()
+                loop.close()
+                return
+            ready.set()
+            loop.run_forever()
+            loop.run_until_complete(self._cleanup())
+            loop.close()
+
+        self._thread = threading.Thread(target=main, name="cellteach-front", daemon=True)
+        self._thread.start()
+        ready.wait()
+        if failure:
+            raise failure[0]
+
+    async def _listen(self) -> None:
+        app = web.Application(client_max_size=self.cfg.max_body_bytes)
+        app.router.add_route("*", "/{tail:.*}", self._handle)
+        self._runner = web.AppRunner(app, access_log=None, handle_signals=False)
+        await self._runner.setup()
+        self._client = aiohttp.ClientSession(auto_decompress=False)
+        last: OSError | None = None
+        for port in ([self.cfg.port] if self.cfg.port == 0 else
+                     range(self.cfg.port, self.cfg.port + PORT_TRIES)):
+            site = web.TCPSite(self._runner, self.cfg.host, port, ssl_context=self._ssl)
+            try:
+                await site.start()
+            except OSError as exc:
+                last = exc
+                continue
+            server = site._server  # noqa: SLF001 - the bound port when 0 was asked for
+            self.port = server.sockets[0].getsockname()[1] if server and server.sockets \
+                else port
+            return
+        await self._cleanup()
+        raise OSError(f"cannot listen on {self.cfg.host}:{self.cfg.port}: {last}")
+
+    async def _cleanup(self) -> None:
+        for ws in list(self._sockets):
+            with contextlib.suppress(Exception):
+                await ws.close(code=aiohttp.WSCloseCode.GOING_AWAY, message=b"server stops")
+        if self._runner is not None:
+            await self._runner.cleanup()
+        if self._client is not None:
+            await self._client.close()
+
+    def stop(self) -> None:
+        if self._loop is not None and self._loop.is_running():
+            self._loop.call_soon_threadsafe(self._loop.stop)
+        if self._thread is not None:
+            self._thread.join(10.0)
+
+    # ------------------------------------------------------------------ addresses
+    @property
+    def scheme(self) -> str:
+        return "https" if self.cfg.tls else "http"
+
+    @property
+    def url(self) -> str:
+        return f"{self.scheme}://{shown_host(self.cfg.host)}:{self.port}"
+
+    def link(self, role: Role) -> str:
+        """The link that opens the page in `role` (carries the token: print it, never log)."""
+        token = self.cfg.tokens.operator if role == Role.OPERATOR else self.cfg.tokens.viewer
+        return f"{self.url}/?token={token}"
+
+    def peer(self, conn_id: str | None) -> Peer | None:
+        return None if conn_id is None else self._peers.get(conn_id)
+
+    # ------------------------------------------------------------------ requests
+    async def _handle(self, request: web.Request) -> web.StreamResponse:
+        addr = request.remote or "unknown"
+        wait = self.cfg.limiter.retry_after(addr)
+        if wait > 0:
+            return web.Response(status=429, text="Too many wrong access tokens from this "
+                                "address: try again later.\n",
+                                headers={"Retry-After": str(int(wait) + 1)})
+        if (request.content_length or 0) > self.cfg.max_body_bytes:
+            return web.Response(status=413, text="Request body too large.\n")
+        tokens = self.cfg.tokens
+        if "token" in request.query:
+            role = tokens.role_of(request.query.get("token"))
+            if role is None:
+                return self._refuse(addr, counted=True)
+            query = {k: v for k, v in request.query.items() if k != "token"}
+            resp = web.Response(status=303,
+                                headers={"Location": str(request.rel_url.with_query(query))})
+            resp.set_cookie(COOKIE, request.query["token"], httponly=True, samesite="Lax",
+                            secure=self.cfg.tls, path="/")
+            resp.headers["Cache-Control"] = "no-store"
+            resp.headers["Referrer-Policy"] = "no-referrer"
+            return resp
+        cookie = request.cookies.get(COOKIE)
+        role = tokens.role_of(cookie)
+        if role is None:
+            return self._refuse(addr, counted=cookie is not None)
+        if request.method not in ("GET", "HEAD"):
+            return web.Response(status=405, headers={"Allow": "GET, HEAD"})
+        if request.headers.get("Upgrade", "").lower() == "websocket":
+            return await self._websocket(request, role, addr)
+        return await self._page(request, role)
+
+    def _refuse(self, addr: str, *, counted: bool) -> web.Response:
+        if counted and self.cfg.limiter.failed(addr):
+            log.warning("blocked %s after repeated wrong access tokens", addr)
+        return web.Response(status=401, text=DENIED_PAGE, content_type="text/html",
+                            headers={"Cache-Control": "no-store"})
+
+    async def _page(self, request: web.Request, role: Role) -> web.StreamResponse:
+        assert self._client is not None
+        path = request.raw_path.split("?", 1)[0]
+        try:
+            async with self._client.get(self.upstream + path,
+                                        headers={"Accept-Encoding": "identity"}) as up:
+                body = await up.read()
+                ctype = up.headers.get("Content-Type", "application/octet-stream")
+                status = up.status
+        except aiohttp.ClientError as exc:
+            log.warning("the page server behind the front did not answer: %s", exc)
+            return web.Response(status=502, text="The assistant is not answering.\n")
+        if ctype.startswith("text/html") and status == 200:
+            body = with_banner(body, role=role, unencrypted=self.cfg.exposed and not
+                               self.cfg.tls)
+        resp = web.Response(status=status, body=body, headers={
+            "Content-Type": ctype, "Cache-Control": "no-store", "Referrer-Policy": "no-referrer",
+            "X-Content-Type-Options": "nosniff", "X-Frame-Options": "DENY"})
+        if len(body) > 1024:
+            resp.enable_compression()
+        return resp
+
+    # ------------------------------------------------------------------ websocket
+    async def _websocket(self, request: web.Request, role: Role, addr: str
+                         ) -> web.StreamResponse:
+        assert self._client is not None
+        origin = request.headers.get("Origin")
+        if origin is not None and urlsplit(origin).netloc != request.host:
+            return web.Response(status=403, text="Cross-site websocket refused.\n")
+        offered = [p.strip() for p in request.headers.get("Sec-WebSocket-Protocol", "")
+                   .split(",") if p.strip().startswith("viser-v")]
+        conn_id = secrets.token_urlsafe(18)
+        self._peers[conn_id] = Peer(role, addr)
+        guard = MessageGuard(role, self._slots, self.cfg.max_upload_bytes,
+                             self.cfg.uploads_per_connection)
+        try:
+            try:
+                up = await self._client.ws_connect(
+                    self.upstream, protocols=offered, headers={CONN_HEADER: conn_id},
+                    max_msg_size=0, compress=0, autoping=True)
+            except (aiohttp.ClientError, OSError) as exc:
+                log.warning("the page server behind the front refused a websocket: %s", exc)
+                return web.Response(status=502, text="The assistant is not answering.\n")
+            down = web.WebSocketResponse(
+                protocols=[up.protocol] if up.protocol else (),
+                max_msg_size=self.cfg.max_ws_message_bytes, compress=False)
+            try:
+                await down.prepare(request)
+                self._sockets.add(down)
+                await self._pump(down, up, guard)
+            finally:
+                self._sockets.discard(down)
+                await up.close()
+                if not down.closed:
+                    await down.close()
+            return down
+        finally:
+            guard.close()
+            self.dropped += guard.dropped
+            self._peers.pop(conn_id, None)
+
+    async def _pump(self, down: web.WebSocketResponse,
+                    up: aiohttp.ClientWebSocketResponse, guard: MessageGuard) -> None:
+        async def upwards() -> None:
+            async for msg in down:
+                if msg.type != aiohttp.WSMsgType.BINARY:
+                    continue  # viser speaks binary only
+                try:
+                    if guard.admit(msg.data):
+                        await up.send_bytes(msg.data)
+                except CloseConnection as exc:
+                    await down.close(code=aiohttp.WSCloseCode.POLICY_VIOLATION,
+                                     message=str(exc).encode())
+                    return
+
+        async def downwards() -> None:
+            async for msg in up:
+                if msg.type == aiohttp.WSMsgType.BINARY:
+                    await down.send_bytes(msg.data)
+                elif msg.type == aiohttp.WSMsgType.TEXT:
+                    await down.send_str(msg.data)
+
+        tasks = [asyncio.ensure_future(upwards()), asyncio.ensure_future(downwards())]
+        try:
+            await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
+        finally:
+            for t in tasks:
+                t.cancel()
+            await asyncio.gather(*tasks, return_exceptions=True)
