@@ -93,6 +93,7 @@ class Actions:
         notifier = self._app.notifier
         if motion and client is not None and not self.permitted(client, motion=True):
             return None
+        notifier.clear_errors()  # acting again: what failed before is stale
         try:
             return fn()
         except TransitionRefused as exc:

@@ -65,12 +65,15 @@ class App:
     scene_layers: SceneLayers = field(init=False)
     toolbar: Toolbar = field(init=False)
     panels: dict[str, Panel] = field(init=False)
+    #: The workflow step the page shows (a step change makes earlier errors stale).
+    _shown_state: str = field(init=False, default="")
     _swap_lock: threading.Lock = field(default_factory=threading.Lock, init=False)
 
     def __post_init__(self) -> None:
         self.server.gui.configure_theme(control_width="large", show_share_button=False,
                                         brand_color=(40, 110, 200))
         self.notifier = Notifier(self.server)
+        self._shown_state = self._session.machine.state
         self.actions = Actions(self)
         self.pump = EventPump(self._dispatch, on_queue=self._on_emit)
         self.scene_layers = SceneLayers(self)
@@ -122,6 +125,9 @@ class App:
         """Apply one event on the UI thread: scene first, then panels, then the toolbar."""
         self.scene_layers.on_event(ev)
         if isinstance(ev, StateChanged):
+            if ev.state != self._shown_state:  # the step moved on: earlier errors are stale
+                self._shown_state = ev.state
+                self.notifier.clear_errors()
             for p in self.panels.values():
                 p.show_for(ev.state)
         for p in self.panels.values():

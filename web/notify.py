@@ -2,6 +2,9 @@
 
 The session announces failures itself (`ErrorRaised`) and a page callback also sees the
 exception it raised; the notifier remembers recent messages so the operator reads each once.
+An error stays on screen until the operator acts again or the step changes (`clear_errors`):
+a failure that later actions have moved past is stale, and a stale error beside a success
+reads as a contradiction.
 """
 
 from __future__ import annotations
@@ -28,7 +31,11 @@ class Notifier:
         #: The notice on screen per (key, client): a burst (26 collisions) replaces it
         #: instead of stacking up and pushing errors out of view.
         self._keyed: dict[tuple[str, int], viser.NotificationHandle] = {}
-        #: Called with (kind, text) for every message (the toolbar's status line).
+        #: Error notifications on screen, until superseded (`clear_errors`).
+        self._errors: list[viser.NotificationHandle] = []
+        self._status_kind = ""
+        #: Called with (kind, text) for every message (the toolbar's status line); kind
+        #: "clear" with "" when a shown error is superseded.
         self.on_message: Callable[[str, str], None] | None = None
 
     # ------------------------------------------------------------------ dedup
@@ -36,6 +43,23 @@ class Notifier:
         """Record an error as shown (called on the emitting thread, before it returns)."""
         with self._lock:
             self._recent.append((time.monotonic(), message))
+
+    def clear_errors(self) -> None:
+        """The operator acted again or the step changed: earlier errors are stale. Their
+        notifications close, the status line forgets them, and the same message may be
+        shown again (a repeated failure is news)."""
+        with self._lock:
+            errors, self._errors = self._errors, []
+            self._recent.clear()
+            was_error, self._status_kind = self._status_kind == "error", ""
+        for h in errors:
+            try:
+                if not h._impl.removed:  # noqa: SLF001
+                    h.remove()
+            except Exception:  # noqa: BLE001 - a closed tab's notification is gone anyway
+                log.debug("closing a stale notification failed", exc_info=True)
+        if was_error and self.on_message is not None:
+            self.on_message("clear", "")
 
     def already_shown(self, message: str) -> bool:
         now = time.monotonic()
@@ -48,7 +72,10 @@ class Notifier:
         """A failure: red, stays until closed, with the next step to take."""
         parts = [_sentence(message)] + ([f"What to do: {_sentence(hint)}"] if hint else [])
         body = " ".join(parts + ["Nothing you did was lost."])
-        self._show("Could not do that", body, color="red", auto_close=None, client=client)
+        shown = self._show("Could not do that", body, color="red", auto_close=None,
+                           client=client)
+        with self._lock:
+            self._errors.extend(shown)
         self._status("error", message + (f" - {hint}" if hint else ""))
 
     def notice(self, message: str, *, client: viser.ClientHandle | None = None,
@@ -62,12 +89,15 @@ class Notifier:
         self._status("ok", message)
 
     def _status(self, kind: str, text: str) -> None:
+        self._status_kind = kind
         if self.on_message is not None:
             self.on_message(kind, text)
 
     def _show(self, title: str, body: str, *, color: str, auto_close: float | None,
-              client: viser.ClientHandle | None, key: str | None = None) -> None:
+              client: viser.ClientHandle | None, key: str | None = None,
+              ) -> list[viser.NotificationHandle]:
         clients = [client] if client is not None else list(self._server.get_clients().values())
+        shown = []
         for c in clients:
             try:
                 if key is not None:
@@ -78,8 +108,10 @@ class Notifier:
                                        auto_close_seconds=auto_close, with_close_button=True)
                 if key is not None:
                     self._keyed[(key, c.client_id)] = h
+                shown.append(h)
             except Exception:  # noqa: BLE001 - a closing tab must not break the others
                 log.debug("notification to a closing client failed", exc_info=True)
+        return shown
 
 
 def _sentence(text: str) -> str:

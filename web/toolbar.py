@@ -123,6 +123,9 @@ class Toolbar:
                                      "Session before closing the page.", client=client)
 
     def _on_message(self, kind: str, text: str) -> None:
+        if kind == "clear":
+            self.status.content = ""
+            return
         icon = {"error": "**Error:**", "notice": "Note:", "ok": "Done:"}.get(kind, "")
         self.status.content = f"<small>{icon} {_md_escape(text)}</small>"
 

@@ -57,11 +57,14 @@ def test_disabled_and_refused_actions(serve_session, open_ui):
     ui.fill_vec("Position (mm)", (2000, 0, 100))
     ui.click("Teach this pose")
     ui.wait_text("Move the point closer to the robot")
+    assert ui.errors() and "Error:" in ui.page.inner_text("body")
     assert session.locations == {}
     ui.shot("teach-refused")
     # Explore is not reachable without start and goal: Next is refused with the reason.
     ui.click("Next")
     ui.step("4.2")
+    # the step moved on: the out-of-reach error is stale and gone (notification and toolbar)
+    ui.wait_no_errors()
     assert ui.button("Next").is_disabled()
     ui.wait_text("The mission needs a start")
     ui.button("Next").click(force=True)
@@ -86,9 +89,11 @@ def test_broken_cad_upload_leaves_session_intact(serve_session, open_ui, tmp_pat
     assert list(session.cell.objects) == ["O1"]
     assert session.document().obstacles_key() == before.obstacles_key()
     assert session.history.undo_label() == undo_before
-    # The page still works: the next good upload goes through.
+    # The page still works: the next good upload goes through, and the refusal, now stale,
+    # leaves the screen (no "Could not do that" beside the new part).
     ui.upload("Upload CAD file", SAMPLE / "dxf" / "O2.dxf")
     ui.wait_text("Imported O2")
+    ui.wait_no_errors()
     assert list(session.cell.objects) == ["O1", "O2"]
 
 

@@ -124,6 +124,14 @@ class UI:
         if result != "ok":
             raise AssertionError(f"waiting for {name!r}: the page shows {result}")
 
+    def wait_no_errors(self, timeout: float = WAIT_MS) -> None:
+        """Until no error notification is on screen and the toolbar shows no error."""
+        self.page.wait_for_function(
+            """() => ![...document.querySelectorAll('.mantine-Notification-root')]
+                    .some(e => e.innerText.includes('Could not do that'))
+                && !document.body.innerText.includes('Error:')""", timeout=timeout,
+            polling=250)
+
     def errors(self) -> list[str]:
         """The error notifications on screen now."""
         loc = self.page.locator(".mantine-Notification-root", has_text="Could not do that")
