@@ -14,7 +14,27 @@ from assistant.robots.model import CollisionShape, ShapeKind
 Array = np.ndarray
 
 
+#: No collision geometry reaches farther than this (m): FCL's tolerances are absolute, so
+#: coordinates like 1e27 m make every test silently answer "free".
+MAX_COORDINATE_M = 10_000.0
+
+
+def _check_finite(values: Array, what: str) -> None:
+    v = np.asarray(values, dtype=np.float64)
+    if v.size and not np.isfinite(v).all():
+        raise ValueError(f"{what} has NaN or infinite coordinates: it cannot be "
+                         "collision-checked; import or define it again")
+    if v.size and float(np.abs(v).max()) > MAX_COORDINATE_M:
+        raise ValueError(f"{what} reaches {float(np.abs(v).max()):.3g} m, beyond the "
+                         f"{MAX_COORDINATE_M:g} m a collision check is exact for; check its "
+                         "units or remove the stray geometry")
+
+
 def fcl_geometry(shape: CollisionShape) -> fcl.CollisionGeometry:
+    """FCL geometry of a shape; a shape with NaN/inf or absurd sizes raises ValueError
+    (FCL would accept it and then miss every collision)."""
+    if shape.kind != ShapeKind.MESH:
+        _check_finite(np.asarray(shape.size, dtype=float), f"a {shape.kind.value} shape")
     if shape.kind == ShapeKind.CAPSULE:
         return fcl.Capsule(float(shape.size[0]), float(shape.size[1]))
     if shape.kind == ShapeKind.CYLINDER:
@@ -27,6 +47,7 @@ def fcl_geometry(shape: CollisionShape) -> fcl.CollisionGeometry:
         raise ValueError("a mesh collision shape without a mesh")
     m = fcl.BVHModel()
     verts = np.asarray(shape.mesh.vertices, dtype=np.float64)
+    _check_finite(verts, "a collision mesh")
     faces = np.asarray(shape.mesh.faces, dtype=np.int64)
     m.beginModel(len(verts), len(faces))
     m.addSubModel(verts, faces)

@@ -4,14 +4,17 @@ A part mixed into `Session`."""
 
 from __future__ import annotations
 
+from concurrent.futures import Future
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from assistant.cell.cad import CadImport, load_cad
+from assistant.cell.cad.importer import MAX_PART_SIZE_M
 from assistant.cell.model import CellObject, ObjectRole, PrimitiveKind, PrimitiveSpec
 from assistant.cell.placement import PoseFit, fit_pose
+from assistant.progress import Cancelled, Progress
 from assistant.session.events import (
     Notice,
 )
@@ -24,7 +27,9 @@ from assistant.session.types import (
     EDIT_PLACEMENT,
     SessionError,
     _safe_name,
+    hint_for,
 )
+from workflow.machine import TransitionRefused
 
 Array = np.ndarray
 
@@ -37,16 +42,101 @@ class CellActions:
                    units: str | None = None, dxf_extrude_height: float | None = None,
                    role: ObjectRole | str = ObjectRole.OBSTACLE,
                    T_world_object: Array | None = None) -> tuple[CellObject, CadImport]:
-        """Import a CAD file (bytes as uploaded); the part lands at the world origin or at T."""
+        """Import a CAD file (bytes as uploaded); the part lands at the world origin or at T.
+        Waits for `start_import_cad`: same checks, same lock-free heavy part."""
+        return self.start_import_cad(data, filename, name=name, units=units,
+                                     dxf_extrude_height=dxf_extrude_height, role=role,
+                                     T_world_object=T_world_object).result()
+
+    def start_import_cad(self, data: bytes, filename: str, *, name: str | None = None,
+                         units: str | None = None, dxf_extrude_height: float | None = None,
+                         role: ObjectRole | str = ObjectRole.OBSTACLE,
+                         T_world_object: Array | None = None) -> Future:
+        """Import on the worker, with progress and Cancel; the future gives (object, import).
+
+        Reading, repairing and the collision proxy of a big file take seconds: they run
+        without the session lock (the machine is busy meanwhile, so the page keeps answering
+        and edits are refused with the reason); only adding the part is a short locked
+        action, checked again like any other."""
+        task = f"import {filename}"
+        with self._lock:
+            try:
+                self.machine.require(EDIT_CELL, task)
+            except TransitionRefused as exc:
+                self._error(str(exc))
+                raise
+            self.machine.begin_busy(task)
+        self._emit_state()
+        commit_failed = False
+
+        def work(progress: Progress) -> tuple[CellObject, CadImport]:
+            nonlocal commit_failed
+            cad = load_cad(data, filename, units=units, dxf_extrude_height=dxf_extrude_height,
+                           progress=progress.sub(0.0, 0.97))
+            progress.update(0.98, "adding the part to the cell")
+            with self._lock:  # the heavy part is over: add it as an ordinary short action
+                self.machine.end_mode()
+                commit_failed = True
+                obj = self._add_imported(cad, filename, name, role, T_world_object)
+                commit_failed = False
+            return obj, cad
+
+        def done(fut: Future) -> None:
+            with self._lock:
+                self.machine.end_mode()
+                exc = fut.exception()
+                if isinstance(exc, Cancelled):
+                    self.bus.emit(Notice(f"{task} cancelled; nothing was changed"))
+                elif exc is not None and not commit_failed:  # the action reported its own
+                    self._error(f"{task}: {exc}", hint_for(exc))
+            self._emit_state()
+
+        try:
+            return self.worker.submit(task, work, done)
+        except RuntimeError:
+            with self._lock:
+                self.machine.end_mode()
+            self._emit_state()
+            raise
+
+    def _add_imported(self, cad: CadImport, filename: str, name: str | None,
+                      role: ObjectRole | str, T_world_object: Array | None) -> CellObject:
         with self._action(f"import {filename}", EDIT_CELL, scene="objects"):
-            cad = load_cad(data, filename, units=units, dxf_extrude_height=dxf_extrude_height)
             base = name or Path(filename).stem
             obj_name = self.cell.unique_name(_safe_name(base)) if name is None else name
             obj = CellObject.from_cad(obj_name, cad, T_world_object, role=role)
             self.cell.add_object(obj)
             for w in cad.warnings:
                 self.bus.emit(Notice(f"{filename}: {w}"))
-        return obj, cad
+            for b in cad.bounded:
+                self.bus.emit(Notice(f"{filename}: {b}"))
+            self._note_working_volume(obj)
+        return obj
+
+    def _note_working_volume(self, obj: CellObject) -> None:
+        """Say when a part reaches beyond the cube the world model covers (sized to the arm):
+        the exact collision check sees all of it, the world model only what lies inside."""
+        try:
+            size = float(self.world_settings.world_config(self.robot).size)
+        except Exception:  # noqa: BLE001 - a robot without a world config: nothing to say
+            return
+        T = np.linalg.inv(self.T_world_base()) @ np.asarray(obj.T_world_object, dtype=float)
+        lo, hi = obj.display_mesh.bounds
+        corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                            for z in (lo[2], hi[2])]) @ T[:3, :3].T + T[:3, 3]
+        half = size / 2.0
+        if np.all(np.abs(corners).max(axis=0) <= half):
+            return
+        if np.any(corners.min(axis=0) > half) or np.any(corners.max(axis=0) < -half):
+            self.bus.emit(Notice(
+                f"{obj.name} lies entirely outside the robot's working volume (the "
+                f"{size:.2f} m cube around its base): the robot cannot reach it; place it in "
+                "the next step, or check its units if it came out far too large"))
+        else:
+            self.bus.emit(Notice(
+                f"{obj.name} reaches beyond the robot's working volume (the {size:.2f} m cube "
+                "around its base): collision checks see all of it, the world model only the "
+                "part inside the cube"))
 
     def import_cad_path(self, path: str | Path, **kw: Any) -> tuple[CellObject, CadImport]:
         p = Path(path)
@@ -62,6 +152,10 @@ class CellActions:
         """A box (x, y, z), cylinder (radius, height) or sphere (radius,), metres."""
         with self._action(f"add a {kind}", EDIT_CELL, scene="objects"):
             spec = PrimitiveSpec(PrimitiveKind(kind), tuple(float(v) for v in size))
+            if max(spec.size) > MAX_PART_SIZE_M:
+                raise SessionError(f"a {kind} of {max(spec.size):.3g} m is larger than the "
+                                   f"{MAX_PART_SIZE_M:g} m a cell part can be; give its size "
+                                   "in metres")
             obj = CellObject.from_primitive(name or self.cell.unique_name(kind), spec,
                                             T_world_object, role=role)
             self.cell.add_object(obj)
@@ -83,6 +177,7 @@ class CellActions:
     def place_object(self, name: str, T_world_object: Array) -> CellObject:
         with self._action(f"place {name}", EDIT_PLACEMENT, scene="objects"):
             obj = self.cell.set_object_pose(name, np.asarray(T_world_object, dtype=float))
+            self._note_working_volume(obj)
         return obj
 
     def fit_object_pose(self, name: str, model_points: Array, measured_points: Array) -> PoseFit:

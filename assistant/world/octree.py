@@ -131,9 +131,15 @@ class OctreeGrid:
 
     # ---------------------------------------------------------------- conversions
     def ijk_of_points(self, P_base: Array) -> Array:
-        """Leaf indices (N, 3) int64 of points in the base frame (not clipped; see `inside`)."""
+        """Leaf indices (N, 3) int64 of points in the base frame; see `inside`.
+
+        Points outside the cube get an index just outside it (-1 or n) and non-finite ones -1,
+        so a far or broken coordinate (1e27 m, NaN) can never wrap around into the cube
+        through an overflowing integer cast."""
         P = np.asarray(P_base, dtype=float).reshape(-1, 3)
-        return np.floor((P - self.origin) / self.leaf).astype(np.int64)
+        q = (P - self.origin) / self.leaf
+        q = np.nan_to_num(q, nan=-1.0, posinf=float(self.n), neginf=-1.0)
+        return np.floor(np.clip(q, -1.0, float(self.n))).astype(np.int64)
 
     def inside(self, ijk: Array) -> Array:
         ijk = np.asarray(ijk).reshape(-1, 3)

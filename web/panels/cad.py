@@ -3,12 +3,14 @@ boxes/cylinders for things without CAD; the list of parts in the cell."""
 
 from __future__ import annotations
 
+from concurrent.futures import Future
 from dataclasses import dataclass
 
 import numpy as np
 import viser
 
 from assistant.cell.model import ObjectRole
+from assistant.progress import Cancelled
 from assistant.session.events import Event, SceneChanged
 from web.panels.base import Panel
 from web.units import point_from_mm
@@ -79,9 +81,22 @@ class CadPanel(Panel):
 
     def _import(self, filename: str, data: bytes, units: str | None, *, name: str | None
                 ) -> None:
+        """Start the import on the session's worker (progress bar and Cancel in the toolbar,
+        the page stays responsive); the report is shown when it is done."""
         height = self.extrude.value / 1000.0 if self.extrude.value > 0 else None
-        obj, cad = self.session.import_cad(data, filename, name=name, units=units,
-                                           dxf_extrude_height=height, role=self.role.value)
+        fut = self.session.start_import_cad(data, filename, name=name, units=units,
+                                            dxf_extrude_height=height, role=self.role.value)
+        self.report.content = f"*Importing {filename}...*"
+        fut.add_done_callback(lambda f: self.app.pump.post(
+            lambda: self._imported(f, filename, data)))
+
+    def _imported(self, fut: Future, filename: str, data: bytes) -> None:
+        exc = fut.exception()
+        if exc is not None:  # the session already showed the error (or the cancel notice)
+            what = "cancelled" if isinstance(exc, Cancelled) else "not imported"
+            self.report.content = f"*{filename}: {what}.*"
+            return
+        obj, cad = fut.result()
         self.last = LastImport(filename, data, obj.name, cad.units)
         guessed = cad.units_source == "size"
         text = "\n".join(f"- {line}" for line in cad.summary().splitlines())

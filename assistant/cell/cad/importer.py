@@ -19,11 +19,21 @@ from assistant.cell.cad.options import (
 from assistant.cell.cad.proxy import ProxyReport, collision_proxy
 from assistant.cell.cad.source import CadSource
 from assistant.cell.cad.units import decide_units, size_warning
-from assistant.cell.cad.validate import check_raw, repair
+from assistant.cell.cad.validate import check_raw, repair, used_vertices
+from assistant.progress import Cancelled, Progress
 from assistant.robots.model import CollisionShape
 
 #: Larger uploads are refused before parsing (memory); no cell part needs more.
 MAX_FILE_BYTES = 512 * 1024 * 1024
+#: Above this many triangles the mesh kept for display (and CAD clicks) is decimated to it:
+#: the page draws it smoothly and the session stays small; collision uses its own proxy.
+DISPLAY_MAX_FACES = 100_000
+#: A part larger than this (metres, after units) or farther than this from its file's origin
+#: is refused: no robot cell part is, and such numbers break the collision checks' precision
+#: (an OBJ with a 1e27 m triangle collided with nothing).
+MAX_PART_SIZE_M = 1000.0
+#: ... and geometry farther than this from the file's origin (plant coordinates are fine).
+MAX_PART_REACH_M = 1000.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -48,6 +58,8 @@ class CadImport:
     warnings: tuple[str, ...]
     bodies: int
     source: CadSource
+    #: What was bounded to keep a big import short: display decimation, proxy work copy...
+    bounded: tuple[str, ...] = ()
 
     def summary(self) -> str:
         """A few lines for the operator: size, units and why, repairs, proxy, warnings."""
@@ -58,6 +70,7 @@ class CadImport:
             f"units: {self.units} ({self.units_reason})",
         ]
         lines += [f"repaired: {r}" for r in self.repairs]
+        lines += [f"bounded: {b}" for b in self.bounded]
         if self.proxy.kind != "mesh":
             lines.append(f"collision proxy: {self.proxy.kind.replace('_', ' ')}, "
                          f"{self.proxy.parts} part(s), {self.proxy.faces:,} triangles, "
@@ -76,6 +89,7 @@ def load_cad(
     proxy_max_faces: int = DEFAULT_PROXY_MAX_FACES,
     proxy_tolerance_m: float = DEFAULT_PROXY_TOLERANCE_M,
     step_tolerance_m: float = DEFAULT_STEP_TOLERANCE_M,
+    progress: Progress | None = None,
 ) -> CadImport:
     """Import a CAD file given as bytes (an upload); the format comes from the file name.
 
@@ -88,6 +102,7 @@ def load_cad(
         proxy_max_faces: above this many triangles collision uses a simpler proxy.
         proxy_tolerance_m: how far a proxy may deviate from the mesh.
         step_tolerance_m: chordal tolerance of STEP tessellation.
+        progress: reports the stages and raises `Cancelled` between them after `cancel()`.
 
     Returns:
         The imported part; see `CadImport`.
@@ -102,7 +117,7 @@ def load_cad(
                                 step_tolerance_m=step_tolerance_m)
     except ValueError as exc:
         raise CadImportError(filename, f"bad import option: {exc}") from exc
-    return import_with_options(data, filename, options)
+    return import_with_options(data, filename, options, progress)
 
 
 def load_cad_path(path: str | Path, **kwargs) -> CadImport:
@@ -119,11 +134,12 @@ def load_cad_path(path: str | Path, **kwargs) -> CadImport:
     return load_cad(p.read_bytes(), p.name, **kwargs)
 
 
-def import_with_options(data: bytes, filename: str, options: ImportOptions) -> CadImport:
+def import_with_options(data: bytes, filename: str, options: ImportOptions,
+                        progress: Progress | None = None) -> CadImport:
     """The pipeline behind `load_cad` (used directly when re-importing a saved cell)."""
     try:
-        return _import(data, filename, options)
-    except CadImportError:
+        return _import(data, filename, options, progress or Progress())
+    except (CadImportError, Cancelled):
         raise
     except MemoryError as exc:
         raise CadImportError(filename, "is too large to import in the available memory",
@@ -135,7 +151,8 @@ def import_with_options(data: bytes, filename: str, options: ImportOptions) -> C
             "with the file") from exc
 
 
-def _import(data: bytes, filename: str, options: ImportOptions) -> CadImport:
+def _import(data: bytes, filename: str, options: ImportOptions,
+            progress: Progress) -> CadImport:
     if not isinstance(data, (bytes, bytearray, memoryview)):
         raise CadImportError(filename, f"expected the file's bytes, got {type(data).__name__}")
     data = bytes(data)
@@ -145,34 +162,54 @@ def _import(data: bytes, filename: str, options: ImportOptions) -> CadImport:
         raise CadImportError(filename, f"is {len(data) / 2**20:.0f} MiB, more than the "
                              f"{MAX_FILE_BYTES // 2**20} MiB allowed", "simplify it in CAD")
     fmt = format_from_filename(filename)
+    progress.update(0.02, "reading the file")
     raw = reader_for(fmt)(data, filename, options)
 
+    progress.update(0.12, "checking the geometry")
     if raw.mesh is None and raw.outline is not None:
         size = raw.outline.bounds_size()
+        reach = size
     else:
         check_raw(raw.mesh, filename)
-        used = raw.mesh.vertices[np.unique(raw.mesh.faces)]
+        used = raw.mesh.vertices[used_vertices(raw.mesh.faces, len(raw.mesh.vertices))]
         size = float(np.ptp(used, axis=0).max())
+        reach = float(np.abs(used).max())
+        del used
     decision = decide_units(filename=filename, largest_dimension=size,
                             file_units=raw.file_units, caller_units=options.units,
                             converted_from=raw.converted_from)
+    _check_working_volume(filename, size * decision.scale_to_m, reach * decision.scale_to_m,
+                          decision.units, decision.source.value)
     if raw.mesh is None:
         assert raw.outline is not None and options.dxf_extrude_height is not None
         raw.mesh = raw.outline.extrude(options.dxf_extrude_height / decision.scale_to_m)
         raw.notes.append(f"extruded the outline by {options.dxf_extrude_height * 1000:.1f} mm")
         check_raw(raw.mesh, filename)
 
-    mesh = raw.mesh.copy()
+    progress.update(0.15, "repairing the mesh")
+    mesh = raw.mesh
+    raw.mesh = None  # one copy of a big mesh at a time
     if decision.scale_to_m != 1.0:
         mesh.apply_scale(decision.scale_to_m)
-    mesh, rep = repair(mesh, filename)
+    mesh, rep = repair(mesh, filename, copy=False)
     warnings = list(raw.warnings) + rep.warnings
     w = size_warning(float(mesh.extents.max()), decision)
     if w:
         warnings.append(w)
+    bounded: list[str] = []
+    progress.update(0.45, "collision proxy")
     collision, proxy, proxy_warnings = collision_proxy(
-        mesh, max_faces=options.proxy_max_faces, tolerance_m=options.proxy_tolerance_m)
+        mesh, max_faces=options.proxy_max_faces, tolerance_m=options.proxy_tolerance_m,
+        progress=progress.sub(0.45, 0.85))
     warnings += proxy_warnings
+    bounded += proxy.bounded
+    if len(mesh.faces) > DISPLAY_MAX_FACES:
+        progress.update(0.88, "decimating the display mesh")
+        n_full = len(mesh.faces)
+        mesh = mesh.simplify_quadric_decimation(face_count=DISPLAY_MAX_FACES)
+        bounded.append(f"display mesh decimated from {n_full:,} to {len(mesh.faces):,} "
+                       "triangles (the collision proxy above was built from the full part)")
+    progress.update(1.0, "imported")
 
     source = CadSource(filename=filename, data=data, format=fmt.value, units=decision.units,
                        units_source=decision.source.value, scale_to_m=decision.scale_to_m,
@@ -183,4 +220,25 @@ def _import(data: bytes, filename: str, options: ImportOptions) -> CadImport:
         file_units=decision.file_units, scale_to_m=decision.scale_to_m,
         units_reason=decision.reason, repairs=tuple(rep.repairs),
         notes=tuple(raw.notes + rep.notes),
-        warnings=tuple(warnings), bodies=raw.bodies, source=source)
+        warnings=tuple(warnings), bodies=raw.bodies, source=source, bounded=tuple(bounded))
+
+
+def _check_working_volume(filename: str, size_m: float, reach_m: float, units: str,
+                          source: str) -> None:
+    """Refuse geometry no cell holds: larger than `MAX_PART_SIZE_M`, or farther than
+    `MAX_PART_REACH_M` from the file's origin (the part lands at the world origin)."""
+    said = f"read as {units} ({'guessed from its size' if source == 'size' else source})"
+    if size_m > MAX_PART_SIZE_M:
+        raise CadImportError(
+            filename, f"is {size_m:.3g} m across ({said}), more than the "
+                      f"{MAX_PART_SIZE_M:g} m a robot cell part can be",
+            "if its numbers are in another unit, import it again giving the units; otherwise "
+            "the file holds stray or broken geometry: remove it in CAD (or cut the part "
+            "down to the robot's surroundings) and export again")
+    if reach_m > MAX_PART_REACH_M:
+        raise CadImportError(
+            filename, f"has geometry {reach_m:.3g} m from its own origin ({said}), more "
+                      f"than the {MAX_PART_REACH_M:g} m a robot cell can hold",
+            "if its numbers are in another unit, import it again giving the units; otherwise "
+            "move the part near the origin in CAD (it is placed in the next step) or remove "
+            "the stray geometry, and export again")

@@ -11,6 +11,13 @@ big mesh (more than `max_faces` triangles) is replaced by, in order of preferenc
    which is closest on smooth free-form parts but may cut slightly into the part.
 
 If none is within tolerance the closest is kept and a warning says by how much it deviates.
+
+Big meshes are bounded work, not a longer wait (`ProxyReport.bounded` says what was bounded):
+above `WORK_FACES` triangles the candidates are built and measured on a decimated work copy
+(its own measured deviation is added to each candidate's, so the figure stays an upper
+estimate); above `HULL_EXACT_VERTICES` the hull is a polytope of support planes over every
+vertex (still containing the whole part); V-HACD runs in a child process killed after
+`DECOMPOSE_BUDGET_S` seconds (ordinary parts: `DECOMPOSE_BUDGET_SMALL_S`) or on Cancel.
 The deviation is a symmetric Hausdorff estimate from seeded surface samples (see
 `_deviation`): how far the part sticks out of the proxy, and how far the proxy sticks out of
 the part. Being sampled, it can miss the very worst point: on a torus it reads ~5 % low.
@@ -18,13 +25,20 @@ the part. Being sampled, it can miss the very worst point: on a torus it reads ~
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+import tempfile
+import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
 from assistant.cell.cad.raw import merge_meshes
+from assistant.progress import Progress
 from assistant.robots.model import CollisionShape, ShapeKind
 
 Array = np.ndarray
@@ -34,6 +48,15 @@ SAMPLES = 2000
 #: and measure exactly only the most distant candidates.
 _EXACT_CANDIDATES = 128
 _SEED = 7
+#: Above this many triangles the proxy is built and measured on a decimated copy this size.
+WORK_FACES = 20_000
+#: Above this many vertices the hull is the bounded support-plane polytope (`_bounded_hull`).
+HULL_EXACT_VERTICES = 100_000
+#: V-HACD on a big part's work copy gets this long (wall clock, its own process) before it is
+#: stopped; on an ordinary part (at most `WORK_FACES`) the longer budget, so the result does not
+#: depend on how busy the machine is.
+DECOMPOSE_BUDGET_S = 5.0
+DECOMPOSE_BUDGET_SMALL_S = 90.0
 
 
 @dataclass(frozen=True)
@@ -45,6 +68,8 @@ class ProxyReport:
     faces: int
     parts: int
     tried: tuple[tuple[str, float], ...] = ()
+    #: What was bounded to keep a big import short (empty for ordinary parts).
+    bounded: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -55,29 +80,53 @@ class _Candidate:
 
 
 def collision_proxy(
-    mesh: trimesh.Trimesh, *, max_faces: int, tolerance_m: float
+    mesh: trimesh.Trimesh, *, max_faces: int, tolerance_m: float,
+    progress: Progress | None = None,
 ) -> tuple[tuple[CollisionShape, ...], ProxyReport, list[str]]:
     """Collision shapes (object frame) for `mesh`, the report, and any warnings."""
     if len(mesh.faces) <= max_faces:
         shape = CollisionShape(ShapeKind.MESH, mesh=mesh)
         return (shape,), ProxyReport("mesh", 0.0, len(mesh.faces), 1), []
+    progress = progress or Progress()
+    bounded: list[str] = []
+    work, work_error = mesh, 0.0
+    if len(mesh.faces) > WORK_FACES:
+        progress.update(0.05, "decimating a work copy for the collision proxy")
+        dec = _decimate(mesh, WORK_FACES)
+        if dec is not None and len(dec.faces) >= 4:
+            work = dec
+            work_error = _decimation_error(mesh, work)
+            bounded.append(f"collision proxy built on a {len(work.faces):,}-triangle copy "
+                           f"({work_error * 1000:.2f} mm from the part, included below)")
 
-    samples = _surface_samples(mesh)
-    tree = cKDTree(_dense_samples(mesh))
+    progress.update(0.15, "measuring the part")
+    samples = _surface_samples(work)
+    tree = cKDTree(_dense_samples(work))
     tried: list[_Candidate] = []
 
-    hull = _hull(mesh, max_faces, tolerance_m)
-    tried.append(_Candidate("convex_hull", (hull,), _deviation(mesh, samples, tree, (hull,))))
+    progress.update(0.25, "convex hull")
+    if len(mesh.vertices) > HULL_EXACT_VERTICES:
+        hull = _bounded_hull(mesh, work, max_faces, tolerance_m)
+        bounded.append(f"hull from support planes over all {len(mesh.vertices):,} vertices")
+    else:
+        hull = _hull(mesh, max_faces, tolerance_m)
+    tried.append(_Candidate("convex_hull", (hull,),
+                            work_error + _deviation(work, samples, tree, (hull,))))
     if tried[-1].deviation_m > tolerance_m:
-        parts = _decompose(mesh)
+        progress.update(0.4, "convex decomposition")
+        budget = DECOMPOSE_BUDGET_S if work is not mesh else DECOMPOSE_BUDGET_SMALL_S
+        parts, note = _decompose(work, progress.sub(0.4, 0.8), budget)
+        if note:
+            bounded.append(note)
         if parts:
             tried.append(_Candidate("convex_decomposition", parts,
-                                    _deviation(mesh, samples, tree, parts)))
+                                    work_error + _deviation(work, samples, tree, parts)))
     if min(c.deviation_m for c in tried) > tolerance_m:
-        dec = _decimate(mesh, max_faces)
+        progress.update(0.85, "decimated proxy")
+        dec = work if len(work.faces) <= max_faces else _decimate(work, max_faces)
         if dec is not None:
-            tried.append(_Candidate("decimated", (dec,), _deviation(mesh, samples, tree, (dec,),
-                                                                    convex=False)))
+            tried.append(_Candidate("decimated", (dec,), work_error + _deviation(
+                work, samples, tree, (dec,), convex=False)))
     ok = [c for c in tried if c.deviation_m <= tolerance_m]
     best = ok[0] if ok else min(tried, key=lambda c: c.deviation_m)
     warnings = []
@@ -87,8 +136,43 @@ def collision_proxy(
             f"{best.kind.replace('_', ' ')} ({best.deviation_m * 1000:.1f} mm off)")
     shapes = tuple(CollisionShape(ShapeKind.MESH, mesh=p) for p in best.parts)
     report = ProxyReport(best.kind, best.deviation_m, int(sum(len(p.faces) for p in best.parts)),
-                         len(best.parts), tuple((c.kind, c.deviation_m) for c in tried))
+                         len(best.parts), tuple((c.kind, c.deviation_m) for c in tried),
+                         tuple(bounded))
+    progress.update(1.0, "collision proxy ready")
     return shapes, report, warnings
+
+
+def _decimation_error(mesh: trimesh.Trimesh, work: trimesh.Trimesh) -> float:
+    """How far the part and its decimated copy lie apart (sampled, both ways): points of the
+    part measured exactly to the copy, points of the copy screened against dense samples of
+    the part (an over-estimate by up to the sample spacing)."""
+    on_part = _surface_samples(mesh)
+    d1 = float(trimesh.proximity.closest_point(work, on_part)[1].max())
+    on_work = np.vstack([trimesh.sample.sample_surface(work, SAMPLES, seed=_SEED)[0],
+                         work.vertices])
+    d2 = float(cKDTree(_dense_samples(mesh)).query(on_work)[0].max())
+    return max(d1, d2)
+
+
+def _bounded_hull(mesh: trimesh.Trimesh, work: trimesh.Trimesh, max_faces: int,
+                  tolerance_m: float) -> trimesh.Trimesh:
+    """A convex polytope that contains every vertex of `mesh`, at bounded cost: the plane
+    normals of the work copy's (merged) hull, each pushed out to the farthest vertex of the
+    full mesh along it (one matrix product over all vertices), then intersected."""
+    from scipy.spatial import ConvexHull, HalfspaceIntersection
+
+    merged = ConvexHull(work.vertices, qhull_options=f"Qt C{tolerance_m / 4.0:.6g}")
+    normals = np.unique(np.round(merged.equations[:, :3], 12), axis=0)
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    v = np.asarray(mesh.vertices)
+    reach = np.full(len(normals), -np.inf)
+    step = max(1, 20_000_000 // max(1, len(normals)))
+    for k in range(0, len(v), step):
+        reach = np.maximum(reach, (v[k:k + step] @ normals.T).max(axis=0))
+    planes = np.column_stack([normals, -reach])
+    inner = v[:: max(1, len(v) // 1000)].mean(axis=0)
+    corners = HalfspaceIntersection(planes, inner).intersections
+    return trimesh.convex.convex_hull(corners)
 
 
 def _surface_samples(mesh: trimesh.Trimesh, n: int = SAMPLES) -> Array:
@@ -121,13 +205,52 @@ def _hull(mesh: trimesh.Trimesh, max_faces: int, tolerance_m: float) -> trimesh.
     return coarse if len(coarse.faces) < len(hull.faces) else hull
 
 
-def _decompose(mesh: trimesh.Trimesh) -> tuple[trimesh.Trimesh, ...]:
-    try:
-        parts = mesh.convex_decomposition(maxConvexHulls=32, resolution=100_000,
-                                          asyncACD=False)
-    except Exception:  # vhacdx missing or failing on odd input: fall through to decimation
-        return ()
-    return tuple(p for p in parts if len(p.faces) >= 4)
+_VHACD_CHILD = """
+import sys, numpy as np
+from vhacdx import compute_vhacd
+d = np.load(sys.argv[1])
+f = np.column_stack((np.full(len(d["f"]), 3, dtype=np.int64), d["f"])).ravel().astype(np.uint32)
+parts = compute_vhacd(d["v"], f, maxConvexHulls=int(sys.argv[3]), resolution=int(sys.argv[4]),
+                      asyncACD=False)
+out = {}
+for i, (v, ff) in enumerate(parts):
+    out[f"v{i}"], out[f"f{i}"] = np.asarray(v, float), np.asarray(ff).reshape(-1, 3)
+np.savez(sys.argv[2], n=np.array(len(parts)), **out)
+"""
+
+
+def _decompose(mesh: trimesh.Trimesh, progress: Progress | None = None,
+               budget_s: float = DECOMPOSE_BUDGET_S) -> tuple[tuple[trimesh.Trimesh, ...], str]:
+    """V-HACD (vhacdx) in a child process: stopped after `budget_s` or when the operator
+    cancels (a C++ call cannot be interrupted in-process). Returns the parts and, when it was
+    stopped, a note saying so; no parts if vhacdx is missing or fails."""
+    progress = progress or Progress()
+    with tempfile.TemporaryDirectory(prefix="cellteach-vhacd-") as tmp:
+        src, dst = Path(tmp) / "in.npz", Path(tmp) / "out.npz"
+        np.savez(src, v=np.asarray(mesh.vertices, float), f=np.asarray(mesh.faces, np.int64))
+        env = dict(os.environ, OMP_NUM_THREADS="1")
+        proc = subprocess.Popen([sys.executable, "-c", _VHACD_CHILD, str(src), str(dst),
+                                 "32", "100000"], stdout=subprocess.DEVNULL,
+                                stderr=subprocess.DEVNULL, env=env)
+        t0 = time.monotonic()
+        try:
+            while proc.poll() is None:
+                elapsed = time.monotonic() - t0
+                if elapsed > budget_s:
+                    proc.kill()
+                    proc.wait()
+                    return (), f"convex decomposition stopped at its {budget_s:.0f} s budget"
+                progress.update(min(0.95, elapsed / budget_s), "convex decomposition")
+                time.sleep(0.05)
+        finally:
+            if proc.poll() is None:  # Cancelled (or any error) while it ran
+                proc.kill()
+                proc.wait()
+        if proc.returncode != 0 or not dst.exists():
+            return (), ""
+        with np.load(dst) as d:
+            parts = [trimesh.Trimesh(d[f"v{i}"], d[f"f{i}"]) for i in range(int(d["n"]))]
+    return tuple(p for p in parts if len(p.faces) >= 4), ""
 
 
 def _decimate(mesh: trimesh.Trimesh, max_faces: int) -> trimesh.Trimesh | None:
