@@ -5,10 +5,14 @@ Never imports viser; the web layer shows what the tracker produces. Modules, by 
 - `camera_model` (`CameraModel`), `rigs` (ready camera arrangements), `frame` (`Frame`)
 - `sources`: OpenCV cameras/files/streams, image folders, replay, the `SyntheticCamera`;
   `scene`, `trajectories`, `render`: what the synthetic camera draws and how
-- `color`: `ColorProfile`, `calibrate_from_ellipse`; `calibration_targets`, `intrinsics`,
-  `extrinsics`: camera calibration
+- `color`: `ColorProfile`; `color_calibration`: `calibrate_ellipse` / `calibrate_from_ellipse`
+  (tolerant of background in the ellipse, says when the colour is not separable, with the
+  mask); `calibration_targets`, `intrinsics`, `extrinsics`: camera calibration
 - `detection` (`BlobDetector`), `geometry` (sphere ray, triangulation, single-camera size
-  estimate), `kalman`, `tracking2d`, `tracking3d`, `dwell`
-- `pointer`: `PointerSystem`, the facade the Session uses; `scripted`: `simulate_dwell`
+  estimate), `kalman`, `tracking2d`, `tracking3d`, `clutter` (still look-alikes), `dwell`
+- `pointer`: `PointerSystem`, the facade the Session uses (`pointer_types`: its params and
+  states: `offered_position` is the only position to teach from); `scripted`: `simulate_dwell`
+- `photo_scenes` (sequences over real photographs; needs scikit-image, tests and benchmarks
+  only) and `pointer_scoring` (a run's figures against ground truth)
 - `errors`: every exception raised on purpose
 """

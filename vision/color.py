@@ -1,4 +1,5 @@
-"""Colour profiles (HSV ranges) and their calibration from an ellipse drawn over a marker.
+"""Colour profiles (HSV ranges); their calibration from an ellipse drawn over a marker is in
+`vision.color_calibration` (re-exported here).
 
 OpenCV's 8-bit HSV: H in 0..179 (degrees / 2), S and V in 0..255. A profile is the thesis'
 "min/max of hue and saturation plus a minimum brightness" (003, §6.5.1). Red straddles H = 0, so
@@ -11,8 +12,6 @@ from dataclasses import asdict, dataclass
 
 import cv2
 import numpy as np
-
-from vision.errors import ColorCalibrationError
 
 H_RANGE = 180  # OpenCV 8-bit hue period
 
@@ -118,91 +117,16 @@ class ColorProfileSet:
         return cls([ColorProfile.from_dict(p) for p in data.get("profiles", [])])
 
 
-def calibrate_from_ellipse(
-    image_bgr: np.ndarray,
-    center: tuple[float, float],
-    axes: tuple[float, float],
-    angle: float = 0.0,
-    *,
-    name: str = "pointer",
-    percentile: float = 1.0,
-    hue_margin: int = 4,
-    sat_margin: int = 20,
-    val_margin: int = 20,
-    min_saturation: int = 40,
-    min_pixels: int = 12,
-) -> ColorProfile:
-    """Profile from the pixels inside an ellipse the operator drew over the marker.
+# the ellipse calibration lives in `vision.color_calibration` (it imports this module)
+def calibrate_from_ellipse(*args, **kwargs) -> ColorProfile:
+    """See `vision.color_calibration.calibrate_from_ellipse`."""
+    from vision.color_calibration import calibrate_from_ellipse as calibrate
 
-    `center` (x, y) pixels, `axes` the half-axes in pixels, `angle` degrees (cv2.ellipse
-    convention). As in the thesis the result is min/max of H and S and a minimum V; unlike it we
-    take the `percentile` / 100-`percentile` quantiles, not the extremes, and widen them by the
-    margins, so a few background or highlight pixels caught by a sloppy ellipse do not blow the
-    range open. Hue statistics are circular, so a red ball straddling H = 0 yields a wrapping
-    profile. Unsaturated pixels (highlights, grey background) carry no hue and are ignored, and
-    only the dominant hue peak is kept, so a patch of coloured background in the ellipse does
-    not widen the range either.
-    """
-    if not isinstance(image_bgr, np.ndarray) or image_bgr.dtype != np.uint8 \
-            or image_bgr.ndim != 3 or image_bgr.shape[2] != 3:
-        raise ColorCalibrationError("colour calibration needs a BGR uint8 image")
-    ax = (float(axes[0]), float(axes[1]))
-    if not np.all(np.isfinite([float(center[0]), float(center[1]), float(angle)])):
-        raise ColorCalibrationError("the ellipse centre or angle is not a finite number")
-    if not np.all(np.isfinite(ax)) or min(ax) < 1.0:
-        raise ColorCalibrationError(
-            f"the ellipse is empty (half-axes {ax[0]:.1f} x {ax[1]:.1f} px); drag it over the ball"
-        )
-    h, w = image_bgr.shape[:2]
-    mask = np.zeros((h, w), np.uint8)
-    cv2.ellipse(mask, (int(round(center[0])), int(round(center[1]))),
-                (int(round(ax[0])), int(round(ax[1]))), float(angle), 0, 360, 255, -1)
-    inside = mask > 0
-    if not inside.any():
-        raise ColorCalibrationError("the ellipse lies outside the image; draw it over the ball")
-    hsv = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2HSV)[inside].astype(float)
-    coloured = hsv[hsv[:, 1] >= min_saturation]
-    if len(coloured) < min_pixels:
-        raise ColorCalibrationError(
-            f"the ellipse holds {len(coloured)} coloured pixels (need {min_pixels}); it covers "
-            "grey or white only: draw it over the coloured ball"
-        )
-    coloured = _dominant_hue(coloured)
-    hue, sat, val = coloured[:, 0], coloured[:, 1], coloured[:, 2]
-    ang = hue * (2 * np.pi / H_RANGE)
-    mean_h = (np.arctan2(np.sin(ang).mean(), np.cos(ang).mean()) * H_RANGE / (2 * np.pi)) % H_RANGE
-    offsets = (hue - mean_h + H_RANGE / 2) % H_RANGE - H_RANGE / 2
-    lo, hi = np.percentile(offsets, [percentile, 100 - percentile])
-    if hi - lo + 2 * hue_margin >= H_RANGE - 1:
-        h_min, h_max = 0, 179
-    else:
-        h_min = int(np.floor(mean_h + lo - hue_margin)) % H_RANGE
-        h_max = int(np.ceil(mean_h + hi + hue_margin)) % H_RANGE
-    s_lo, s_hi = np.percentile(sat, [percentile, 100 - percentile])
-    v_lo = np.percentile(val, percentile)
-    return ColorProfile(
-        name=name,
-        h_min=h_min,
-        h_max=h_max,
-        s_min=int(max(min_saturation, np.floor(s_lo - sat_margin))),
-        s_max=int(min(255, np.ceil(s_hi + sat_margin))),
-        v_min=int(max(0, np.floor(v_lo - val_margin))),
-    )
+    return calibrate(*args, **kwargs)
 
 
-def _dominant_hue(hsv: np.ndarray, max_half_width: int = 30) -> np.ndarray:
-    """Keep the pixels of the strongest hue peak (circular histogram weighted by saturation,
-    grown out to where it falls to 3 % of the peak): an ellipse that also caught a piece of
-    coloured background then still calibrates on the ball alone."""
-    h = hsv[:, 0].astype(int) % H_RANGE
-    hist = np.bincount(h, weights=hsv[:, 1], minlength=H_RANGE)
-    smooth = sum(np.roll(hist, k) for k in (-2, -1, 0, 1, 2))
-    peak = int(np.argmax(smooth))
-    floor = 0.03 * smooth[peak]
-    lo = hi = 0
-    while lo < max_half_width and smooth[(peak - lo - 1) % H_RANGE] > floor:
-        lo += 1
-    while hi < max_half_width and smooth[(peak + hi + 1) % H_RANGE] > floor:
-        hi += 1
-    off = (h - peak + H_RANGE // 2) % H_RANGE - H_RANGE // 2
-    return hsv[(off >= -lo - 2) & (off <= hi + 2)]
+def calibrate_ellipse(*args, **kwargs):
+    """See `vision.color_calibration.calibrate_ellipse` (profile, mask, separability)."""
+    from vision.color_calibration import calibrate_ellipse as calibrate
+
+    return calibrate(*args, **kwargs)

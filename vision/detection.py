@@ -127,18 +127,23 @@ class BlobDetector:
             r_lo, r_hi = max(r_lo, radius_range[0]), min(r_hi, radius_range[1])
         split = radius_range is not None
         found = self._blobs(mask, hsv, raw, x0, y0, r_lo, r_hi, split)
-        if not found and split:
-            # the ball may touch a patch of its own colour (it passes in front of a red box):
-            # a 5x5 median or closing can bridge the gap, so look again with a 3x3 median
-            # only; then open with a disc a little over half the expected radius to cut a
-            # real neck. The ball survives whole; the patch is cut off by the window edge.
-            retry = [cv2.medianBlur(raw, 3)]
+        # a round, well-filled blob of the right size was found: no need to cut necks
+        whole = any(d.axis_ratio >= 0.85 and d.fill >= 0.8 for d in found)
+        if split and not whole:
+            # the ball may touch a patch of its own colour (it passes in front of a red box or
+            # a red stripe): a 5x5 median or closing can bridge the gap, so look again with a
+            # 3x3 median only (when nothing was found); and open with a disc a little over
+            # half the expected radius to cut a real neck. The ball survives whole; the patch
+            # is cut off by the window edge or fails the shape tests.
+            retry = [] if found else [cv2.medianBlur(raw, 3)]
             if r_lo >= 3.0:
                 k = int(round(0.9 * r_lo))
                 kernel = cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (2 * k + 1, 2 * k + 1))
                 retry.append(cv2.morphologyEx(mask, cv2.MORPH_OPEN, kernel))
             for alt in retry:
-                found = self._blobs(alt, hsv, raw, x0, y0, r_lo, r_hi, False)
+                more = self._blobs(alt, hsv, raw, x0, y0, r_lo, r_hi, False)
+                found += [d for d in more if all(np.linalg.norm(d.center_px - e.center_px)
+                                                 > max(2.0, 0.5 * e.radius_px) for e in found)]
                 if found:
                     break
         found.sort(key=lambda d: -d.score)

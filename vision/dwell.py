@@ -1,6 +1,8 @@
 """Dwell-to-teach: when the pointer stays within a small radius for a set time, emit one taught
 point with the averaged position and its uncertainty; fire again only after the pointer left.
 
+Only measured frames count: a frame without a measurement adds nothing (and cannot complete
+a dwell), and a gap of over `max_gap_s` between measured frames ends the dwell under way.
 Stillness is judged on the Kalman-filtered position (smooth, so hand tremor decides, not pixel
 noise); the average is taken over the raw per-frame measurements, which are independent, so
 their scatter says honestly how well the mean is known.
@@ -21,6 +23,7 @@ class DwellParams:
     radius_mono: float = 0.03  # metres: single-camera depth jitters much more
     min_samples: int = 10
     rearm_factor: float = 3.0  # re-arm once the pointer is this many radii from the last point
+    max_gap_s: float = 0.25  # longer without a measurement ends the dwell under way
 
     def __post_init__(self) -> None:
         if self.dwell_s <= 0 or self.radius <= 0 or self.radius_mono <= 0:
@@ -77,7 +80,8 @@ class _Sample:
 
 
 class DwellDetector:
-    """Feed it every frame's filtered position (None when lost) and measurement."""
+    """Feed it every frame's filtered position (None when lost) and measurement (None when the
+    frame was not measured: such frames are skipped)."""
 
     def __init__(self, params: DwellParams | None = None) -> None:
         self.params = params or DwellParams()
@@ -107,6 +111,12 @@ class DwellDetector:
             self._window.clear()
             self._armed = True
             return None
+        if measured is None:  # nothing measured: no sample, and never an event
+            if self._window and t - self._window[-1].t > p.max_gap_s:
+                self._window.clear()
+            return None
+        if self._window and t - self._window[-1].t > p.max_gap_s:
+            self._window.clear()  # too long unmeasured: start the dwell afresh
         filtered = np.asarray(filtered, float)
         radius = p.radius if mode == "stereo" else p.radius_mono
         if not self._armed:

@@ -33,3 +33,14 @@ class CalibrationError(VisionError):
 
 class ColorCalibrationError(CalibrationError):
     """The colour-calibration ellipse is empty, outside the image, or holds no coloured pixels."""
+
+
+class ColorNotSeparable(ColorCalibrationError):
+    """The marker's colour is also the colour of much of the background around it.
+
+    `calibration` (a `vision.color_calibration.ColorCalibration`) holds the best profile found
+    and its mask over the image, for the UI to show what the profile would pick up."""
+
+    def __init__(self, message: str, calibration: object = None) -> None:
+        super().__init__(message)
+        self.calibration = calibration

@@ -5,6 +5,12 @@ triangulation, or the single-camera size estimate), filters it in 3-D and watche
 Failure is reported, never fatal: a camera that times out, has stopped or delivers a frame of
 the wrong size is marked in that frame's `CameraView`, and the tracks carry on with the other
 cameras (or coast, for up to `hold_s`).
+
+What may be taught is only what a camera measured in the frame at hand (`offered`): coasting
+is shown for at most `coast_s` and flagged, a new or re-acquired track is offered only after
+`offer_after_hits` fixes, a fix is associated with the track only inside a gate in 3-D (the
+Kalman gate, capped by how far a hand can move the ball) and in every image (the search
+window), and still look-alikes seen next to the measured ball are remembered and refused.
 """
 
 from __future__ import annotations
@@ -14,14 +20,15 @@ import dataclasses
 import itertools
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from vision.camera_model import CameraModel
+from vision.clutter import ClutterMemory
 from vision.color import DEFAULT_POINTER_RED, ColorProfile
-from vision.detection import BlobDetector, Detection, DetectorParams, Window, window_around
-from vision.dwell import DwellDetector, DwellParams, TaughtPoint
+from vision.detection import BlobDetector, Detection, Window, window_around
+from vision.dwell import DwellDetector
 from vision.errors import CameraClosed, CameraError, CameraTimeout, FrameError
 from vision.frame import Frame, validate_image
 from vision.geometry import (
@@ -32,104 +39,13 @@ from vision.geometry import (
     sphere_ray,
     triangulate,
 )
+from vision.pointer_types import CameraView, PointerParams, PointerState
 from vision.scene import PointerScene
 from vision.sources import FrameSource, synthetic_cameras
-from vision.tracking2d import Tracker2D, Tracking2DParams
-from vision.tracking3d import Track3D, Tracking3DParams
+from vision.tracking2d import Tracker2D
+from vision.tracking3d import Track3D
 
-
-@dataclass(frozen=True)
-class PointerParams:
-    """Everything tunable about the pointer. `hold_s` applies to the 2-D and 3-D tracks."""
-
-    ball_diameter: float = 0.025
-    read_timeout_s: float = 0.25
-    hold_s: float = 1.0
-    min_distance: float = 0.2  # metres from a camera: bounds the apparent size
-    max_distance: float = 4.0
-    centre_sigma_px: float = 0.15  # per axis; measured on rendered frames: 0.1-0.13 px
-    radius_sigma_px: float = 0.25  # measured: ~0.2 px
-    reprojection_gate_px: float = 2.5
-    size_ratio_range: tuple[float, float] = (0.65, 1.5)
-    max_candidates_per_camera: int = 4
-    mono_bridge_s: float = 0.3  # a stereo track may go on single views this long after stereo
-    clock_restart_s: float = 0.5  # a frame this much older than the last: the clock restarted
-    search_window: bool = True
-    detector: DetectorParams = field(default_factory=DetectorParams)
-    tracking2d: Tracking2DParams = field(default_factory=Tracking2DParams)
-    tracking3d: Tracking3DParams = field(default_factory=Tracking3DParams)
-    dwell: DwellParams = field(default_factory=DwellParams)
-
-    def __post_init__(self) -> None:
-        if self.ball_diameter <= 0:
-            raise ValueError("ball diameter must be positive")
-        if self.read_timeout_s <= 0 or self.hold_s < 0:
-            raise ValueError("read timeout must be positive and hold time non-negative")
-        if not 0 < self.min_distance < self.max_distance:
-            raise ValueError("need 0 < min_distance < max_distance")
-
-    @property
-    def ball_radius(self) -> float:
-        return 0.5 * self.ball_diameter
-
-    def to_dict(self) -> dict:
-        """Plain JSON-able dict (saved with the session next to profiles and camera models)."""
-        return dataclasses.asdict(self)
-
-    @classmethod
-    def from_dict(cls, data: dict) -> PointerParams:
-        nested = {"detector": DetectorParams, "tracking2d": Tracking2DParams,
-                  "tracking3d": Tracking3DParams, "dwell": DwellParams}
-        names = {f.name for f in dataclasses.fields(cls)}
-        unknown = set(data) - names
-        if unknown:
-            raise ValueError(f"unknown pointer parameters {sorted(unknown)}")
-        kw = {k: (nested[k](**v) if k in nested else v) for k, v in data.items()}
-        if "size_ratio_range" in kw:
-            kw["size_ratio_range"] = tuple(kw["size_ratio_range"])
-        return cls(**kw)
-
-
-@dataclass
-class CameraView:
-    """What one camera contributed to a step (drawn as an overlay by the UI)."""
-
-    camera_id: str
-    status: str = "ok"  # ok | timeout | closed | bad_frame | stale | error
-    message: str = ""
-    timestamp: float | None = None
-    detections: list[Detection] = field(default_factory=list)
-    pointer: Detection | None = None  # the detection used for this step's 3-D position
-    predicted_px: np.ndarray | None = None  # where the 3-D track expected the ball
-    window: Window | None = None  # the search window used (None: whole image)
-    frame: Frame | None = None
-
-
-@dataclass
-class PointerState:
-    """Result of one `PointerSystem.step()`."""
-
-    timestamp: float
-    position_world: np.ndarray | None
-    covariance: np.ndarray  # 3x3 of `position_world` (NaN when lost)
-    mode: str  # "stereo", "mono" (less accurate) or "lost"
-    measured: bool  # False while coasting on the prediction
-    track_id: int | None
-    velocity_world: np.ndarray | None = None
-    measurement: PointEstimate | None = None  # this frame's raw 3-D point, if any
-    cameras: dict[str, CameraView] = field(default_factory=dict)
-    taught: TaughtPoint | None = None
-    dwell_progress: float = 0.0
-    skew_s: float = 0.0  # spread of the frame timestamps used (unsynchronised cameras)
-
-    @property
-    def detections(self) -> dict[str, list[Detection]]:
-        return {cid: v.detections for cid, v in self.cameras.items()}
-
-    @property
-    def less_accurate(self) -> bool:
-        """True in single-camera mode: the UI must say the depth is a size estimate."""
-        return self.mode == "mono"
+__all__ = ["CameraView", "PointerParams", "PointerState", "PointerSystem"]
 
 
 @dataclass
@@ -173,6 +89,12 @@ class PointerSystem:
              / p.min_distance) for m in self.models]
         self._last_stamp: list[float | None] = [None] * len(self.sources)
         self._pointer_track2d: list[int | None] = [None] * len(self.sources)
+        self.clutter = ClutterMemory(len(self.sources))
+        self._gate_px: list[tuple[np.ndarray, float] | None] = [None] * len(self.sources)
+        self._steps = 0
+        self._measured_last = True
+        self._last_stereo_t: float | None = None
+        self._last_offered: tuple[int | None, float] = (None, 0.0)
         self._time: float | None = None
         self._wall_at_time = 0.0
         self.last_state: PointerState | None = None
@@ -198,6 +120,9 @@ class PointerSystem:
             tr.reset()
         self.track.reset()
         self.dwell.reset()
+        self.clutter.reset()
+        self._last_stereo_t = None
+        self._last_offered = (None, 0.0)
         self._pointer_track2d = [None] * len(self.sources)
         self._last_stamp = [None] * len(self.sources)
         self._time = None
@@ -264,6 +189,16 @@ class PointerSystem:
         model = self.models[i]
         window: Window | None = None
         radius_range = self._radius_ranges[i]
+        self._gate_px[i] = None
+        if self.track.active:
+            X = self.track.filter.position
+            uv = model.project(X)
+            r_exp = expected_radius_px(model, X, p.ball_radius)
+            if np.all(np.isfinite(uv)) and np.isfinite(r_exp):
+                cov_px = project_covariance(model, X, self.track.filter.position_cov)
+                sd = float(np.sqrt(max(np.linalg.eigvalsh(cov_px).max(), 0.0)))
+                self._gate_px[i] = (uv, min(4.0 * sd + 2.5 * r_exp + 8.0,
+                                            0.5 * min(model.width, model.height)))
         if p.search_window and self.track.active:
             X = self.track.filter.position
             uv = model.project(X)
@@ -290,6 +225,13 @@ class PointerSystem:
         if not dets:
             window = None
             dets = self.detector.detect(frame.image, None, self._radius_ranges[i])
+        elif not self._measured_last:
+            # the window holds blobs, yet the last frame found no ball there: the ball may be
+            # back elsewhere (after an occlusion), so look at the whole image as well
+            more = self.detector.detect(frame.image, None, self._radius_ranges[i])
+            dets = dets + [d for d in more if min(np.linalg.norm(d.center_px - e.center_px)
+                                                  for e in dets) > 2.0]
+            window = None
         view.window = window
         return dets
 
@@ -355,51 +297,85 @@ class PointerSystem:
                              p.centre_sigma_px, p.radius_sigma_px)
         return _Hypothesis(dataclasses.replace(est, cameras=(i,)), {i: j})
 
+    def _clutter_in(self, h: _Hypothesis, dets: dict[int, list[Detection]]) -> bool:
+        return any(self.clutter.is_clutter(i, dets[i][j]) for i, j in h.used.items())
+
+    def _in_image_gate(self, h: _Hypothesis, dets: dict[int, list[Detection]]) -> bool:
+        """Every view of the fix lies within that camera's gate around the track's projection."""
+        for i, j in h.used.items():
+            g = self._gate_px[i]
+            if g is not None and np.linalg.norm(dets[i][j].center_px - g[0]) > g[1]:
+                return False
+        return True
+
     def _choose(self, t: float, dets: dict[int, list[Detection]],
                 ids2d: dict[int, list[int]], n_delivering: int) -> _Hypothesis | None:
         """Pick this frame's measurement (or none) and feed the 3-D track.
 
-        With a track: the stereo candidate nearest in the Mahalanobis sense within the gate;
-        failing that a single view inside the gate, either as a brief stand-in (one camera
-        lost the ball for up to `mono_bridge_s`) or because that view's blob has been tracked
-        for a few frames (the ball is in front of a same-coloured thing in the other view):
-        after a long coast the gate is wide, and a one-off blob must not drag the track off.
-        Candidates that stay outside the gate at a consistent place for `reinit_after_s`
-        start a new track. Without a track: stereo, else a confirmed single-view blob.
+        With a track: the stereo candidate nearest in the Mahalanobis sense inside the gate
+        (3-D, capped by the hand's speed, and in every image); failing that a single view
+        inside the gate, as a brief stand-in (one camera lost the ball for up to
+        `mono_bridge_s`) or because that view's blob has been tracked for a few frames (the
+        ball is in front of a same-coloured thing in the other view). A fix outside the gate
+        is a new candidate, not a jump: it starts a new track only once it has stayed at a
+        consistent place for `reinit_after_s`. Remembered still look-alikes are refused
+        except while the track is followed frame to frame (the ball may pass over one).
+        Without a track: stereo, else a confirmed single-view blob that has moved.
         """
         stereo = self._stereo_hypotheses(dets)
         k = self.params.max_candidates_per_camera
         gate = self._t3.gate_chi2
-        if self.track.active:
-            gated = [(d, h) for h in stereo if (d := self.track.gate_distance(h.est)) <= gate]
-            if not gated:
-                since = t - (self.track.last_measurement_time or t)
-                bridge = n_delivering == 1 or since <= self.params.mono_bridge_s
-                monos = [self._mono(i, j, d) for i, ds in dets.items()
-                         for j, d in enumerate(ds[:k])
-                         if bridge or self.trackers2d[i].is_confirmed(ids2d[i][j])]
-                gated = [(d, h) for h in monos if (d := self.track.gate_distance(h.est)) <= gate]
-            if gated:
-                h = min(gated, key=lambda g: g[0])[1]
-                self.track.update(t, h.est)
-                return h
-            fresh = self._best_new(stereo, dets) if stereo else \
-                self._confirmed_mono(dets, ids2d)
-            if fresh is not None and self.track.disagreement(t, fresh.est.position_world):
-                self.track.start(t, fresh.est)
-                return fresh
-            return None
-        h = self._best_new(stereo, dets) if stereo else self._confirmed_mono(dets, ids2d)
-        if h is not None:
-            self.track.start(t, h.est)
-        return h
+        fresh_stereo = [h for h in stereo if not self._clutter_in(h, dets)]
+        if not self.track.active:
+            h = self._best_new(fresh_stereo, dets) if fresh_stereo else \
+                self._confirmed_mono(dets, ids2d, n_delivering)
+            if h is not None:
+                self.track.start(t, h.est)
+            return h
+        since = t - (self.track.last_measurement_time or t)
+        followed = since <= self.params.coast_s
 
-    def _confirmed_mono(self, dets: dict[int, list[Detection]],
-                        ids2d: dict[int, list[int]]) -> _Hypothesis | None:
-        """The roundest blob that has been seen for `confirm_hits` frames in a row."""
+        def ok(h: _Hypothesis) -> bool:
+            return self._in_image_gate(h, dets) and (followed or not self._clutter_in(h, dets))
+
+        gated = [(d, h) for h in stereo
+                 if ok(h) and (d := self.track.gate_distance(h.est)) <= gate]
+        if gated:
+            h = min(gated, key=lambda g: g[0])[1]
+            self.track.update(t, h.est)
+            return h
+        since_stereo = t - (self._last_stereo_t if self._last_stereo_t is not None else -1e9)
+        bridge = n_delivering == 1 or since_stereo <= self.params.mono_bridge_s
+        monos = [self._mono(i, j, d) for i, ds in dets.items() for j, d in enumerate(ds[:k])
+                 if not self.clutter.is_clutter(i, d)
+                 and (bridge or (self.trackers2d[i].is_confirmed(ids2d[i][j])
+                                 and (n_delivering <= 1
+                                      or self.trackers2d[i].has_moved(ids2d[i][j]))))]
+        gated = [(d, h) for h in monos
+                 if ok(h) and (d := self.track.gate_distance(h.est)) <= gate]
+        fresh = self._best_new(fresh_stereo, dets) if fresh_stereo else \
+            (None if gated else self._confirmed_mono(dets, ids2d, n_delivering))
+        # a track never confirmed may be a chance fix: a stereo fix elsewhere replaces it at once
+        replace = fresh is not None and fresh_stereo and not self.track.confirmed
+        if fresh is not None and (replace or self.track.disagreement(t, fresh.est.position_world)):
+            self.track.start(t, fresh.est)
+            return fresh
+        if gated:
+            h = min(gated, key=lambda g: g[0])[1]
+            self.track.update(t, h.est, keep_disagreement=True)
+            return h
+        return None
+
+    def _confirmed_mono(self, dets: dict[int, list[Detection]], ids2d: dict[int, list[int]],
+                        n_delivering: int = 1) -> _Hypothesis | None:
+        """The roundest blob seen for `confirm_hits` frames in a row that is no remembered
+        look-alike; with other cameras delivering (which do not see it), it must also have
+        moved: a still red thing seen by one camera is not taken for the pointer."""
         k = self.params.max_candidates_per_camera
         confirmed = [(d.score, i, j) for i, ds in dets.items() for j, d in enumerate(ds[:k])
-                     if self.trackers2d[i].is_confirmed(ids2d[i][j])]
+                     if self.trackers2d[i].is_confirmed(ids2d[i][j])
+                     and not self.clutter.is_clutter(i, d)
+                     and (n_delivering <= 1 or self.trackers2d[i].has_moved(ids2d[i][j]))]
         if not confirmed:
             return None
         _, i, j = max(confirmed)
@@ -426,22 +402,46 @@ class PointerSystem:
             ids2d[i] = self.trackers2d[i].update(t, dets[i])
             views[i].detections = dets[i]
         chosen = self._choose(t, dets, ids2d, len(frames))
+        # with several cameras, anything short of stereo means: look at the whole image too
+        self._measured_last = chosen is not None and (chosen.est.mode == "stereo"
+                                                      or len(frames) < 2)
+        if chosen is not None and chosen.est.mode == "stereo":
+            self._last_stereo_t = t
         if chosen is not None:
             for i, j in chosen.used.items():
                 views[i].pointer = dets[i][j]
                 self._pointer_track2d[i] = ids2d[i][j]
         taught = None
+        p = self.params
+        self._steps += 1
         if self.track.active:
             pos = self.track.filter.position
             meas = chosen.est if chosen is not None else None
-            taught = self.dwell.update(t, pos, None if meas is None else meas.position_world,
-                                       None if meas is None else meas.covariance,
-                                       self.track.last_mode)
+            # teach only from fixes of teaching accuracy: with several cameras, stereo ones (a
+            # single view's depth, from the ball's size, is good to a few per cent only)
+            offered = meas is not None and self.track.hits >= p.offer_after_hits and \
+                (meas.mode == "stereo" or len(self.sources) == 1) and \
+                (self.track.confirmed or self.track.travel >= p.new_track_travel) and \
+                self._clean_views(chosen, dets)
+            self.track.confirmed |= offered
+            if offered:
+                self._last_offered = (self.track.track_id, t)
+            # coasting counts from the last fix fit to teach, on this same track
+            tid, t_off = self._last_offered
+            since = t - t_off if tid == self.track.track_id else float("inf")
+            if offered:  # a dwell is made of measured frames only
+                taught = self.dwell.update(t, pos, meas.position_world, meas.covariance,
+                                           self.track.last_mode)
+                if meas.mode == "stereo" and self.track.hits >= p.clutter_learn_hits:
+                    self._learn_clutter(t, frames, chosen, dets)
+            elif since > p.coast_s:
+                self.dwell.update(t, None)  # a gap longer than coasting ends any dwell
             state = PointerState(
                 timestamp=t, position_world=pos, covariance=self.track.filter.position_cov,
-                mode=self.track.last_mode, measured=chosen is not None,
+                mode=self.track.last_mode, measured=meas is not None,
                 track_id=self.track.track_id, velocity_world=self.track.filter.velocity,
-                measurement=meas, taught=taught, dwell_progress=self.dwell.progress())
+                measurement=meas, taught=taught, dwell_progress=self.dwell.progress(),
+                offered=offered, since_measured_s=since, coast_limit_s=p.coast_s)
         else:
             self.dwell.update(t, None)
             self._pointer_track2d = [
@@ -449,13 +449,40 @@ class PointerSystem:
                 for i, tid in enumerate(self._pointer_track2d)]
             state = PointerState(timestamp=t, position_world=None,
                                  covariance=np.full((3, 3), np.nan), mode="lost",
-                                 measured=False, track_id=None)
+                                 measured=False, track_id=None, coast_limit_s=p.coast_s)
         state.cameras = {v.camera_id: v for v in views}
         if frames:
             stamps = [f.timestamp for f in frames.values()]
             state.skew_s = float(max(stamps) - min(stamps))
         self.last_state = state
         return state
+
+    def _clean_views(self, h: _Hypothesis, dets: dict[int, list[Detection]]) -> bool:
+        """Every view of the fix is a whole ball: round, filled, and of the size its distance
+        implies. A ball partly merged with (or cut by) a thing of its colour still triangulates,
+        but a pixel or two off along the epipolar line, which is millimetres in depth."""
+        p = self.params
+        for i, j in h.used.items():
+            d = dets[i][j]
+            r_exp = expected_radius_px(self.models[i], h.est.position_world, p.ball_radius)
+            ratio = d.radius_px / r_exp if np.isfinite(r_exp) and r_exp > 0 else 0.0
+            if d.axis_ratio < p.offer_min_axis_ratio or d.fill < p.offer_min_fill or \
+                    not 1.0 / p.offer_max_size_ratio <= ratio <= p.offer_max_size_ratio:
+                return False
+        return True
+
+    def _learn_clutter(self, t: float, frames: dict[int, Frame], chosen: _Hypothesis,
+                       dets: dict[int, list[Detection]]) -> None:
+        """Remember the other blobs each camera sees next to the well-measured ball; every
+        `clutter_scan_every` frames one camera also looks at its whole image for them."""
+        every = self.params.clutter_scan_every
+        n = len(self.sources)
+        scan = (self._steps // every) % n if every > 0 and self._steps % every == 0 else None
+        for i, j in chosen.used.items():
+            seen = list(dets[i])
+            if i == scan and i in frames:
+                seen += self.detector.detect(frames[i].image, None, self._radius_ranges[i])
+            self.clutter.learn(i, t, seen, dets[i][j])
 
     # -- convenience --------------------------------------------------------------------------
     @classmethod

@@ -39,6 +39,8 @@ class Track2D:
     radius_px: float
     hits: int = 1
     consecutive_hits: int = 1
+    origin_px: np.ndarray | None = None  # where it was first seen
+    travel_px: float = 0.0  # farthest it has been from there (still clutter: ~0)
 
     @property
     def position(self) -> np.ndarray:
@@ -98,6 +100,9 @@ class Tracker2D:
                 tr.last_time = t
                 tr.hits += 1
                 tr.consecutive_hits += 1
+                if tr.origin_px is not None:
+                    tr.travel_px = max(tr.travel_px, float(np.linalg.norm(
+                        detections[j].center_px - tr.origin_px)))
                 ids[j] = tr.track_id
                 matched_tracks.add(tr.track_id)
         for tr in self.tracks:
@@ -109,10 +114,17 @@ class Tracker2D:
                 continue
             f = ConstantVelocityFilter(2, d.center_px, R, p.initial_velocity_std_px,
                                        p.accel_std_px)
-            self.tracks.append(Track2D(self._next_id, f, t, d.radius_px))
+            self.tracks.append(Track2D(self._next_id, f, t, d.radius_px,
+                                       origin_px=np.asarray(d.center_px, float).copy()))
             ids[j] = self._next_id
             self._next_id += 1
         return ids
+
+    def has_moved(self, track_id: int, radii: float = 2.0) -> bool:
+        """True once the blob has travelled `radii` of its own radius: a hand-held ball does,
+        a red thing of the background does not."""
+        tr = self.track(track_id)
+        return tr is not None and tr.travel_px >= radii * max(tr.radius_px, 1.0)
 
     def is_confirmed(self, track_id: int) -> bool:
         tr = self.track(track_id)

@@ -24,6 +24,9 @@ class Tracking3DParams:
     reinit_after_s: float = 0.25  # persistent disagreement this long: start a new track
     reinit_step: float = 0.05  # metres a disagreeing candidate may move per frame and persist
     reseed_after_s: float = 0.1  # a measurement after a longer gap re-seeds the velocity
+    max_speed: float = 2.5  # m/s: no hand moves the pointer faster; bounds the gate in metres
+    reach_margin: float = 0.02  # metres added to max_speed * gap (measurement noise, wobble)
+    same_place: float = 0.03  # metres: picked up again this close to where it was lost
 
 
 class Track3D:
@@ -38,6 +41,11 @@ class Track3D:
         self.last_mode = "lost"
         self._disagree_since: float | None = None
         self._disagree_at: np.ndarray | None = None
+        self.last_measured_position: np.ndarray | None = None
+        self.hits = 0  # measurements in a row since the track (re)started
+        self.confirmed = False  # set by the owner once the track has been offered
+        self.start_position: np.ndarray | None = None
+        self.travel = 0.0  # farthest a measurement has been from where the track started
 
     @property
     def active(self) -> bool:
@@ -45,6 +53,9 @@ class Track3D:
 
     def reset(self) -> None:
         self.filter = None
+        self.last_measured_position = None
+        self.hits = 0
+        self.confirmed = False
         self.time = None
         self.last_measurement_time = None
         self.last_mode = "lost"
@@ -68,6 +79,13 @@ class Track3D:
         """Squared Mahalanobis distance of a candidate (inf with no track)."""
         if self.filter is None:
             return float("inf")
+        if self.last_measured_position is not None and self.time is not None and \
+                self.last_measurement_time is not None:
+            gap = max(self.time - self.last_measurement_time, 0.0)
+            sd = float(np.sqrt(max(np.linalg.eigvalsh(est.covariance).max(), 0.0)))
+            reach = self.params.reach_margin + self.params.max_speed * gap + 3.0 * sd
+            if np.linalg.norm(est.position_world - self.last_measured_position) > reach:
+                return float("inf")  # farther than a hand could have taken it
         if np.linalg.norm(est.position_world - self.filter.position) <= self.params.min_gate:
             return 0.0
         return self.filter.mahalanobis_sq(est.position_world, est.covariance)
@@ -85,23 +103,43 @@ class Track3D:
         self.last_mode = est.mode
         self._disagree_since = None
         self._disagree_at = None
+        self.last_measured_position = np.asarray(est.position_world, float).copy()
+        self.hits = 1
+        self.confirmed = False
+        self.start_position = self.last_measured_position.copy()
+        self.travel = 0.0
 
-    def update(self, t: float, est: PointEstimate) -> None:
+    def update(self, t: float, est: PointEstimate, keep_disagreement: bool = False) -> None:
         """Kalman update; after a gap of over `reseed_after_s` (occlusion, dropout) the filter
         is re-seeded at the measurement instead, keeping the track id: a velocity inferred
-        from a jump across a long gap is mostly the gap's error and would fling the track."""
+        from a jump across a long gap is mostly the gap's error and would fling the track.
+        `keep_disagreement`: a weaker (single-view) fix updates the track without clearing the
+        count of stereo fixes persistently elsewhere, so those can still take over."""
         assert self.filter is not None
         gap = t - (self.last_measurement_time if self.last_measurement_time is not None else t)
         if gap > self.params.reseed_after_s:
             p = self.params
             self.filter = ConstantVelocityFilter(3, est.position_world, est.covariance,
                                                  p.initial_velocity_std, p.accel_std)
+            self.hits = 1  # picked up again after a gap: to be confirmed like a new track
+            jump = np.inf if self.last_measured_position is None else float(
+                np.linalg.norm(est.position_world - self.last_measured_position))
+            if jump > p.same_place:  # somewhere else: it must show it moves, like a new track
+                self.confirmed = False
+                self.start_position = np.asarray(est.position_world, float).copy()
+                self.travel = 0.0
         else:
             self.filter.update(est.position_world, est.covariance)
+            self.hits += 1
+        self.last_measured_position = np.asarray(est.position_world, float).copy()
+        if self.start_position is not None:
+            self.travel = max(self.travel, float(np.linalg.norm(
+                self.last_measured_position - self.start_position)))
         self.last_measurement_time = t
         self.last_mode = est.mode
-        self._disagree_since = None
-        self._disagree_at = None
+        if not keep_disagreement:
+            self._disagree_since = None
+            self._disagree_at = None
 
     def disagreement(self, t: float, position: np.ndarray) -> bool:
         """Note a candidate outside the gate at `position`; True once candidates have stayed

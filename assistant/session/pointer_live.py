@@ -8,6 +8,7 @@ point carries real measurement error, exactly as with real cameras.
 
 from __future__ import annotations
 
+import dataclasses
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -24,6 +25,10 @@ Array = np.ndarray
 def _min_jerk(s: float) -> float:
     s = min(max(s, 0.0), 1.0)
     return s**3 * (10 - 15 * s + 6 * s * s)
+
+
+#: Where the simulated hand starts, relative to its first target (m): 12 cm above it.
+ENTER_FROM = np.array([0.0, 0.0, 0.12])
 
 
 class SyntheticHand:
@@ -46,8 +51,11 @@ class SyntheticHand:
         """Bring the ball to p (None: take the pointer out of view)."""
         with self._lock:
             here = self._position(self._now)
+            # Out of view before: the hand brings the ball in from above, as an operator
+            # does - the pointer offers a fresh track only once it has moved (a still blob
+            # may be a look-alike in the background).
             self._from = here if here is not None else (None if p is None else
-                                                       np.asarray(p, float))
+                                                       np.asarray(p, float) + ENTER_FROM)
             self._to = None if p is None else np.asarray(p, float)
             self._t0 = self._now
 
@@ -67,6 +75,17 @@ class SyntheticHand:
             return self._to
         s = _min_jerk((t - self._t0) / self._move_s)
         return self._from + (self._to - self._from) * s
+
+
+def shown_state(state: PointerState) -> PointerState:
+    """The state as the page may show it: the position only while measured (the measurement
+    itself when it is fit to teach), or coasting for at most `coast_s`; and as the mode the
+    status word when it is not a teaching fix ("coasting", "not measured", "single view",
+    "unconfirmed"), so nothing unmeasured is drawn or read as the pointer. `state.taught` is
+    untouched (it is made from measured frames only)."""
+    if state.offered:
+        return dataclasses.replace(state, position_world=state.offered_position)
+    return dataclasses.replace(state, position_world=state.drawn_position, mode=state.status)
 
 
 class LivePointer:
@@ -114,5 +133,5 @@ class LivePointer:
             self.last_state = state
             if state.taught is not None:
                 self.last_taught = state.taught
-            self._on_state(state)
+            self._on_state(shown_state(state))
             self._stop.wait(max(0.0, self._period - (time.monotonic() - t0)))

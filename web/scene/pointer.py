@@ -1,5 +1,7 @@
 """The live marker pointer: the ball where the cameras see it and a sphere of its uncertainty
-(2 sigma); hidden while the pointer is lost."""
+(2 sigma); hidden while the pointer is lost or not measured. While it coasts (a prediction,
+at most 0.2 s) or has a new track's first fix only a grey sphere is shown: never the red
+ball, which means "measured"."""
 
 from __future__ import annotations
 
@@ -31,7 +33,10 @@ class PointerLayer(Layer):
             if ball.visible:
                 ball.visible = sigma.visible = False
             return
+        coasting = ev.mode not in ("stereo", "mono", "single view")  # a prediction or unconfirmed
         with self.app.server.atomic():
             ball.position = sigma.position = ev.position
             sigma.scale = max(2.0 * ev.std_m, 0.002)
-            ball.visible = sigma.visible = True
+            sigma.color = (150, 150, 150) if coasting else (255, 120, 120)
+            ball.visible = not coasting
+            sigma.visible = True
