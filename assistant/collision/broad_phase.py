@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from assistant.collision.prune_numpy import prune_round_pairs_numpy
 from assistant.collision.segment_box import segment_box_distance_one
 from assistant.kernels.lazy import kernel
 from assistant.robots.dh import chain_frames_numpy, chain_row
@@ -26,8 +27,10 @@ Array = np.ndarray
 
 def _centres_numpy(frames: Array, sph_link: Array, sph_local: Array) -> Array:
     """Sphere centres (N, S, 3) of every configuration, base frame."""
-    F = frames[:, sph_link]  # (N, S, 4, 4)
-    return np.einsum("nsij,sj->nsi", F[:, :, :3, :3], sph_local) + F[:, :, :3, 3]
+    F = frames[:, sph_link, :3]  # (N, S, 3, 4)
+    # column by column, as `_sphere_centre` sums them (2-3x faster than an einsum)
+    return (F[..., 0] * sph_local[:, 0, None] + F[..., 1] * sph_local[:, 1, None]
+            + F[..., 2] * sph_local[:, 2, None] + F[..., 3])
 
 
 def _broad_rows_numpy(frames: Array, sph_link: Array, sph_local: Array, sph_r: Array,
@@ -200,7 +203,7 @@ def _segment_segment_distance(p1: Array, q1: Array, p2: Array, q2: Array) -> flo
     return np.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
 
 
-@kernel(cache=True)
+@kernel(cache=True, fallback=prune_round_pairs_numpy)
 def prune_round_pairs(frames: Array, rows: Array, env_c: Array, self_c: Array,
                       shape_link: Array, seg_a: Array, seg_b: Array, seg_r: Array,
                       box_R: Array, box_c: Array, box_h: Array, pair_a: Array, pair_b: Array,

@@ -28,6 +28,7 @@ from __future__ import annotations
 import numpy as np
 
 from assistant.collision.broad_phase import _box_dist2, _pose, _sphere_centre
+from assistant.collision.clearance_numpy import pruned_clearance_numpy
 from assistant.collision.segment_box import segment_box_distance_one
 from assistant.kernels.lazy import kernel
 
@@ -102,7 +103,7 @@ def _repeats_previous(Q: Array, k: int) -> bool:
     return True
 
 
-@kernel(cache=True)
+@kernel(cache=True, fallback=pruned_clearance_numpy)
 def pruned_clearance(Q: Array, frames: Array, ready: Array, F: Array, travel: Array,
                      stride: int, movable: Array, n_shapes: int, sph_link: Array,
                      sph_local: Array, sph_r: Array, sph_shape: Array, env_lo: Array,

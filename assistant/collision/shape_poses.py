@@ -19,7 +19,15 @@ from assistant.kernels.lazy import kernel
 Array = np.ndarray
 
 
-@kernel(cache=True)
+def shape_poses_numpy(frames: Array, shape_link: Array, shape_T: Array,
+                      ) -> tuple[Array, Array]:
+    """`shape_poses` as one einsum: its fallback until compiled (own Python, row by row,
+    it cost ~3 s of a first run's world build)."""
+    P = np.einsum("nsij,sjc->nsic", frames[:, shape_link], shape_T)
+    return np.ascontiguousarray(P[:, :, :3, :3]), np.ascontiguousarray(P[:, :, :3, 3])
+
+
+@kernel(cache=True, fallback=shape_poses_numpy)
 def shape_poses(frames: Array, shape_link: Array, shape_T: Array) -> tuple[Array, Array]:
     """(R (n, r, 3, 3), t (n, r, 3)) of frames[:, shape_link[s]] @ shape_T[s] per row and
     shape s: the rotation and translation parts of each product."""

@@ -18,7 +18,33 @@ from assistant.kernels.lazy import kernel
 Array = np.ndarray
 
 
-@kernel(cache=True)
+def tcp_poses_numpy(Q: Array, arm: Array, BP: Array, BM: Array, BK: Array, v: Array,
+                    tool_offset: bool) -> tuple[Array, Array]:
+    """`tcp_poses` as whole-array numpy, the same arithmetic per row: the pending kernel's
+    fallback (row by row in Python the reachability table's 100k+ rows cost ~7 s of a cold
+    first run; as arrays ~0.1 s)."""
+    L1, L2, L3, L6 = arm[0], arm[1], arm[2], arm[3]
+    q1, q2, q3, q5, q6 = Q[:, 0], Q[:, 1], Q[:, 2], Q[:, 3], Q[:, 4]
+    c1, s1 = np.cos(q1), np.sin(q1)
+    a23 = q2 + q3
+    s = a23 + q5
+    cs, ss = np.cos(s), np.sin(s)
+    c6, s6 = np.cos(q6), np.sin(q6)
+    r = L2 * np.sin(q2) + L3 * np.sin(a23) + L6 * ss
+    z = L2 * np.cos(q2) + L3 * np.cos(a23) + L6 * cs + L1
+    b = c6[:, None, None] * BP + s6[:, None, None] * BM + BK  # (N, 3, 3)
+    c0 = cs[:, None] * b[:, 0] + ss[:, None] * b[:, 2]
+    rot = np.empty((Q.shape[0], 3, 3))
+    rot[:, 0] = c1[:, None] * c0 - s1[:, None] * b[:, 1]
+    rot[:, 1] = s1[:, None] * c0 + c1[:, None] * b[:, 1]
+    rot[:, 2] = cs[:, None] * b[:, 2] - ss[:, None] * b[:, 0]
+    pos = np.stack([r * c1, r * s1, z], axis=1)
+    if tool_offset:
+        pos = (rot[:, :, 0] * v[0] + rot[:, :, 1] * v[1] + rot[:, :, 2] * v[2]) + pos
+    return pos, rot
+
+
+@kernel(cache=True, fallback=tcp_poses_numpy)
 def tcp_poses(Q: Array, arm: Array, BP: Array, BM: Array, BK: Array, v: Array,
               tool_offset: bool) -> tuple[Array, Array]:
     """(positions (N, 3), rotations (N, 3, 3)) of the TCP for joints Q (N, 5).

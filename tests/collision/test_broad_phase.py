@@ -26,6 +26,7 @@ from assistant.collision.broad_phase import (
 from assistant.collision.checker import CollisionChecker
 from assistant.collision.clearance_scan import _row_sphere_bounds
 from assistant.collision.fcl_shapes import fcl_transform
+from assistant.collision.prune_numpy import segment_box_distances
 from assistant.collision.reports import Obstacle
 from assistant.collision.segment_box import segment_box_distance_one
 from assistant.robots.dh import batch_chain_frames, chain_frames, flange_frame
@@ -197,28 +198,6 @@ def test_batch_chain_frames_match_the_single_chain(rv2aj):
     np.testing.assert_allclose(zero, chain_frames(rv2aj.chain, np.zeros(5)), atol=1e-12)
 
 
-def _vectorised_segment_box_distance(a, b, half):
-    """The numpy formulation the compiled one replaced: every piece of every row at once."""
-    d = b - a
-    with np.errstate(invalid="ignore", divide="ignore"):
-        cross = np.concatenate([(half - a) / d, (-half - a) / d], axis=-1)
-    cross = np.where(np.isfinite(cross), np.clip(cross, 0.0, 1.0), 0.0)
-    zeros = np.zeros(cross.shape[:-1] + (1,))
-    t = np.sort(np.concatenate([zeros, cross, zeros + 1.0], axis=-1), axis=-1)
-    lo, hi = t[..., :-1], t[..., 1:]
-    x = a[..., None, :] + (0.5 * (lo + hi))[..., None] * d[..., None, :]
-    h = half[..., None, :]
-    face = np.where(x > h, h, np.where(x < -h, -h, np.nan))
-    outside = ~np.isnan(face)
-    e = np.where(outside, a[..., None, :] - np.nan_to_num(face), 0.0)
-    dd = np.where(outside, d[..., None, :], 0.0)
-    den = (dd * dd).sum(axis=-1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        ts = np.clip(np.where(den > 0.0, -(dd * e).sum(axis=-1) / den, lo), lo, hi)
-    r = e + ts[..., None] * dd
-    return np.sqrt((r * r).sum(axis=-1).min(axis=-1))
-
-
 def test_segment_box_distance_scalar_matches_the_vectorised_one():
     rng = np.random.default_rng(3)
     a = rng.uniform(-0.3, 0.3, (3000, 3))
@@ -226,7 +205,7 @@ def test_segment_box_distance_scalar_matches_the_vectorised_one():
     b[:200, 0] = a[:200, 0]  # parallel to a face: no crossing on that axis
     b[200:300] = a[200:300]  # a point
     half = rng.uniform(0.01, 0.2, (3000, 3))
-    ref = _vectorised_segment_box_distance(a, b, half)
+    ref = segment_box_distances(a, b, half)  # the numpy form (the kernel's fallback)
     got = np.array([segment_box_distance_one(x, y, h)
                     for x, y, h in zip(a, b, half, strict=True)])
     np.testing.assert_allclose(got, ref, rtol=0, atol=1e-12)

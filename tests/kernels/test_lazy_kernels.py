@@ -12,7 +12,12 @@ import textwrap
 
 import numpy as np
 
-from assistant.collision.broad_phase import _sphere_broad_phase_numpy, sphere_broad_phase
+from assistant.collision.broad_phase import (
+    _sphere_broad_phase_numpy,
+    prune_round_pairs,
+    sphere_broad_phase,
+)
+from assistant.collision.prune_numpy import prune_round_pairs_numpy
 from assistant.kernels import lazy
 from assistant.robots.dh import (
     _chain_frames_kernel,
@@ -21,6 +26,7 @@ from assistant.robots.dh import (
     chain_row,
 )
 from assistant.robots.rv2aj import RV2AJ, RV2AJConfig
+from assistant.robots.rv2aj_fk_batch import tcp_poses, tcp_poses_numpy
 
 _TOY = textwrap.dedent('''
     import numpy as np
@@ -138,6 +144,41 @@ def test_chain_frames_fallback_agrees_with_the_kernel(rng):
                            rtol=0, atol=1e-12)
 
 
+def test_tcp_poses_fallback_agrees_with_the_kernel(rng):
+    from assistant.robots.model import Tool
+
+    for tool in (None, Tool.straight(0.1)):  # without and with a TCP offset
+        robot = RV2AJ(RV2AJConfig(tool=tool)) if tool else RV2AJ(RV2AJConfig())
+        consts = robot.tcp_kernel_constants
+        Q = rng.uniform(robot.limits.lower, robot.limits.upper, size=(200, robot.dof))
+        pos_a, rot_a = tcp_poses_numpy(Q, *consts)
+        pos_b, rot_b = tcp_poses(Q, *consts)
+        # 1e-12 m / 1e-12: a dozen products and sums of sub-metre terms, each rounding
+        # ~1e-16; the compiled loop may fuse them (FMA) where numpy does not
+        np.testing.assert_allclose(pos_a, pos_b, rtol=0, atol=1e-12)
+        np.testing.assert_allclose(rot_a, rot_b, rtol=0, atol=1e-12)
+        # a wrong wrist angle is seen
+        Q2 = Q.copy()
+        Q2[:, 4] += 1e-6
+        assert not np.allclose(tcp_poses_numpy(Q2, *consts)[1], rot_b, rtol=0, atol=1e-12)
+
+
+def test_shape_poses_fallback_agrees_with_the_kernel(rng):
+    from assistant.collision.shape_poses import shape_poses, shape_poses_numpy
+
+    frames = rng.normal(size=(30, 6, 4, 4))
+    shape_link = rng.integers(0, 6, size=9)
+    shape_T = rng.normal(size=(9, 4, 4))
+    R_a, t_a = shape_poses_numpy(frames, shape_link, shape_T)
+    R_b, t_b = shape_poses(frames, shape_link, shape_T)
+    # 1e-12: four products of O(1) entries summed; the orders may differ in the last bit
+    np.testing.assert_allclose(R_a, R_b, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(t_a, t_b, rtol=0, atol=1e-12)
+    # a wrong link is seen
+    R_c, _ = shape_poses_numpy(frames, (shape_link + 1) % 6, shape_T)
+    assert not np.allclose(R_c, R_b, rtol=0, atol=1e-12)
+
+
 def test_broad_phase_fallback_agrees_with_the_kernel(rng):
     N, L, S, E = 40, 6, 12, 5
     frames = np.tile(np.eye(4), (N, L, 1, 1))
@@ -160,6 +201,89 @@ def test_broad_phase_fallback_agrees_with_the_kernel(rng):
     np.testing.assert_array_equal(env_a, env_b)
     np.testing.assert_array_equal(self_a, self_b)
     np.testing.assert_allclose(gap_a, gap_b, rtol=0, atol=1e-12)  # metres
+
+
+def test_round_pair_pruning_fallback_agrees_with_the_kernel(rng):
+    from scipy.spatial.transform import Rotation
+
+    N, L, S, E, P = 60, 5, 8, 6, 12
+    frames = np.tile(np.eye(4), (N, L, 1, 1))
+    frames[:, :, :3, :3] = Rotation.random(N * L, random_state=1).as_matrix().reshape(N, L, 3, 3)
+    frames[:, :, :3, 3] = rng.uniform(-0.4, 0.4, size=(N, L, 3))
+    shape_link = rng.integers(0, L, size=S)
+    seg_a = rng.uniform(-0.1, 0.1, size=(S, 3))
+    seg_b = seg_a + rng.uniform(-0.2, 0.2, size=(S, 3))
+    seg_b[0] = seg_a[0]  # a sphere: a segment of length zero
+    seg_r = rng.uniform(0.01, 0.05, size=S)
+    seg_r[1] = np.nan  # a mesh: never pruned
+    seg_a[1] = seg_b[1] = np.nan
+    box_R = Rotation.random(E, random_state=2).as_matrix()
+    box_c = rng.uniform(-0.4, 0.4, size=(E, 3))
+    box_h = rng.uniform(0.02, 0.2, size=(E, 3))
+    pair_a, pair_b = rng.integers(0, S, size=P), rng.integers(0, S, size=P)
+    rows = np.arange(0, N, 2)  # every other row: the rest must stay untouched
+    env, self_ = rng.random((N, S, E)) < 0.8, rng.random((N, P)) < 0.8
+    args = (shape_link, seg_a, seg_b, seg_r, box_R, box_c, box_h, pair_a, pair_b, 0.02)
+    env_a, self_a, env_b, self_b = env.copy(), self_.copy(), env.copy(), self_.copy()
+    prune_round_pairs_numpy(frames, rows, env_a, self_a, *args)
+    prune_round_pairs(frames, rows, env_b, self_b, *args)
+    # the flags are decided by bound > apart on the same numbers: exact unless a bound lies
+    # within rounding of `apart`, which random data of this size never does
+    np.testing.assert_array_equal(env_a, env_b)
+    np.testing.assert_array_equal(self_a, self_b)
+    assert (env_a != env).any() and (self_a != self_).any()  # it prunes
+    assert (env_a[1::2] == env[1::2]).all() and env_a[:, 1].sum() == env[:, 1].sum()
+    # a looser threshold prunes less: the comparison sees the difference
+    env_c = env.copy()
+    prune_round_pairs_numpy(frames, rows, env_c, self_.copy(), *args[:-1], 0.05)
+    assert (env_c != env_a).any()
+
+
+def test_pending_clearance_gives_the_compiled_answer(rng):
+    """The clearance scan's numpy fallback bounds every pair instead of visiting samples in
+    bound order; the clearance it leads to is the kernel's."""
+    from assistant.collision.checker import CollisionChecker
+    from assistant.collision.clearance_numpy import pruned_clearance_numpy
+    from assistant.collision.reports import Obstacle
+    from assistant.robots.model import CollisionShape, ShapeKind, Tool
+    from assistant.transforms import make_T
+
+    robot = RV2AJ(RV2AJConfig(tool=Tool.straight(0.1)))
+    shapes = [CollisionShape(ShapeKind.BOX, (0.08, 0.1, 0.06)),  # exact: segment to box
+              CollisionShape(ShapeKind.CYLINDER, (0.04, 0.12)),  # FCL measures these
+              CollisionShape(ShapeKind.SPHERE, (0.05,))]
+    def cell(kinds):
+        return CollisionChecker(robot, [
+            Obstacle(f"b{i}", make_T(p=rng.uniform([0.2, -0.35, 0.05], [0.45, 0.35, 0.45])),
+                     (shapes[k],)) for i, k in enumerate(kinds)])
+
+    # mixed (the exact boxes often decide), and round obstacles only (FCL decides)
+    checkers = [cell([0, 1, 2, 0, 1, 2]), cell([1, 2, 1, 2])]
+    lo, hi = robot.limits.lower, robot.limits.upper
+    calls = []
+
+    def spy(*args):
+        out = pruned_clearance_numpy(*args)
+        calls.append(len(out[1]))
+        return out
+
+    clearance_scan = __import__("assistant.collision.clearance_scan", fromlist=["x"])
+    kernel_disp = clearance_scan.pruned_clearance
+    for i in range(12):
+        checker = checkers[i % 2]
+        path = [rng.uniform(lo, hi) * 0.6 for _ in range(3)]
+        compiled = checker.min_clearance_along(path)
+        lazy.set_pending(True)
+        kernel_disp._cellteach_fallback = spy
+        try:
+            pending = checker.min_clearance_along(path)
+        finally:
+            kernel_disp._cellteach_fallback = pruned_clearance_numpy
+            lazy.set_pending(False)
+        # 1e-9 m: the same FCL calls on the same poses, or the same segment-to-box distance
+        # summed in another order (~1e-16 relative per term)
+        assert abs(compiled - pending) <= 1e-9, (compiled, pending)
+    assert calls and max(calls) > 0  # FCL was asked for some pairs (cylinders, spheres)
 
 
 def test_pending_checks_give_the_compiled_answers(rng):
