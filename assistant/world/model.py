@@ -13,7 +13,9 @@ A leaf is *free* for the roadmap if it has a valid joint position and P < thresh
 
 from __future__ import annotations
 
+import contextlib
 import time
+import weakref
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 
@@ -78,13 +80,28 @@ class WorldConfig:
 
 def tcp_reach(robot: Robot, n: int = 1 << 14) -> float:
     """Largest TCP distance (m) from the base origin over Sobol samples of the limits
-    (within ~1 % of the true maximum; the cube's margin covers the rest)."""
+    (within ~1 % of the true maximum; the cube's margin covers the rest). Remembered per
+    robot and limits: every import and placement asks (~0.3 s each on the RV-2AJ)."""
+    lo, hi = robot.limits.lower, robot.limits.upper
+    key = (n, lo.tobytes(), hi.tobytes())
+    try:
+        hit = _REACH.get(robot)
+    except TypeError:  # a robot that cannot be weakly referenced: not remembered
+        hit = None
+    if hit is not None and hit[0] == key:
+        return hit[1]
     from scipy.stats import qmc
 
-    lo, hi = robot.limits.lower, robot.limits.upper
     U = qmc.Sobol(d=robot.dof, scramble=True, seed=0).random(n)
     P = np.asarray(robot.batch_fk(lo + U * (hi - lo)).positions)
-    return float(np.linalg.norm(P, axis=1).max())
+    reach = float(np.linalg.norm(P, axis=1).max())
+    with contextlib.suppress(TypeError):
+        _REACH[robot] = (key, reach)
+    return reach
+
+
+#: tcp_reach's answers by robot (weakly: a replaced robot takes its entry with it).
+_REACH: weakref.WeakKeyDictionary = weakref.WeakKeyDictionary()
 
 
 @dataclass(frozen=True)
