@@ -7,6 +7,7 @@ import asyncio
 import datetime
 import ipaddress
 import ssl
+import threading
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -87,7 +88,23 @@ async def wait_for(pred: Callable[[], bool], timeout: float = 20.0) -> bool:
 
 
 def run(coro: Any) -> Any:
-    return asyncio.run(coro)
+    """Run a client coroutine to its end on its own thread and event loop: the browser tests'
+    Playwright (sync API) keeps an event loop running in the test thread, where asyncio.run
+    refuses to start another."""
+    out: dict[str, Any] = {}
+
+    def main() -> None:
+        try:
+            out["value"] = asyncio.run(coro)
+        except BaseException as exc:  # noqa: BLE001 - re-raised in the test's thread
+            out["error"] = exc
+
+    t = threading.Thread(target=main, name="gate-client", daemon=True)
+    t.start()
+    t.join()
+    if "error" in out:
+        raise out["error"]
+    return out.get("value")
 
 
 def self_signed_cert(tmp: Path) -> tuple[Path, Path]:
