@@ -21,7 +21,6 @@ from assistant.links.abb_rws import AbbRwsLink
 from assistant.links.emulators.abb_rws_emulator import AbbRwsEmulator
 from assistant.links.errors import ControllerRefused, ProtocolError
 from assistant.links.link import LinkError, LinkEventKind, LinkLost
-from assistant.links.settings import KINDS
 from assistant.transforms import make_T
 
 TOL = 1e-6  # rad: the wire carries 1e-6 deg
@@ -227,8 +226,6 @@ def test_login_motors_and_mastership_held_elsewhere(start, robot, closing):
     assert link.move_path(np.array([Q_A])).kind == LinkEventKind.REACHED
 
 
-@pytest.mark.skipif("abb" not in KINDS, reason="the 'abb' link choice is not registered in "
-                    "assistant/links/settings.py yet")
 def test_settings_build_the_abb_link(start, robot, closing):
     emu, _ = start()
     s = LinkSettings.from_json({"kind": "abb", "port": emu.port, "rws_user": "Default User",

@@ -16,11 +16,10 @@ import urllib.request
 import numpy as np
 import pytest
 from abb_fixtures import HOME, Q_A, TIME_SCALE, ur5
+from abb_robot_client import rws  # the vendor's client: a test extra, never skipped
 
 from assistant.links import abb_rws_protocol as rp
 from assistant.links.emulators.abb_rws_emulator import AbbRwsEmulator
-
-rws = pytest.importorskip("abb_robot_client.rws")
 
 
 @pytest.fixture(scope="module")

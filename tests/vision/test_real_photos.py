@@ -10,8 +10,6 @@ import cv2
 import numpy as np
 import pytest
 
-pytest.importorskip("skimage")
-
 from vision.color import calibrate_from_ellipse  # noqa: E402
 from vision.color_calibration import calibrate_ellipse  # noqa: E402
 from vision.errors import ColorNotSeparable  # noqa: E402

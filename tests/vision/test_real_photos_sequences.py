@@ -20,8 +20,6 @@ from __future__ import annotations
 
 import pytest
 
-pytest.importorskip("skimage")
-
 from vision.photo_scenes import HELD_OUT_PHOTOS, operator_calibration, photo_sequence  # noqa: E402
 from vision.pointer import PointerSystem  # noqa: E402
 from vision.pointer_scoring import score_run  # noqa: E402
