@@ -37,7 +37,7 @@ from urllib.parse import quote, urlencode
 import numpy as np
 
 from assistant.links import abb_rws_protocol as rp
-from assistant.links.decimate import decimate_joint_path
+from assistant.links.decimate import exact_stop_targets
 from assistant.links.errors import ControllerRefused, ProtocolError
 from assistant.links.link import LinkError, LinkEvent, LinkEventKind, LinkLost, RobotLink
 from assistant.links.operator_button import OperatorButton
@@ -308,11 +308,7 @@ class AbbRwsLink(OperatorButton, RobotLink):
     def plan_commands(self, joint_path: Array) -> tuple[Array, Array]:
         """The MoveAbsJ targets (K, dof) for a path and the path index of each (decimated)."""
         path = validate_path(self.robot, joint_path)
-        lead = 0 if np.allclose(path[0], self._last_q, atol=1e-6) else 1
-        full = path if lead == 0 else np.vstack([self._last_q[None], path])
-        keep = decimate_joint_path(full, self._radii, self.decimation_tol_m)
-        keep = keep[keep > 0] if len(keep) > 1 else keep
-        return full[keep], np.maximum(keep - lead, 0)
+        return exact_stop_targets(path, self._last_q, self._radii, self.decimation_tol_m)
 
     def move_path(self, joint_path: Array, *, speed_scale: float = 1.0) -> LinkEvent:
         path = validate_path(self.robot, joint_path)

@@ -59,3 +59,15 @@ def decimate_joint_path(path: Array, radii: Array, tol_m: float) -> Array:
             keep[m] = True
             stack += [(i, m), (m, j)]
     return np.nonzero(keep)[0]
+
+
+def exact_stop_targets(path: Array, here: Array, radii: Array, tol_m: float,
+                       ) -> tuple[Array, Array]:
+    """The targets (K, dof) a link sends as exact stops for a validated joint path starting
+    at or near the arm's posture `here`, decimated within `tol_m` of the path measured on
+    the arm, and the path index of each (KUKA PTP, ABB MoveAbsJ, UR movej)."""
+    lead = 0 if np.allclose(path[0], here, atol=1e-6) else 1
+    full = path if lead == 0 else np.vstack([here[None], path])
+    keep = decimate_joint_path(full, radii, tol_m)
+    keep = keep[keep > 0] if len(keep) > 1 else keep
+    return full[keep], np.maximum(keep - lead, 0)

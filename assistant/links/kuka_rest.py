@@ -33,7 +33,7 @@ import numpy as np
 
 from assistant.links import kuka_protocol as kp
 from assistant.links.arm_config import arm_config, status_bits, turn_bits
-from assistant.links.decimate import decimate_joint_path
+from assistant.links.decimate import exact_stop_targets
 from assistant.links.errors import ControllerRefused, ProtocolError
 from assistant.links.kuka_protocol import BridgeReply
 from assistant.links.link import LinkError, LinkEvent, LinkEventKind, LinkLost, RobotLink
@@ -191,11 +191,7 @@ class KukaRestLink(OperatorButton, RobotLink):
     def plan_commands(self, joint_path: Array) -> tuple[Array, Array]:
         """The PTP targets (K, dof) for a path and the path index of each (decimated)."""
         path = validate_path(self.robot, joint_path)
-        lead = 0 if np.allclose(path[0], self._last_q, atol=1e-6) else 1
-        full = path if lead == 0 else np.vstack([self._last_q[None], path])
-        keep = decimate_joint_path(full, self._radii, self.decimation_tol_m)
-        keep = keep[keep > 0] if len(keep) > 1 else keep
-        return full[keep], np.maximum(keep - lead, 0)
+        return exact_stop_targets(path, self._last_q, self._radii, self.decimation_tol_m)
 
     def move_path(self, joint_path: Array, *, speed_scale: float = 1.0) -> LinkEvent:
         path = validate_path(self.robot, joint_path)
