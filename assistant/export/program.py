@@ -188,8 +188,10 @@ def program_from_trajectory(traj: Trajectory, robot: Robot, *, name: str,
             not depend on where the robot happens to be (the thesis listing omits it).
         start_name: name for the start position when the waypoint has none.
     Returns:
-        The program; positions are named after their waypoints, else P1, P2, ... in order of
-        first use (the thesis numbering: start P1, then via before target).
+        The program; positions are named after their waypoints (the operator's names), a
+        generated point after the named position its step is heading for: `P7_V1`, `P7_V2`
+        are the first and second via points on the way to P7 (never a taught name); P1,
+        P2, ... only where nothing named follows.
     Raises:
         ExportError naming the step for a waypoint without a joint solution or two different
         positions with the same name.
@@ -207,15 +209,17 @@ def program_from_trajectory(traj: Trajectory, robot: Robot, *, name: str,
                                       step="move to the start posture"))
     prog.instructions += _actions(traj.actions_at_start, "start")
     prev = traj.start
+    heading = _heading_for(traj)
     for k, m in enumerate(traj.motions):
         step = m.label or f"motion {k + 1}"
         blend = float(m.blend_radius)
+        dest = heading[k]
         if m.kind == MotionKind.JOINT:
             speed = d.joint_speed if m.speed is None else float(m.speed)
             for mid in _joint_path_splits(robot, prev, m, d.joint_path_tolerance):
-                pos = namer.position(mid, step, joint_target=True)
+                pos = namer.position(mid, step, joint_target=True, dest=dest)
                 prog.instructions.append(Move(MoveKind.JOINT, pos, speed=speed, step=step))
-            target = namer.position(m.target, step)
+            target = namer.position(m.target, step, dest=dest)
             prog.instructions.append(Move(MoveKind.JOINT, target, speed=speed,
                                           blend_radius=blend, step=step))
         else:
@@ -225,10 +229,10 @@ def program_from_trajectory(traj: Trajectory, robot: Robot, *, name: str,
             if m.kind == MotionKind.CIRCULAR:
                 if m.via is None:
                     raise ExportError("a circular motion needs a via point", step=step)
-                via = namer.position(m.via, step)
+                via = namer.position(m.via, step, dest=dest)
             elif m.kind == MotionKind.SPLINE:
-                through = tuple(namer.position(w, step) for w in m.through)
-            target = namer.position(m.target, step)
+                through = tuple(namer.position(w, step, dest=dest) for w in m.through)
+            target = namer.position(m.target, step, dest=dest)
             kind = {MotionKind.LINEAR: MoveKind.LINEAR, MotionKind.CIRCULAR: MoveKind.CIRCULAR,
                     MotionKind.SPLINE: MoveKind.SPLINE}[m.kind]
             prog.instructions.append(Move(kind, target, via, through, speed=speed,
@@ -236,6 +240,17 @@ def program_from_trajectory(traj: Trajectory, robot: Robot, *, name: str,
         prog.instructions += _actions(m.actions_after, step)
         prev = m.target
     return prog
+
+
+def _heading_for(traj: Trajectory) -> list[str]:
+    """For each motion, the name of the first named target at or after it ("" if none):
+    generated points are named after where their step is heading."""
+    out = [""] * len(traj.motions)
+    nxt = ""
+    for k in range(len(traj.motions) - 1, -1, -1):
+        nxt = traj.motions[k].target.name or nxt
+        out[k] = nxt
+    return out
 
 
 def _actions(actions: tuple[ToolAction, ...], step: str) -> list[Instruction]:
@@ -262,23 +277,38 @@ class _Namer:
         self.by_name: dict[str, tuple[Position, str]] = {}
         self.by_id: dict[int, Position] = {}
         self.k = 0
+        self.vias: dict[str, int] = {}
+        # Names differing only in case are one name to most controllers.
+        self._folded = {n.upper() for n in self.taken}
 
-    def _next(self, prefix: str = "P") -> str:
+    def _free(self, cand: str) -> bool:
+        if cand in self.taken or cand.upper() in self._folded:
+            return False
+        self.taken.add(cand)
+        self._folded.add(cand.upper())
+        return True
+
+    def _next(self, dest: str = "") -> str:
+        if dest:  # the k-th via point on the way to `dest`
+            while True:
+                self.vias[dest] = self.vias.get(dest, 0) + 1
+                cand = f"{dest}_V{self.vias[dest]}"
+                if self._free(cand):
+                    return cand
         while True:
             self.k += 1
-            cand = f"{prefix}{self.k}"
-            if cand not in self.taken:
-                self.taken.add(cand)
+            cand = f"P{self.k}"
+            if self._free(cand):
                 return cand
 
     def position(self, w: Waypoint, step: str, *, joint_target: bool = False,
-                 preferred: str | None = None) -> Position:
+                 preferred: str | None = None, dest: str = "") -> Position:
         if id(w) in self.by_id and self.by_id[id(w)].joint_target == joint_target:
             return self.by_id[id(w)]
         if w.q is None:
             raise ExportError(f"position {w.name or '(unnamed)'} has no joint solution; the "
                               "configuration flags cannot be derived", step=step)
-        name = w.name or preferred or self._next()
+        name = w.name or preferred or self._next(dest)
         q = np.asarray(w.q, dtype=float)
         pos = Position(name, np.asarray(w.T_base_tool, dtype=float), q, None, joint_target)
         if name in self.by_name:

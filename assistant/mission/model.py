@@ -69,11 +69,17 @@ _N_POINTS = {SegmentKind.LINE: 2, SegmentKind.ARC: 3, SegmentKind.BEZIER: 4}
 class PathSegment:
     kind: SegmentKind
     points: tuple[Array, ...]
+    #: The taught location each point came from ("" for a typed point), parallel to
+    #: `points`: the program names its positions after them (a seam P7 -> P8 stays P7, P8).
+    names: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
         if len(self.points) != _N_POINTS[self.kind]:
             raise ValueError(f"a {self.kind.value} segment needs {_N_POINTS[self.kind]} points, "
                              f"got {len(self.points)}")
+        if self.names and len(self.names) != len(self.points):
+            raise ValueError(f"a {self.kind.value} segment has {len(self.points)} points but "
+                             f"{len(self.names)} point names")
         for p in self.points:
             if np.asarray(p).shape != (3,) or not np.all(np.isfinite(p)):
                 raise ValueError(f"{self.kind.value} segment: points must be finite (x, y, z)")
@@ -86,13 +92,27 @@ class PathSegment:
     def end(self) -> Array:
         return np.asarray(self.points[-1], dtype=float)
 
+    def point_name(self, i: int) -> str:
+        """Name of point `i` ("" when it was typed or the segment has no names)."""
+        return self.names[i] if self.names else ""
+
+    def reversed(self) -> PathSegment:
+        return PathSegment(self.kind, tuple(reversed(self.points)), tuple(reversed(self.names)))
+
     def to_json(self) -> dict:
-        return {"kind": self.kind.value, "points": [np.asarray(p).tolist() for p in self.points]}
+        out: dict = {"kind": self.kind.value,
+                     "points": [np.asarray(p).tolist() for p in self.points]}
+        if any(self.names):
+            out["names"] = list(self.names)
+        return out
 
     @staticmethod
     def from_json(d: dict) -> PathSegment:
+        names = d.get("names") or ()
+        if not isinstance(names, (list, tuple)) or not all(isinstance(n, str) for n in names):
+            raise ValueError("a path segment's names must be a list of strings")
         return PathSegment(SegmentKind(d["kind"]),
-                           tuple(np.asarray(p, dtype=float) for p in d["points"]))
+                           tuple(np.asarray(p, dtype=float) for p in d["points"]), tuple(names))
 
 
 @dataclass

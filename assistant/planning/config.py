@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from assistant.planning.joint_moves import JointMoveParams
 from assistant.trajectory.application import ApplicationParams
 from assistant.trajectory.assemble import AssemblyParams
 from assistant.trajectory.elastic_net import ElasticNetParams
@@ -84,6 +85,14 @@ class MissionPlannerConfig:
     #: iteration budgets (deterministic); this only stops a stuck computation, and reaching
     #: it fails the transfer with that reason - never a silently different trajectory.
     smoothing_safety_seconds: float = 120.0
+    #: Final plans write a transfer as the fewest straight joint moves along its smoothed
+    #: path (`planning.joint_moves`) when they verify and keep the clearance: a
+    #: programmer's MOV/PTP, fewer motions and a shorter cycle than lines and arcs.
+    transfer_joint_moves: bool = True
+    #: Clearance (m) a transfer's joint moves keep from every known obstacle; where the
+    #: smoothed path itself comes closer, the joint moves keep at least its clearance.
+    transfer_clearance: float = 0.010
+    joint_moves: JointMoveParams = field(default_factory=JointMoveParams)
 
 
 @dataclass(frozen=True)

@@ -41,6 +41,7 @@ from assistant.collision.reports import ObstacleView
 from assistant.mission.model import Location, Mission
 from assistant.mission.motion import Motion, MotionKind, Trajectory, Waypoint
 from assistant.planning.config import MissionPlannerConfig
+from assistant.planning.joint_moves import fewest_joint_moves
 from assistant.planning.known_world import KnownValidity, KnownVerifier, WorldAllowed
 from assistant.planning.locations import (
     LocationError,
@@ -74,7 +75,7 @@ from assistant.world.model import WorldModel
 
 Array = np.ndarray
 
-#: Location names used as program position names only if every dialect accepts them.
+#: A path named like "P7-P8" names its end points (when they were typed, not taught).
 _SAFE_NAME = re.compile(r"^[A-Za-z][A-Za-z0-9]{0,7}$")
 
 
@@ -169,6 +170,9 @@ class MissionPlanner:
         if asm is None:
             asm, notes = self._smooth(plan.joint_path, exploring, label,
                                       progress.sub(0.2, 1.0) if progress else None)
+            if asm.trajectory is not None and not exploring and \
+                    self.config.transfer_joint_moves:
+                asm, notes = self._as_joint_moves(asm, notes, label)
         t2 = time.perf_counter()
         if asm.trajectory is None:
             rep = PieceReport(label, "transfer", False,
@@ -180,6 +184,29 @@ class MissionPlanner:
         rep = PieceReport(label, "transfer", True, "", asm.report, t2 - t0, plan.searched,
                           tuple(notes))
         return TransferResult(True, piece, rep, plan, t1 - t0, t2 - t1)
+
+    def _as_joint_moves(self, asm: AssemblyResult, notes: list[str], label: str,
+                        ) -> tuple[AssemblyResult, list[str]]:
+        """The smoothed transfer as the fewest joint moves, if they verify with the
+        clearance and are fewer motions (`planning.joint_moves`); else as it was."""
+        assert asm.trajectory is not None
+        cfg = self.config
+        own = asm.report.min_clearance
+        floor = cfg.transfer_clearance if own is None else min(cfg.transfer_clearance, own)
+        q0 = np.asarray(asm.trajectory.start.q, dtype=float)
+        jm = fewest_joint_moves(self.robot, asm.trajectory, self.verifier,
+                                exempt=self.world.recorded_collisions_at(q0), floor=floor,
+                                target=cfg.transfer_clearance,
+                                step=cfg.assembly.step, speed=None,
+                                label=label, params=cfg.joint_moves)
+        moves = jm.result
+        if moves is None or moves.trajectory is None or \
+                len(moves.trajectory.motions) >= len(asm.trajectory.motions):
+            return asm, notes
+        n = len(moves.trajectory.motions)
+        return moves, notes + [f"{n} joint move{'s' if n > 1 else ''} instead of the smoothed "
+                               f"path's {len(asm.trajectory.motions)} motions, "
+                               f"{jm.clearance * 1000:.1f} mm from known obstacles"]
 
     def _smooth(self, joint_path: list[Array], exploring: bool, label: str,
                 progress: Progress | None) -> tuple[AssemblyResult, list[str]]:
@@ -387,9 +414,13 @@ class MissionPlanner:
                 pieces.append(tr.piece)
             if am is not None:
                 a, b = _end_names(am.name)
+                a, b = (b, a) if rev else (a, b)
+                # The operator's location names where the path was taught through them.
+                assert am.start is not None
                 pieces.append(PlanPiece(PieceKind.APPLICATION, am.name, am.to_trajectory(),
                                         am.verification, path_name=am.name,
-                                        start_name=b if rev else a, end_name=a if rev else b))
+                                        start_name=am.start.name or a,
+                                        end_name=am.motions[-1].target.name or b))
                 here_q, here_label = _end_q(am), am.name
             else:
                 here_q, here_label = q_to, to_label
@@ -398,9 +429,9 @@ class MissionPlanner:
                           "the goal and there are no application paths")
         # 6. one trajectory, verified as a whole
         progress.update(0.96, "verifying the whole trajectory")
-        start_name = s.name if _SAFE_NAME.match(s.name) else ""
-        end_name = goal.name if goal is not None and _SAFE_NAME.match(goal.name) else ""
-        traj = join_pieces(pieces, start_name, end_name)
+        # The operator's names as they are: each dialect makes them legal (and says so).
+        traj = join_pieces(pieces, mission.start.name if mission.start is not None else "",
+                           goal.name if goal is not None else "")
         checked = verify(self.robot, traj, self.verifier,
                          clearance_step=self.config.assembly.clearance_step)
         order_names = tuple(mission.paths[i].name + (" (reversed)" if r else "")

@@ -260,7 +260,8 @@ class TeachActions:
             if any(p.name == name for p in self.mission.paths):
                 raise SessionError(f"a path named {name!r} exists already")
             pts, R = self._path_points(points)
-            segs = _segments(SegmentKind(kind), pts)
+            names = [p if isinstance(p, str) else "" for p in points]
+            segs = _segments(SegmentKind(kind), pts, names)
             R_tool = np.asarray(R_world_tool, float) if R_world_tool is not None else (
                 R if R is not None else _tool_frame_along(np.array([0.0, 0.0, -1.0])))
             path = ApplicationPath(name, segs, R_tool, list(before), list(after), float(speed),

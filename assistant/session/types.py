@@ -175,19 +175,27 @@ def _tool_frame_along(approach: Array) -> Array:
     return np.column_stack([x, y, z])
 
 
-def _segments(kind: SegmentKind, pts: list[Array]) -> list[PathSegment]:
+def _segments(kind: SegmentKind, pts: list[Array], names: list[str] | None = None,
+              ) -> list[PathSegment]:
+    """Segments through the points; `names` (parallel, "" for a typed point) name them."""
+    nm = list(names) if names and any(names) else []
+
+    def seg(idx: range | list[int]) -> PathSegment:
+        return PathSegment(kind, tuple(pts[i] for i in idx),
+                           tuple(nm[i] for i in idx) if nm else ())
+
     if kind == SegmentKind.LINE:
         if len(pts) < 2:
             raise SessionError("a line needs 2 points")
-        return [PathSegment(kind, (pts[i], pts[i + 1])) for i in range(len(pts) - 1)]
+        return [seg([i, i + 1]) for i in range(len(pts) - 1)]
     if kind == SegmentKind.ARC:
         if len(pts) != 3:
             raise SessionError("an arc needs 3 points: start, via, end")
-        return [PathSegment(kind, tuple(pts))]
+        return [seg(range(3))]
     if len(pts) < 4 or (len(pts) - 1) % 3:
         raise SessionError("a Bezier chain needs 1 + 3k points (start, then control, control, "
                            "end for each segment)")
-    return [PathSegment(kind, tuple(pts[i:i + 4])) for i in range(0, len(pts) - 1, 3)]
+    return [seg(range(i, i + 4)) for i in range(0, len(pts) - 1, 3)]
 
 
 # ---------------------------------------------------------------------- sample robots

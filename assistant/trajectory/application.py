@@ -21,7 +21,7 @@ from enum import Enum
 
 import numpy as np
 
-from assistant.mission.model import ApplicationPath, PathSegment, SegmentKind
+from assistant.mission.model import ApplicationPath, SegmentKind
 from assistant.mission.motion import Motion, MotionKind, ToolAction, Trajectory, Waypoint
 from assistant.robots.model import Robot
 from assistant.trajectory.assemble import PathVerifier, TrajectoryReport, verify
@@ -106,6 +106,8 @@ class _Piece:
     #: Exact unit tangents at the start and end (Bezier pieces: from the control points).
     tangent_in: Array | None = None
     tangent_out: Array | None = None
+    #: The last motion of its segment: its target is the segment's end point.
+    ends_segment: bool = True
 
 
 def application_motions(
@@ -145,7 +147,8 @@ def application_motions(
         return ApplicationMotions(path.name, False, None, failure=fail,
                                   actions_before=tuple(path.actions_before))
     q = np.asarray(res.best(q_seed), dtype=float)
-    start = Waypoint(robot.fk(q), q, f"{path.name} start")
+    # Points taught as named locations keep their names in the program (P7 stays P7).
+    start = Waypoint(robot.fk(q), q, path.segments[0].point_name(0))
     motions: list[Motion] = []
     for piece in pieces:
         R = np.repeat(R_base_tool[None], len(piece.points), axis=0)
@@ -160,10 +163,12 @@ def application_motions(
                                       tuple(path.actions_before), fail, correction, chord_err)
         Q = follow.joints
         Q[0] = q
-        target = Waypoint(robot.fk(Q[-1]), Q[-1])
+        seg = path.segments[piece.segment]
+        target = Waypoint(robot.fk(Q[-1]), Q[-1], seg.point_name(-1) if piece.ends_segment
+                          else "")
         via = None
         if piece.via_index is not None:
-            via = Waypoint(robot.fk(Q[piece.via_index]), Q[piece.via_index])
+            via = Waypoint(robot.fk(Q[piece.via_index]), Q[piece.via_index], seg.point_name(1))
         through = tuple(Waypoint(robot.fk(Q[k]), Q[k]) for k in piece.through_indices)
         motions.append(Motion(piece.kind, target, via=via, through=through, joint_path=Q,
                               label=path.name, speed=path.speed))
@@ -214,8 +219,10 @@ def _pieces(path: ApplicationPath, T_bw: Array, params: ApplicationParams,
                                      tangent_in=_end_tangent(ctrl),
                                      tangent_out=_end_tangent(ctrl[::-1], outgoing=True)))
             else:
-                for a, b in zip(samp.points[:-1], samp.points[1:], strict=True):
-                    pieces.append(_Piece(MotionKind.LINEAR, si, _line_points(a, b, params.step)))
+                chords = list(zip(samp.points[:-1], samp.points[1:], strict=True))
+                for k, (a, b) in enumerate(chords):
+                    pieces.append(_Piece(MotionKind.LINEAR, si, _line_points(a, b, params.step),
+                                         ends_segment=k == len(chords) - 1))
     return pieces, worst
 
 
@@ -267,7 +274,4 @@ def reversed_path(path: ApplicationPath) -> ApplicationPath:
     """The same path run backwards (for mission ordering of reversible paths).
 
     Tool actions keep their meaning (e.g. pen down before, pen up after)."""
-    segs = []
-    for seg in reversed(path.segments):
-        segs.append(PathSegment(seg.kind, tuple(reversed(seg.points))))
-    return replace(path, segments=segs)
+    return replace(path, segments=[seg.reversed() for seg in reversed(path.segments)])

@@ -1,0 +1,250 @@
+"""A transfer as a programmer writes it: the fewest straight joint moves (MOV / PTP / MoveJ /
+movej) through postures of the verified smoothed path, each move checked exactly and kept at
+least as far from every known obstacle as the clearance asks.
+
+The elastic net and the line/arc fit give a smooth TCP path, but a transfer through free
+space needs no Cartesian path at all: a programmer writes one joint move, or two around an
+obstacle, and the controller runs them faster than a chain of lines and arcs (no
+Cartesian speed limit, no exact stops between primitives). The vias are taken from the
+smoothed path itself (it has the clearance), the farthest one a straight joint move still
+reaches validly first (greedy, as `planning.shortcut` does for the roadmap's path); every
+move must pass the exact continuous FCL check, the recorded collision postures and the
+clearance floor; the result is verified as a whole like any other trajectory.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from assistant.mission.motion import Motion, MotionKind, Trajectory, Waypoint
+from assistant.planning.known_world import KnownVerifier
+from assistant.robots.model import Robot
+from assistant.trajectory.assemble import AssemblyResult, joint_interpolation, verify
+
+Array = np.ndarray
+
+
+@dataclass(frozen=True)
+class JointMoveParams:
+    #: Postures of the smoothed path offered as vias (evenly spaced by arm travel).
+    candidates: int = 24
+    #: Most joint moves a transfer may become; more and the smoothed path is kept.
+    max_moves: int = 3
+    #: Arm travel (m) between clearance samples when screening a candidate move (the
+    #: chosen moves are verified at 10 mm).
+    clearance_step: float = 0.02
+    #: Moving a via off the smoothed path to gain clearance: rounds of `samples` random
+    #: displacements at each of `scales` (m of arm travel), best kept (seeded: the same
+    #: plan for the same input).
+    rounds: int = 3
+    samples: int = 12
+    scales: tuple[float, ...] = (0.06, 0.03, 0.015)
+    seed: int = 35
+    #: TCP lifts (m, base z) of path postures also offered as the single via.
+    lifts: tuple[float, ...] = (0.05, 0.1, 0.2)
+
+
+@dataclass(frozen=True)
+class JointMoveResult:
+    """The joint-move form of a transfer (None if none verified) and what it cost."""
+
+    result: AssemblyResult | None
+    checks: int
+    reason: str = ""
+    clearance: float = 0.0
+
+
+class _Moves:
+    """Straight joint moves scored by their clearance (-1: invalid), counted and cached."""
+
+    def __init__(self, verifier: KnownVerifier, exempt: frozenset[int], step: float):
+        self.verifier, self.exempt, self.step = verifier, exempt, step
+        self.checks = 0
+
+    def clearance(self, a: Array, b: Array) -> float:
+        self.checks += 1
+        if not self.verifier.check_motion(a, b, self.exempt).valid:
+            return -1.0
+        c = self.verifier.min_clearance_along([a, b], max_step=self.step)
+        return float(c) if np.isfinite(c) else 1.0  # no obstacle known: any move is clear
+
+    def chain(self, postures: list[Array]) -> float:
+        return min(self.clearance(a, b) for a, b in zip(postures[:-1], postures[1:],
+                                                        strict=True))
+
+
+def fewest_joint_moves(robot: Robot, traj: Trajectory, verifier: KnownVerifier, *,
+                       exempt: frozenset[int], floor: float, target: float, step: float,
+                       speed: float | None, label: str, params: JointMoveParams | None = None,
+                       ) -> JointMoveResult:
+    """The fewest verified joint moves along `traj`'s dense path (module docstring).
+
+    Args:
+        traj: the verified smoothed transfer.
+        verifier: exact checks against CAD and the recorded collision postures.
+        exempt: recorded collisions the transfer starts in (it must be allowed to leave).
+        floor: smallest clearance (m) every move must keep from the known obstacles.
+        target: clearance (m) the vias are moved off the path for (>= floor).
+        step: arm travel (m) between the dense samples of each move.
+        speed: joint speed (fraction of the maximum) of the moves; None: the program's default.
+    """
+    p = params or JointMoveParams()
+    dense = traj.dense_joint_path()
+    if len(dense) < 2:
+        return JointMoveResult(None, 0, "nothing to move")
+    cand = [dense[k] for k in _candidates(robot, dense, p.candidates)]
+    moves = _Moves(verifier, exempt, p.clearance_step)
+    rng = np.random.default_rng(p.seed)
+    a, b = cand[0], cand[-1]
+    best: list[Array] | None = None
+    best_c = moves.clearance(a, b)
+    if best_c >= floor:
+        best = [a, b]
+    if best is None and p.max_moves >= 2:
+        # one via: the smoothed path's posture best seen from both ends, moved off the
+        # path if it is short of the target
+        vias = cand[1:-1] + _lifted(robot, cand[1:-1:2], p.lifts)
+        scores = [min(moves.clearance(a, v), moves.clearance(v, b)) for v in vias]
+        if scores:
+            # the quickest via among those keeping the target, else the clearest
+            vmax = np.maximum(robot.limits.velocity, 1e-6)
+            cost = [_seconds(a, v, vmax) + _seconds(v, b, vmax) for v in vias]
+            ok = [i for i, c in enumerate(scores) if c >= target]
+            k = min(ok, key=lambda i: cost[i]) if ok else int(np.argmax(scores))
+            chain, c = [a, vias[k], b], scores[k]
+            if c < target and c >= 0.0:
+                chain, c = _push_vias(robot, chain, moves, rng, p, target)
+            if c >= floor:
+                best, best_c = chain, c
+    if best is None and p.max_moves >= 3:
+        for demand in (target, floor, 0.0):
+            chain = _greedy(cand, moves, demand, p.max_moves)
+            if chain is None:
+                continue
+            c = moves.chain(chain)
+            if c < target:
+                chain, c = _push_vias(robot, chain, moves, rng, p, target)
+            if c >= floor:
+                best, best_c = chain, c
+                break
+    if best is None:
+        return JointMoveResult(None, moves.checks, f"no chain of at most {p.max_moves} joint "
+                               f"moves keeps {floor * 1000:.1f} mm")
+    out = _joint_trajectory(robot, traj, best, step, speed, label)
+    checked = verify(robot, out, verifier, clearance_step=step_verify(p))
+    c = checked.report.min_clearance
+    if not checked.ok or (c is not None and c < floor):
+        return JointMoveResult(None, moves.checks, checked.report.reason or
+                               f"clearance {c * 1000:.1f} mm below {floor * 1000:.1f} mm")
+    return JointMoveResult(checked, moves.checks, clearance=best_c if c is None else c)
+
+
+def step_verify(p: JointMoveParams) -> float:
+    """Clearance step of the final verification (finer than the search's screening)."""
+    return min(0.01, p.clearance_step)
+
+
+def _greedy(cand: list[Array], moves: _Moves, demand: float, max_moves: int,
+            ) -> list[Array] | None:
+    """From each kept posture the farthest later candidate one move reaches with `demand`
+    clearance; None past `max_moves` moves or when no move leaves a posture."""
+    kept = [0]
+    while kept[-1] < len(cand) - 1:
+        if len(kept) > max_moves:
+            return None
+        i = kept[-1]
+        j = next((j for j in range(len(cand) - 1, i, -1)
+                  if moves.clearance(cand[i], cand[j]) >= demand), None)
+        if j is None:
+            return None
+        kept.append(j)
+    return [cand[k] for k in kept]
+
+
+def _push_vias(robot: Robot, chain: list[Array], moves: _Moves, rng: np.random.Generator,
+               p: JointMoveParams, target: float) -> tuple[list[Array], float]:
+    """Random local search moving each via (ends fixed) until the chain keeps `target`."""
+    chain = [np.asarray(q, dtype=float) for q in chain]
+    r = np.maximum(robot.arm_radii(), 1e-3)
+    n = len(r)
+    lo, hi = robot.limits.lower, robot.limits.upper
+    c = moves.chain(chain)
+    for _ in range(p.rounds):
+        if c >= target:
+            break
+        for k in range(1, len(chain) - 1):
+            a, b = chain[k - 1], chain[k + 1]
+
+            def score(v: Array, a: Array = a, b: Array = b) -> float:
+                return min(moves.clearance(a, v), moves.clearance(v, b))
+
+            v, sv = chain[k], score(chain[k])
+            for scale in p.scales:
+                for _ in range(p.samples):
+                    if sv >= target:
+                        break
+                    # a displacement of about `scale` metres of arm travel
+                    w = np.clip(v + rng.standard_normal(n) * scale / (n * r), lo, hi)
+                    sw = score(w)
+                    if sw > sv:
+                        v, sv = w, sw
+            chain[k] = v
+        c = moves.chain(chain)
+    return chain, c
+
+
+def _seconds(a: Array, b: Array, vmax: Array) -> float:
+    """Duration of a synchronised joint move at full speed (the slowest joint decides): the
+    cycle-time order of candidate vias, without accelerations."""
+    return float(np.max(np.abs(b - a) / vmax))
+
+
+def _lifted(robot: Robot, postures: list[Array], lifts: tuple[float, ...]) -> list[Array]:
+    """The postures with the TCP raised by each lift (base z, same orientation; IK seeded
+    by the posture): the via a programmer puts above what is in the way."""
+    out = []
+    for q in postures:
+        T = robot.fk(q)
+        for dz in lifts:
+            U = T.copy()
+            U[2, 3] += dz
+            res = robot.ik(U, q)
+            if res.ok:
+                out.append(np.asarray(res.best(q), dtype=float))
+    return out
+
+
+def _candidates(robot: Robot, dense: Array, n: int) -> list[int]:
+    """Indices into `dense`, first and last included, evenly spaced by arm travel."""
+    travel = np.r_[0.0, np.cumsum(np.abs(np.diff(dense, axis=0)) @ robot.arm_radii())]
+    if travel[-1] <= 0.0:
+        return [0, len(dense) - 1]
+    marks = np.linspace(0.0, travel[-1], max(2, n))
+    idx = np.unique(np.searchsorted(travel, marks).clip(0, len(dense) - 1))
+    out = [int(k) for k in idx]
+    if out[0] != 0:
+        out.insert(0, 0)
+    if out[-1] != len(dense) - 1:
+        out.append(len(dense) - 1)
+    return out
+
+
+def _joint_trajectory(robot: Robot, traj: Trajectory, postures: list[Array], step: float,
+                      speed: float | None, label: str) -> Trajectory:
+    """JOINT motions through `postures`; the last keeps the transfer's own target (name,
+    exact joints) and tool actions."""
+    last = traj.motions[-1]
+    motions = []
+    prev = np.asarray(postures[0], dtype=float)
+    for k, q in enumerate(postures[1:], start=1):
+        final = k == len(postures) - 1
+        q = np.asarray(last.target.q if final else q, dtype=float)
+        target = last.target if final else Waypoint(robot.fk(q), q)
+        motions.append(Motion(MotionKind.JOINT, target,
+                              joint_path=joint_interpolation(robot, prev, q, step), label=label,
+                              speed=speed,
+                              actions_after=last.actions_after if final else ()))
+        prev = q
+    return Trajectory(traj.start, motions, traj.actions_at_start)
