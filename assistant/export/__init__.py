@@ -2,8 +2,9 @@
 
 Owns the neutral program (`program`), the dialects (`melfa`, `krl`, `rapid`, `urscript`,
 one module each behind the `Dialect` protocol), the controller rules (`rules`), arm
-configuration flags (`configuration`), the round-trip proof (`simulate`, `roundtrip`),
-downloads (`download`); it samples free-shape Bezier paths with `trajectory.bezier`.
+configuration flags (`configuration`), position names each controller accepts (`names`),
+the round-trip proof (`simulate`, `roundtrip`), the predicted cycle time (`cycle_time`, with
+ruckig), downloads (`download`); it samples free-shape Bezier paths with `trajectory.bezier`.
 May import mission, robots, trajectory (geometry only) and transforms; never the planner,
 `web` or `viser`: it consumes a `Trajectory`.
 Units inside are metres and radians; millimetres and degrees appear only in dialect text.
@@ -11,6 +12,12 @@ Units inside are metres and radians; millimetres and degrees appear only in dial
 
 from assistant.export.checks import check_program
 from assistant.export.configuration import ArmConfig, arm_configuration
+from assistant.export.cycle_time import (
+    CycleTime,
+    CycleTimeLimits,
+    StepTime,
+    predict_cycle_time,
+)
 from assistant.export.dialect import Dialect, ProgramFile
 from assistant.export.download import DownloadFile, ExportResult, export_files
 from assistant.export.errors import ExportError
@@ -44,7 +51,8 @@ from assistant.trajectory.bezier import (
 )
 
 __all__ = [
-    "ArmConfig", "BezierChain", "BezierSampling", "Comment", "CubicBezier", "DIALECT_NAMES",
+    "ArmConfig", "BezierChain", "BezierSampling", "Comment", "CubicBezier", "CycleTime",
+    "CycleTimeLimits", "DIALECT_NAMES", "StepTime", "predict_cycle_time",
     "Dialect", "DownloadFile", "ExportError", "ExportResult", "Frame", "Gripper",
     "KrlDialect", "MelfaDialect", "Move", "MoveKind", "NeutralProgram", "Position",
     "ProgramDefaults", "ProgramFile", "RapidDialect", "RoundTripReport", "SetOutput",

@@ -14,13 +14,16 @@ import textwrap
 import unicodedata
 from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, replace
-from typing import Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 
 from assistant.export.errors import ExportError
 from assistant.export.program import Instruction, Move, MoveKind, NeutralProgram, Position
 from assistant.export.rules import DialectRules
+
+if TYPE_CHECKING:  # the prediction imports the simulation, which imports this module
+    from assistant.export.cycle_time import CycleTime
 from assistant.robots.model import Robot
 from assistant.transforms import inv_T
 
@@ -56,8 +59,10 @@ class Dialect(Protocol):
     #: Why more axes than the largest count are not written ("" when there is nothing to say).
     axes_beyond: str
 
-    def write(self, program: NeutralProgram, robot: Robot) -> list[ProgramFile]:
-        """Controller files for the program; `ExportError` for anything it would reject."""
+    def write(self, program: NeutralProgram, robot: Robot, *,
+              cycle_time: CycleTime | None = None) -> list[ProgramFile]:
+        """Controller files for the program (the predicted `cycle_time` in the header);
+        `ExportError` for anything it would reject."""
         ...
 
     def read(self, files: Sequence[ProgramFile], robot: Robot) -> NeutralProgram:

@@ -10,6 +10,7 @@ program gives the same bytes.
 
 from __future__ import annotations
 
+import inspect
 import io
 import zipfile
 from dataclasses import dataclass, field
@@ -17,8 +18,10 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from assistant.export.checks import check_program
+from assistant.export.cycle_time import CycleTime, CycleTimeLimits, predict_cycle_time
 from assistant.export.dialect import Dialect, ProgramFile, check_axis_count
 from assistant.export.errors import ExportError
+from assistant.export.names import legal_for
 from assistant.export.program import NeutralProgram
 from assistant.export.registry import get_dialect
 from assistant.export.simulate import target_pose
@@ -46,6 +49,10 @@ class ExportResult:
     zip: DownloadFile | None
     primitives: int
     primitive_counts: dict[str, int] = field(default_factory=dict)
+    #: Predicted time of the program as written (a prediction, not measured).
+    cycle_time: CycleTime | None = None
+    #: Positions renamed to satisfy the controller's identifier rules, one line each.
+    renames: tuple[str, ...] = ()
 
     @property
     def download(self) -> DownloadFile:
@@ -54,7 +61,8 @@ class ExportResult:
 
 
 def export_files(program: NeutralProgram, dialect: str | Dialect, robot: Robot, *,
-                 check: bool = True, verify: bool = True) -> ExportResult:
+                 check: bool = True, verify: bool = True,
+                 cycle_limits: CycleTimeLimits | None = None) -> ExportResult:
     """Program files ready for download.
 
     Args:
@@ -63,6 +71,8 @@ def export_files(program: NeutralProgram, dialect: str | Dialect, robot: Robot, 
         robot: the robot the program was planned for.
         check: run `check_program` (limits, reach, drivable Cartesian paths) first.
         verify: read the written files back and compare positions and moves.
+        cycle_limits: acceleration/jerk limits and fixed times of the cycle time prediction
+            (`predict_cycle_time`; written into the program header, kept in the result).
     Raises:
         ExportError naming the step for anything a controller would reject or run
         differently from the plan; first of all when the dialect's controller does not run
@@ -70,16 +80,31 @@ def export_files(program: NeutralProgram, dialect: str | Dialect, robot: Robot, 
     """
     d = get_dialect(dialect)
     check_axis_count(d, robot)
-    if check:
-        check_program(program, robot)
-    files = d.write(program, robot)
+    program, renames = legal_for(program, d)
+    sim = check_program(program, robot) if check else None
+    lowered = d.lower(program)
+    # The check's simulation is the lowered program's when lowering changed nothing.
+    cycle = predict_cycle_time(lowered, robot, cycle_limits,
+                               simulation=sim if lowered is program else None)
+    files = _write(d, program, robot, cycle)
     if verify:
         _verify(d, program, files, robot)
     out = tuple(DownloadFile(f.name, f.data, _mime(f)) for f in files)
     zipped = _zip(program.name, d, files) if len(files) > 1 else None
-    lowered = d.lower(program)
     return ExportResult(d.name, program.name, out, zipped, lowered.primitive_count(),
-                        lowered.primitive_counts())
+                        lowered.primitive_counts(), cycle, renames)
+
+
+def _write(d: Dialect, program: NeutralProgram, robot: Robot,
+           cycle: CycleTime) -> list[ProgramFile]:
+    """The dialect's files with the predicted cycle time in their header.
+
+    The built-in dialects take the prediction made here (the header and the result agree);
+    a dialect written to the plain `Dialect.write(program, robot)` predicts its own.
+    """
+    if "cycle_time" in inspect.signature(d.write).parameters:
+        return d.write(program, robot, cycle_time=cycle)
+    return d.write(program, robot)
 
 
 def _mime(f: ProgramFile) -> str:

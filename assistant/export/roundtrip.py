@@ -15,6 +15,7 @@ import numpy as np
 
 from assistant.export.dialect import Dialect, ProgramFile, check_axis_count
 from assistant.export.errors import ExportError
+from assistant.export.names import legal_for
 from assistant.export.program import Comment, Move, NeutralProgram
 from assistant.export.registry import get_dialect
 from assistant.export.simulate import simulate
@@ -45,6 +46,7 @@ def round_trip(program: NeutralProgram, dialect: str | Dialect, robot: Robot, *,
     the dialect's controller does not run a robot with that many axes."""
     d = get_dialect(dialect)
     check_axis_count(d, robot)
+    program, _ = legal_for(program, d)  # the names the files carry (`export.names`)
     reference = d.lower(program)
     files = d.write(program, robot)
     back = d.read(files, robot)

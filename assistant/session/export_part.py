@@ -45,6 +45,8 @@ class ExportActions:
             result = export_files(program, d, self.robot)
             self.export_dialect = d.name
             self.program = result
+        for line in result.renames:  # said once, where the operator looks for the name
+            self.bus.emit(Notice(f"Renamed for the controller: {line}"))
         self.bus.emit(ProgramReady(d.name, tuple(f.name for f in result.files)))
         return result
 

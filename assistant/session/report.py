@@ -3,6 +3,10 @@
 `collision_free` is checked against *every* obstacle - the known CAD and the hidden ones the
 simulated robot owned - with the exact continuous FCL check of the final dense joint path,
 so a report cannot claim a program that would hit the thesis' O3.
+
+`predicted_cycle_time_s` and `cycle_time` (per move, wait and gripper action) come from the
+exported program (`assistant.export.cycle_time`): a prediction under the robot's joint
+limits, not a time measured on a controller.
 """
 
 from __future__ import annotations
@@ -35,6 +39,8 @@ def session_report(session: Session, *, wall_time_s: float, error: str | None = 
         "program_files": program_files or [],
         "dialect": session.export_dialect if session.program is not None else None,
         "primitives": {},
+        "predicted_cycle_time_s": None,
+        "cycle_time": None,
         "tcp_path_length_m": None,
         "joint_path_length_rad": None,
         "min_clearance_m": None,
@@ -47,6 +53,14 @@ def session_report(session: Session, *, wall_time_s: float, error: str | None = 
         "operator_actions": session.counters.operator_actions,
         "workflow_step": session.machine.state,
     }
+    if session.program is not None:
+        # as written: the move to the start included, what the operator counts in the file
+        rep["program_motions"] = session.program.primitives
+        rep["renames"] = list(session.program.renames)
+    cycle = getattr(session.program, "cycle_time", None)
+    if cycle is not None:
+        rep["predicted_cycle_time_s"] = round(cycle.total_s, 3)
+        rep["cycle_time"] = {**cycle.to_json(), "prediction_ms": round(cycle.compute_s * 1e3, 1)}
     if traj is None:
         return rep
     robot = session.robot

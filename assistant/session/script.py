@@ -366,3 +366,29 @@ def run_action(session: Session, action: ScriptAction, base_dir: Path, script_pa
         raise
     except Exception as exc:
         raise ScriptError(f"{script_path}:{action.line}: {action.verb} failed: {exc}") from exc
+
+
+def run_script(script: Script, folder: Path, *, stop_before: str | None = None,
+               ) -> tuple[Session, str | None]:
+    """A session built as the script says (its sample cell or empty) with its actions run in
+    order, and the first error as one line (None: all ran). `stop_before` ends the run at the
+    first action with that verb (e.g. "export", to export in another dialect).
+
+    Raises ValueError/OSError when the script's cell cannot be loaded."""
+    if script.cell:
+        base = script.path.parent
+        cell = script.cell if not (base / script.cell).is_dir() else base / script.cell
+        session = Session.from_sample(cell, folder, with_objects=script.with_objects,
+                                      with_mission=script.with_mission)
+    else:
+        session = Session(folder)
+    for action in script.actions:
+        if action.verb == stop_before:
+            break
+        try:
+            run_action(session, action, script.path.parent, script.path)
+        except ScriptError as exc:
+            return session, str(exc)
+        except Exception as exc:  # noqa: BLE001 - reported in one line, never a traceback
+            return session, f"{script.path}:{action.line}: {action.verb} failed: {exc}"
+    return session, None

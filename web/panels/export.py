@@ -29,6 +29,17 @@ def preview_markdown(result: Any) -> str:
     return "\n\n".join(parts)
 
 
+def cycle_markdown(result: Any) -> str:
+    """The predicted total and a table of seconds per mission step (as the operator named it)."""
+    ct = getattr(result, "cycle_time", None)
+    if ct is None:
+        return "*No cycle time predicted for this program.*"
+    rows = [f"| {(step or '-').replace('|', '/')} | {sec:.2f} |" for step, sec in ct.by_step()]
+    return "\n".join([f"Predicted cycle time **{ct.total_s:.1f} s**: a prediction from the "
+                      "robot's joint speed/acceleration limits and the programmed speeds, not "
+                      "measured on a controller.", "", "| step | s |", "|---|---:|", *rows])
+
+
 class ExportPanel(Panel):
     title = "Export program"
     steps = ("export",)
@@ -42,6 +53,8 @@ class ExportPanel(Panel):
                                          "RAPID wobj, URScript pose_trans, ...)")
         self.write = g.add_button("Write program", icon=viser.Icon.FILE_CODE)
         self.summary = g.add_markdown("")
+        with g.add_folder("Cycle time (predicted)"):
+            self.cycle = g.add_markdown("")
         self.download = g.add_button("Download", icon=viser.Icon.DOWNLOAD, disabled=True,
                                      color="green")
         with g.add_folder("Program preview"):
@@ -81,18 +94,23 @@ class ExportPanel(Panel):
             self.summary.content = (f"*No robot language here writes a {s.robot.dof}-axis "
                                     "arm; the plan is verified and saved with the session.*")
             self.preview.content = ""
+            self.cycle.content = ""
             return
         self.download.disabled = result is None
         if result is None:
             self.summary.content = "*No program yet.*" if s.trajectory is not None else \
                 "*Plan the mission first (step 6).*"
             self.preview.content = "*Write the program to see it here.*"
+            self.cycle.content = ""
             return
         counts = ", ".join(f"{n} {k}" for k, n in sorted(result.primitive_counts.items()))
         name = result.download.name
+        ct = getattr(result, "cycle_time", None)
+        cycle = "" if ct is None else f" Predicted cycle time **{ct.total_s:.1f} s**."
         self.summary.content = (f"**{DIALECT_LABELS.get(result.dialect, result.dialect)}**, "
-                                f"{result.primitives} motion primitives ({counts}). "
+                                f"{result.primitives} motion primitives ({counts}).{cycle} "
                                 f"Download gives **{name}**.")
+        self.cycle.content = cycle_markdown(result)
         self.preview.content = preview_markdown(result)
         label = DIALECT_LABELS.get(result.dialect)
         if label is not None and self.dialect.value != label:
