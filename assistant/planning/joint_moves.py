@@ -14,7 +14,7 @@ clearance floor; the result is verified as a whole like any other trajectory.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -42,6 +42,8 @@ class JointMoveParams:
     samples: int = 12
     scales: tuple[float, ...] = (0.06, 0.03, 0.015)
     seed: int = 35
+    #: Largest blend radius (m) at a via (never more than half the verified clearance).
+    blend: float = 0.01
     #: TCP lifts (m, base z) of path postures also offered as the single via.
     lifts: tuple[float, ...] = (0.05, 0.1, 0.2)
 
@@ -132,13 +134,20 @@ def fewest_joint_moves(robot: Robot, traj: Trajectory, verifier: KnownVerifier, 
     if best is None:
         return JointMoveResult(None, moves.checks, f"no chain of at most {p.max_moves} joint "
                                f"moves keeps {floor * 1000:.1f} mm")
-    out = _joint_trajectory(robot, traj, best, step, speed, label)
+    out = _joint_trajectory(robot, traj, best, step, speed, label, 0.0)
     checked = verify(robot, out, verifier, clearance_step=step_verify(p))
     c = checked.report.min_clearance
     if not checked.ok or (c is not None and c < floor):
         return JointMoveResult(None, moves.checks, checked.report.reason or
                                f"clearance {c * 1000:.1f} mm below {floor * 1000:.1f} mm")
-    return JointMoveResult(checked, moves.checks, clearance=best_c if c is None else c)
+    c = best_c if c is None else c
+    # Vias need no exact stop: the controller rounds them within a radius of at most half
+    # the verified clearance, so the rounded path keeps clear of what the check saw.
+    blend = min(p.blend, 0.5 * c)
+    if blend > 0.0 and len(best) > 2:
+        out = _joint_trajectory(robot, traj, best, step, speed, label, blend)
+        checked = replace(checked, trajectory=out)
+    return JointMoveResult(checked, moves.checks, clearance=c)
 
 
 def step_verify(p: JointMoveParams) -> float:
@@ -232,9 +241,9 @@ def _candidates(robot: Robot, dense: Array, n: int) -> list[int]:
 
 
 def _joint_trajectory(robot: Robot, traj: Trajectory, postures: list[Array], step: float,
-                      speed: float | None, label: str) -> Trajectory:
-    """JOINT motions through `postures`; the last keeps the transfer's own target (name,
-    exact joints) and tool actions."""
+                      speed: float | None, label: str, blend: float) -> Trajectory:
+    """JOINT motions through `postures`, blended by `blend` (m) at the vias; the last keeps
+    the transfer's own target (name, exact joints), blend and tool actions."""
     last = traj.motions[-1]
     motions = []
     prev = np.asarray(postures[0], dtype=float)
@@ -244,7 +253,7 @@ def _joint_trajectory(robot: Robot, traj: Trajectory, postures: list[Array], ste
         target = last.target if final else Waypoint(robot.fk(q), q)
         motions.append(Motion(MotionKind.JOINT, target,
                               joint_path=joint_interpolation(robot, prev, q, step), label=label,
-                              speed=speed,
+                              speed=speed, blend_radius=last.blend_radius if final else blend,
                               actions_after=last.actions_after if final else ()))
         prev = q
     return Trajectory(traj.start, motions, traj.actions_at_start)
