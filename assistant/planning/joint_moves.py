@@ -77,6 +77,49 @@ class _Moves:
                                                         strict=True))
 
 
+def prefer_joint_moves(robot: Robot, asm: AssemblyResult, notes: list[str],
+                       verifier: KnownVerifier, *, exempt: frozenset[int], clearance: float,
+                       step: float, label: str, params: JointMoveParams | None = None,
+                       ) -> tuple[AssemblyResult, list[str]]:
+    """The verified smoothed transfer `asm`, or its fewest joint moves if they keep
+    `clearance` (or the smoothed path's own, if that is less) and the program runs quicker
+    with them (the predicted cycle time, `export.cycle_time`; fewer motions on a tie)."""
+    assert asm.trajectory is not None
+    own = asm.report.min_clearance
+    floor = clearance if own is None else min(clearance, own)
+    jm = fewest_joint_moves(robot, asm.trajectory, verifier, exempt=exempt, floor=floor,
+                            target=clearance, step=step, speed=None, label=label,
+                            params=params)
+    moves = jm.result
+    if moves is None or moves.trajectory is None:
+        return asm, notes
+    t_smooth = _cycle_seconds(robot, asm.trajectory)
+    t_joint = _cycle_seconds(robot, moves.trajectory)
+    n, n0 = len(moves.trajectory.motions), len(asm.trajectory.motions)
+    if t_joint is not None and t_smooth is not None:
+        better = t_joint < t_smooth - 1e-3 or (abs(t_joint - t_smooth) <= 1e-3 and n < n0)
+    else:
+        better = n < n0
+    if not better:
+        return asm, notes + [f"{n} joint moves would not be quicker than the smoothed path"]
+    when = "" if t_joint is None or t_smooth is None else (
+        f", predicted {t_joint:.2f} s instead of {t_smooth:.2f} s")
+    return moves, notes + [f"{n} joint move{'s' if n > 1 else ''} instead of the smoothed "
+                           f"path's {n0} motions, {jm.clearance * 1000:.1f} mm from known "
+                           f"obstacles{when}"]
+
+
+def _cycle_seconds(robot: Robot, traj: Trajectory) -> float | None:
+    """Predicted time of a piece as a program would run it (None: not writable)."""
+    from assistant.export import ExportError, predict_cycle_time, program_from_trajectory
+
+    try:
+        prog = program_from_trajectory(traj, robot, name="PIECE", move_to_start=False)
+        return predict_cycle_time(prog, robot).total_s
+    except (ExportError, ValueError):
+        return None
+
+
 def fewest_joint_moves(robot: Robot, traj: Trajectory, verifier: KnownVerifier, *,
                        exempt: frozenset[int], floor: float, target: float, step: float,
                        speed: float | None, label: str, params: JointMoveParams | None = None,

@@ -20,7 +20,9 @@ Steps, each ending with a reason that names the failing piece:
    and FCL + recorded collision postures as the particles' validity; low shrink while
    exploring, high for the final plan. A smoothed transfer that fails verification falls
    back to the exploring net, then to joint moves along the roadmap path, for the final
-   plan shortcut where a straight joint move is valid (verified too).
+   plan shortcut where a straight joint move is valid (verified too). A final plan's
+   smoothed transfer is then written as the fewest joint moves when they verify, keep the
+   clearance and run quicker (`joint_moves`: a programmer's MOV/PTP).
 5. All pieces joined into one trajectory (labels = mission steps, gripper actions where the
    paths want them) and verified once more as a whole: the exact continuous FCL check against
    every known obstacle, the recorded collision postures and the joint limits. Nothing
@@ -41,7 +43,7 @@ from assistant.collision.reports import ObstacleView
 from assistant.mission.model import Location, Mission
 from assistant.mission.motion import Motion, MotionKind, Trajectory, Waypoint
 from assistant.planning.config import MissionPlannerConfig
-from assistant.planning.joint_moves import fewest_joint_moves
+from assistant.planning.joint_moves import prefer_joint_moves
 from assistant.planning.known_world import KnownValidity, KnownVerifier, WorldAllowed
 from assistant.planning.locations import (
     LocationError,
@@ -187,26 +189,15 @@ class MissionPlanner:
 
     def _as_joint_moves(self, asm: AssemblyResult, notes: list[str], label: str,
                         ) -> tuple[AssemblyResult, list[str]]:
-        """The smoothed transfer as the fewest joint moves, if they verify with the
-        clearance and are fewer motions (`planning.joint_moves`); else as it was."""
+        """The smoothed transfer as the fewest joint moves when they verify, keep the
+        clearance and run quicker (`planning.joint_moves.prefer_joint_moves`)."""
         assert asm.trajectory is not None
         cfg = self.config
-        own = asm.report.min_clearance
-        floor = cfg.transfer_clearance if own is None else min(cfg.transfer_clearance, own)
         q0 = np.asarray(asm.trajectory.start.q, dtype=float)
-        jm = fewest_joint_moves(self.robot, asm.trajectory, self.verifier,
-                                exempt=self.world.recorded_collisions_at(q0), floor=floor,
-                                target=cfg.transfer_clearance,
-                                step=cfg.assembly.step, speed=None,
-                                label=label, params=cfg.joint_moves)
-        moves = jm.result
-        if moves is None or moves.trajectory is None or \
-                len(moves.trajectory.motions) >= len(asm.trajectory.motions):
-            return asm, notes
-        n = len(moves.trajectory.motions)
-        return moves, notes + [f"{n} joint move{'s' if n > 1 else ''} instead of the smoothed "
-                               f"path's {len(asm.trajectory.motions)} motions, "
-                               f"{jm.clearance * 1000:.1f} mm from known obstacles"]
+        return prefer_joint_moves(self.robot, asm, notes, self.verifier,
+                                  exempt=self.world.recorded_collisions_at(q0),
+                                  clearance=cfg.transfer_clearance, step=cfg.assembly.step,
+                                  label=label, params=cfg.joint_moves)
 
     def _smooth(self, joint_path: list[Array], exploring: bool, label: str,
                 progress: Progress | None) -> tuple[AssemblyResult, list[str]]:
