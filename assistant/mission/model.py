@@ -128,6 +128,10 @@ class ApplicationPath:
     speed: float = 0.05  # m/s along the path
     #: The planner may run the path backwards when ordering the mission.
     reversible: bool = False
+    #: Approach / depart as a programmer writes them (m, along the tool's -Z, 0: none): a
+    #: straight line from this far back onto the path's start, and back off its end.
+    approach: float = 0.0
+    depart: float = 0.0
 
     @property
     def start(self) -> Array:
@@ -142,7 +146,8 @@ class ApplicationPath:
                 "R_world_tool": np.asarray(self.R_world_tool).tolist(),
                 "actions_before": [a.to_json() for a in self.actions_before],
                 "actions_after": [a.to_json() for a in self.actions_after],
-                "speed": self.speed, "reversible": self.reversible}
+                "speed": self.speed, "reversible": self.reversible,
+                "approach": self.approach, "depart": self.depart}
 
     @staticmethod
     def from_json(d: dict) -> ApplicationPath:
@@ -151,7 +156,8 @@ class ApplicationPath:
             np.asarray(d.get("R_world_tool", np.diag([1.0, -1.0, -1.0])), dtype=float),
             [ToolAction.from_json(a) for a in d.get("actions_before", [])],
             [ToolAction.from_json(a) for a in d.get("actions_after", [])],
-            float(d.get("speed", 0.05)), bool(d.get("reversible", False)))
+            float(d.get("speed", 0.05)), bool(d.get("reversible", False)),
+            float(d.get("approach", 0.0)), float(d.get("depart", 0.0)))
 
 
 @dataclass

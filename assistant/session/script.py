@@ -159,7 +159,9 @@ def _add_path(s: Session, a: dict) -> Any:
     return s.add_path(a["name"], kind, pts, before=_actions(a.get("before")),
                       after=_actions(a.get("after")),
                       speed=float(a.get("speed_mm_s", 50.0)) / 1000.0,
-                      reversible=bool(a.get("reversible", False)))
+                      reversible=bool(a.get("reversible", False)),
+                      approach=float(a.get("approach_mm", 0.0)) / 1000.0,
+                      depart=float(a.get("depart_mm", 0.0)) / 1000.0)
 
 
 def _frame_point(v: Any, what: str) -> Any:
@@ -263,6 +265,7 @@ ARGS: dict[str, set[str]] = {
     "set_start": {"name"},
     "set_goal": {"name"},
     "add_path": {"name", "line", "arc", "bezier", "before", "after", "speed_mm_s",
+                 "approach_mm", "depart_mm",
                  "reversible"},
     "add_drawing": {"name", "frame", "drawing", "points", "at", "angle_deg", "lift_mm",
                     "before", "after", "speed_mm_s", "reversible", "tool_angle_deg"},

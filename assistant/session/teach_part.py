@@ -249,10 +249,12 @@ class TeachActions:
     def add_path(self, name: str, kind: str, points: list[str | Array], *,
                  before: list[ToolAction] = (), after: list[ToolAction] = (),
                  speed: float = 0.05, reversible: bool = False,
-                 R_world_tool: Array | None = None) -> ApplicationPath:
+                 R_world_tool: Array | None = None, approach: float = 0.0,
+                 depart: float = 0.0) -> ApplicationPath:
         """An application path: a line (2 points), arc (3) or Bezier chain (1 + 3k control
         points) through taught locations (by name) or points; the tool orientation is that of
-        the first named location unless given."""
+        the first named location unless given. `approach`/`depart` (m): straight lines onto
+        the start and off the end along the tool axis, as a programmer writes them."""
         from dataclasses import replace
 
         with self._action(f"add the path {name}", EDIT_MISSION, scene="mission"):
@@ -264,8 +266,11 @@ class TeachActions:
             segs = _segments(SegmentKind(kind), pts, names)
             R_tool = np.asarray(R_world_tool, float) if R_world_tool is not None else (
                 R if R is not None else _tool_frame_along(np.array([0.0, 0.0, -1.0])))
+            for what, v in (("approach", approach), ("depart", depart)):
+                if not np.isfinite(v) or not 0.0 <= v <= 0.5:
+                    raise SessionError(f"the {what} distance must be 0 to 500 mm")
             path = ApplicationPath(name, segs, R_tool, list(before), list(after), float(speed),
-                                   bool(reversible))
+                                   bool(reversible), float(approach), float(depart))
             self.mission = replace(self.mission, paths=[*self.mission.paths, path], order=None)
         return path
 

@@ -21,7 +21,7 @@ from enum import Enum
 
 import numpy as np
 
-from assistant.mission.model import ApplicationPath, SegmentKind
+from assistant.mission.model import ApplicationPath, PathSegment, SegmentKind
 from assistant.mission.motion import Motion, MotionKind, ToolAction, Trajectory, Waypoint
 from assistant.robots.model import Robot
 from assistant.trajectory.assemble import PathVerifier, TrajectoryReport, verify
@@ -131,6 +131,8 @@ def application_motions(
         params: sampling and continuity settings.
     """
     params = params or ApplicationParams()
+    approach, depart = path.approach > 0.0, path.depart > 0.0
+    path = with_approach(path)
     T_bw = np.eye(4) if T_base_world is None else np.asarray(T_base_world, dtype=float)
     R_base_tool = T_bw[:3, :3] @ np.asarray(path.R_world_tool, dtype=float)
     pieces, chord_err = _pieces(path, T_bw, params)
@@ -176,8 +178,13 @@ def application_motions(
     for i in range(len(pieces) - 1):
         if _tangent_join(pieces[i], pieces[i + 1]):
             motions[i] = replace(motions[i], blend_radius=SPLINE_JOIN_BLEND)
-    motions[-1] = replace(motions[-1], actions_after=tuple(path.actions_after))
-    out = ApplicationMotions(path.name, True, start, motions, tuple(path.actions_before), None,
+    before = tuple(path.actions_before)
+    if approach:  # the tool works where the approach line arrives, not above it
+        motions[0] = replace(motions[0], actions_after=before)
+        before = ()
+    work_end = -2 if depart else -1
+    motions[work_end] = replace(motions[work_end], actions_after=tuple(path.actions_after))
+    out = ApplicationMotions(path.name, True, start, motions, before, None,
                              correction, chord_err)
     if verifier is not None:
         checked = verify(robot, out.to_trajectory(), verifier)
@@ -270,8 +277,34 @@ def _spline_points(ctrl: Array, ts: Array, step: float) -> tuple[Array, tuple[in
     return de_casteljau(ctrl, np.array(fine)), tuple(idx)
 
 
+def with_approach(path: ApplicationPath) -> ApplicationPath:
+    """The path with its approach and depart lines as segments of its own (along the tool's
+    -Z, as a programmer writes them): tool actions move onto the work itself - `before` at
+    the end of the approach, `after` at the start of the depart (`application_motions`).
+    Approach points are named `<start>_APP`, depart points `<end>_DEP` when the ends are."""
+    if path.approach <= 0.0 and path.depart <= 0.0:
+        return path
+    back = -np.asarray(path.R_world_tool, dtype=float)[:, 2]  # away from the work
+    segs = list(path.segments)
+    first, last = segs[0], segs[-1]
+    if path.approach > 0.0:
+        a = first.start + path.approach * back
+        name = first.point_name(0)
+        segs.insert(0, PathSegment(SegmentKind.LINE, (a, first.start),
+                                   (f"{name}_APP" if name else "", name)
+                                   if first.names else ()))
+    if path.depart > 0.0:
+        d = last.end + path.depart * back
+        name = last.point_name(-1)
+        segs.append(PathSegment(SegmentKind.LINE, (last.end, d),
+                                (name, f"{name}_DEP" if name else "") if last.names else ()))
+    return replace(path, segments=segs, approach=0.0, depart=0.0)
+
+
 def reversed_path(path: ApplicationPath) -> ApplicationPath:
     """The same path run backwards (for mission ordering of reversible paths).
 
-    Tool actions keep their meaning (e.g. pen down before, pen up after)."""
-    return replace(path, segments=[seg.reversed() for seg in reversed(path.segments)])
+    Tool actions keep their meaning (e.g. pen down before, pen up after), and so do the
+    approach and depart lines: they swap ends."""
+    return replace(path, segments=[seg.reversed() for seg in reversed(path.segments)],
+                   approach=path.depart, depart=path.approach)

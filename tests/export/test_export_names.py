@@ -88,3 +88,28 @@ def test_application_path_points_keep_the_taught_names_both_ways(rv2aj):
 def test_segment_names_must_match_its_points():
     with pytest.raises(ValueError, match="point names"):
         PathSegment(SegmentKind.LINE, (np.zeros(3), np.ones(3)), ("P7",))
+
+
+def test_approach_and_depart_lines_are_named_and_the_tool_works_on_the_path(rv2aj):
+    from assistant.mission.motion import ToolAction, ToolActionKind
+
+    close = ToolAction(ToolActionKind.GRIPPER_CLOSE, channel=1)
+    opened = ToolAction(ToolActionKind.GRIPPER_OPEN, channel=1)
+    p7, p8 = np.array([0.30, -0.06, 0.06]), np.array([0.30, 0.06, 0.06])
+    path = ApplicationPath("SEAM", [PathSegment(SegmentKind.LINE, (p7, p8), ("P7", "P8"))],
+                           actions_before=[close], actions_after=[opened], reversible=True,
+                           approach=0.04, depart=0.02)
+    am = application_motions(rv2aj, path)
+    assert am.ok, am.failure
+    assert [m.target.name for m in am.motions] == ["P7", "P8", "P8_DEP"]
+    assert am.start.name == "P7_APP"
+    # tool pointing down: the approach point is 40 mm above P7, the depart 20 mm above P8
+    assert np.allclose(am.start.T_base_tool[:3, 3], p7 + [0, 0, 0.04], atol=1e-4)
+    assert np.allclose(am.motions[-1].target.T_base_tool[:3, 3], p8 + [0, 0, 0.02], atol=1e-4)
+    # the gripper closes on P7 (after the approach) and opens on P8 (before the depart)
+    assert am.actions_before == () and am.motions[0].actions_after == (close,)
+    assert am.motions[1].actions_after == (opened,) and am.motions[2].actions_after == ()
+    back = application_motions(rv2aj, reversed_path(path))
+    assert back.ok and back.start.name == "P8_APP"
+    assert [m.target.name for m in back.motions] == ["P8", "P7", "P7_DEP"]
+    assert np.allclose(back.start.T_base_tool[:3, 3], p8 + [0, 0, 0.02], atol=1e-4)
