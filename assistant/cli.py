@@ -4,6 +4,7 @@
     cellteach serve [--cell NAME|PATH] [--session DIR] [--empty] [--host H] [--port P]
                     [--max-upload-mb N] [--token-file F] [--certfile C [--keyfile K]]
     cellteach run SCRIPT.yaml --out DIR
+    cellteach study placement SESSION_OR_SCRIPT --region X0,Y0,X1,Y1 --step MM --out DIR
     cellteach cells
 
 Exit codes: 0 ok, 1 the session ran but failed (report.json says why), 2 bad input.
@@ -32,6 +33,7 @@ def build_parser() -> argparse.ArgumentParser:
     run.add_argument("--out", type=Path, required=True,
                      help="folder for the program files, report.json and the session")
     sub.add_parser("cells", help="list the sample cells")
+    _study_args(sub)
     _serve_args(p)  # `cellteach --port 9000` works without the word serve
     return p
 
@@ -59,9 +61,39 @@ def _serve_args(p: argparse.ArgumentParser) -> None:
                    help="the certificate's private key (PEM), if not in --certfile")
 
 
+def _study_args(sub: argparse._SubParsersAction) -> None:
+    study = sub.add_parser("study", help="studies of the cell (placement)")
+    kinds = study.add_subparsers(dest="study", required=True)
+    pl = kinds.add_parser("placement", help="where should the robot base (or an object) "
+                          "stand: candidates over a region, ranked, study.json + a PNG map")
+    pl.add_argument("source", help="a session folder, a sample cell (name or folder) or a "
+                    "session script (run up to its first build_world/plan)")
+    pl.add_argument("--region", required=True, help="X0,Y0,X1,Y1 in mm (world frame)")
+    pl.add_argument("--step", type=float, required=True, help="grid step in mm")
+    pl.add_argument("--yaw-steps", type=int, default=1, help="yaws per position, evenly "
+                    "around the circle from the current yaw's 0 (default 1: yaw 0)")
+    pl.add_argument("--out", type=Path, required=True, help="folder for study.json and "
+                    "placement.png")
+    pl.add_argument("--object", default=None, help="study this object's placement instead "
+                    "of the robot base (taught locations on it move with it)")
+    pl.add_argument("--margin-deg", type=float, default=5.0,
+                    help="margin to the joint limits at every location (default 5)")
+    pl.add_argument("--clearance-mm", type=float, default=None,
+                    help="clearance a transfer should keep (default: the session's, 10)")
+    pl.add_argument("--plan-top", type=int, default=16, help="plan this many of the best "
+                    "screened candidates fully (default 16)")
+    pl.add_argument("--workers", type=int, default=0, help="worker processes (default: every "
+                    "core)")
+    pl.add_argument("--ray", default=None, metavar="ADDRESS", help="run the tasks on Ray: "
+                    "'local' starts one here, else a cluster address ('auto', ray://...)")
+    pl.add_argument("--inline", action="store_true", help="run in this process (no workers)")
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
+        if args.command == "study":
+            return cmd_study(args)
         if args.command == "run":
             return cmd_run(args.script, args.out)
         if args.command == "cells":
@@ -213,4 +245,57 @@ def cmd_run(script_path: Path, out: Path) -> int:
         return 1
     print(f"cellteach: wrote {', '.join(files) or 'no program'} and report.json to {out}",
           file=sys.stderr)
+    return 0
+
+
+def cmd_study(args: argparse.Namespace) -> int:
+    """`cellteach study placement`: 0 a candidate was planned, 1 none was (study.json says
+    why each failed), 2 bad input."""
+    from assistant.progress import Cancelled, Progress
+    from assistant.session.study_part import load_for_study
+    from assistant.study import Region, StudySettings, run_study
+    from assistant.study.picture import render_map
+
+    try:
+        region = Region.from_mm(args.region, args.step, args.yaw_steps)
+        engine = "ray" if args.ray else "inline" if args.inline else "local"
+        settings = StudySettings(plan_top=args.plan_top, engine=engine, workers=args.workers,
+                                 ray_address=args.ray or "local")
+        session = load_for_study(args.source)
+        problem = session.study_problem(object_name=args.object,
+                                        joint_margin_deg=args.margin_deg,
+                                        clearance_mm=args.clearance_mm)
+    except (ValueError, OSError) as exc:
+        print(f"cellteach: {exc}", file=sys.stderr)
+        return 2
+    last = [-1.0]
+
+    def show(ev) -> None:
+        if ev.fraction - last[0] >= 0.1 or ev.fraction >= 1.0:
+            last[0] = ev.fraction
+            print(f"cellteach: study {ev.fraction * 100:3.0f} % {ev.message}", file=sys.stderr)
+
+    try:
+        result = run_study(problem, region, settings, Progress("placement study", show))
+    except (RuntimeError, ValueError) as exc:  # e.g. Ray missing or unreachable
+        print(f"cellteach: {exc}", file=sys.stderr)
+        return 2
+    except Cancelled:
+        return 130
+    finally:
+        session.close()
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "study.json").write_text(json.dumps(result.to_json(), indent=1),
+                                         encoding="utf-8")
+    render_map(result, args.out / "placement.png")
+    best = result.best()
+    c = result.counts
+    print(f"cellteach: {c['candidates']} candidates, {c['screened_ok']} passed the screen, "
+          f"{c['planned_ok']} of {c['planned']} planned in {result.timings['total_s']:.1f} s; "
+          f"wrote study.json and placement.png to {args.out}", file=sys.stderr)
+    if best is None:
+        print("cellteach: no candidate could be planned (see the reasons in study.json)",
+              file=sys.stderr)
+        return 1
+    print(f"cellteach: best {best.candidate.label()}", file=sys.stderr)
     return 0

@@ -25,6 +25,7 @@ RANK = {
     "assistant.export": 5, "assistant.links": 5,
     # the warm-up and the background compile drive the real API to compile every kernel
     "assistant.planning": 6, "assistant.kernels.warmup": 6, "assistant.kernels.compile": 6,
+    "assistant.study": 6.5,  # placement studies: run the planner over candidate placements
     "assistant.session": 7,
     "web": 8, "assistant.cli": 9, "assistant.__main__": 10,
 }

@@ -45,6 +45,7 @@ from assistant.session.persistence_part import Persistence
 from assistant.session.planning_part import PlanningActions
 from assistant.session.scene_part import SceneQueries
 from assistant.session.setup_part import SetupActions
+from assistant.session.study_part import StudyActions
 from assistant.session.teach_part import TeachActions
 from assistant.session.types import (
     Counters,
@@ -59,7 +60,7 @@ Array = np.ndarray
 
 
 class Session(SetupActions, CellActions, TeachActions, MotionActions, PlanningActions,
-              SceneQueries, ExportActions, Persistence):
+              SceneQueries, ExportActions, Persistence, StudyActions):
     """Everything the operator does, headless or behind the web page: the state, the action
     plumbing and the workflow here; the actions by concern in the parts it mixes in."""
 

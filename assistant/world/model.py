@@ -148,8 +148,11 @@ class WorldModel:
     """See the module docstring. Not thread-safe: one planner thread owns it."""
 
     def __init__(self, robot: Robot, cad: Iterable[ObstacleView] = (),
-                 config: WorldConfig | None = None):
+                 config: WorldConfig | None = None, *, store: JointStore | None = None):
         self.robot = robot
+        #: A store loaded once for this robot and config and shared read-only (a placement
+        #: study builds one world per candidate); None: `build` loads it (disk cache).
+        self._shared_store = store
         self.config = config or WorldConfig()
         self.grid = self.config.grid()
         self.cad = list(cad)
@@ -186,10 +189,11 @@ class WorldModel:
         model as it was."""
         progress = progress or Progress("world model")
         t0 = time.perf_counter()
-        cached = (self.config.use_cache and is_cached(
+        cached = self._shared_store is not None or (self.config.use_cache and is_cached(
             self.robot, self.grid, self.config.reach, self.config.cache))
-        table = load_or_build(self.robot, self.grid, self.config.reach, progress.sub(0.0, 0.4),
-                              cache=self.config.cache, use_cache=self.config.use_cache)
+        table = self._shared_store if self._shared_store is not None else load_or_build(
+            self.robot, self.grid, self.config.reach, progress.sub(0.0, 0.4),
+            cache=self.config.cache, use_cache=self.config.use_cache)
         if table.kind == "samples" and self.anchors is not None and len(self.anchors):
             cfg = self.config.reach
             table = table.focused(self.robot, self.anchors, cfg.focus_samples,

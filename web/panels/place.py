@@ -1,14 +1,18 @@
 """Step 3.1 - place objects: pick a part, type its pose (mm, degrees) or drag its gizmo, or
-measure 3+ of its points with the robot and fit (the residual tells how good the fit is)."""
+measure 3+ of its points with the robot and fit (the residual tells how good the fit is).
+"Find a placement" runs the placement study (`Session.start_study_placement`) over a typed
+region, shows its ranking here and its map on the table (`web.scene.placement`), and moves
+the robot to a chosen candidate (`Session.apply_placement`, undoable)."""
 
 from __future__ import annotations
 
 import numpy as np
 import viser
 
-from assistant.session.events import Event, SceneChanged, StateChanged
+from assistant.session.events import Event, ProgressChanged, SceneChanged, StateChanged
 from assistant.transforms import inv_T
 from web.panels.base import Panel
+from web.scene.placement import PlacementLayer
 from web.units import fmt_mm, point_or_name, pose_fields, pose_from_fields
 
 WORLD = "world"
@@ -51,6 +55,28 @@ class PlacePanel(Panel):
             self.f_xy = g.add_text("In XY (+y side)", "")
             self.calibrate = g.add_button("Calibrate frame")
             self.frames_md = g.add_markdown("")
+        with g.add_folder("Find a placement", expand_by_default=False):
+            g.add_markdown("Where should the robot base stand? Give a region on the table "
+                           "(world, mm) and a grid step; every candidate is checked (reach "
+                           "with 5 deg to the joint limits, collisions, transfers planned).")
+            self.st_corner0 = g.add_vector2("From X, Y (mm)", (-200.0, -200.0), step=1.0)
+            self.st_corner1 = g.add_vector2("To X, Y (mm)", (200.0, 200.0), step=1.0)
+            self.st_step = g.add_number("Step (mm)", 50.0, min=5.0, step=5.0)
+            self.st_yaws = g.add_number("Yaw steps", 4, min=1, max=36, step=1)
+            self.st_start = g.add_button("Start study")
+            self.st_cancel = g.add_button("Cancel study", disabled=True)
+            self.st_progress = g.add_progress_bar(0.0, visible=False, animated=True)
+            self.st_status = g.add_markdown("")
+            self.st_choice = g.add_dropdown("Candidate", ("-",))
+            self.st_reason = g.add_markdown("")
+            self.st_apply = g.add_button("Move the robot here", disabled=True)
+            self.st_list = g.add_markdown("")
+        self.markers = PlacementLayer(self.app)
+        self.markers.on_pick = self._study_picked
+        self.bind(self.st_start, lambda e: self._study_start())
+        self.bind(self.st_cancel, lambda e: self.session.cancel())
+        self.bind(self.st_apply, lambda e: self._study_apply())
+        self.st_choice.on_update(lambda e: self._study_show_choice())
         self.pairs: list[tuple[np.ndarray, np.ndarray]] = []
         self.pick.on_update(lambda e: self._show_pose())
         self.relative.on_update(lambda e: self._show_pose())
@@ -115,6 +141,75 @@ class PlacePanel(Panel):
         fit = self.session.fit_object_pose(self.pick.value, model, measured)
         self.fit_report.content = "**Fit:** " + fit.summary().replace("\n", "\n\n")
 
+    # ------------------------------------------------------------------ placement study
+    def _study_start(self) -> None:
+        from assistant.study import Region
+
+        (x0, y0), (x1, y1) = self.st_corner0.value, self.st_corner1.value
+        region = Region.from_mm(f"{min(x0, x1)},{min(y0, y1)},{max(x0, x1)},{max(y0, y1)}",
+                                float(self.st_step.value), int(self.st_yaws.value))
+        self.st_status.content = f"<small>{region.count()} candidates...</small>"
+        self.session.start_study_placement(region)
+
+    def _study_apply(self) -> None:
+        index = self._study_index()
+        if index is None:
+            raise ValueError("choose a candidate first")
+        self.session.apply_placement(index)
+
+    def _study_index(self) -> int | None:
+        v = str(self.st_choice.value)
+        return int(v.split()[0].lstrip("#")) if v.startswith("#") else None
+
+    def _study_picked(self, index: int) -> None:
+        for opt in self.st_choice.options:
+            if opt.startswith(f"#{index} "):
+                self.st_choice.value = opt
+
+    def _study_show_choice(self) -> None:
+        study, index = self.session.placement_study, self._study_index()
+        rows = [] if study is None else [r for r in study.candidates
+                                         if r.candidate.index == index]
+        if not rows:
+            self.st_reason.content, self.st_apply.disabled = "", True
+            return
+        r = rows[0]
+        text = f"{r.status}" + (f", rank {r.rank}" if r.rank else "")
+        if r.cost is not None:
+            text += f", {r.cost * 1000:.0f} mm of TCP path" if study.unit == "m" else \
+                f", {r.cost:.2f} s"
+        if r.plan is not None and r.plan.ok and r.plan.min_clearance is not None:
+            text += f", clearance {r.plan.min_clearance * 1000:.0f} mm"
+        if r.reason:
+            text += f" - {r.reason}"
+        self.st_reason.content = f"<small>{text}</small>"
+        self.st_apply.disabled = r.status == "failed"
+
+    def _study_refresh(self) -> None:
+        study = self.session.placement_study
+        if study is None:
+            return
+        ranked = study.ranked()
+        opts = tuple(f"#{r.candidate.index} ({r.candidate.x * 1000:.0f}, "
+                     f"{r.candidate.y * 1000:.0f}) {np.degrees(r.candidate.yaw):.0f} deg"
+                     for r in ranked) or ("-",)
+        if tuple(self.st_choice.options) != opts:
+            self.st_choice.options = opts
+            self.st_choice.value = opts[0]
+        c = study.counts
+        self.st_status.content = (f"<small>{c['candidates']} candidates: {c['screened_ok']} "
+                                  f"passed the screen, {c['planned_ok']} of {c['planned']} "
+                                  f"planned ({study.timings['total_s']:.0f} s).</small>")
+        lines = ["| rank | x, y (mm) | yaw | result |", "|---|---|---|---|"]
+        for r in ranked[:10]:
+            what = f"{r.cost * 1000:.0f} mm" if r.cost is not None and study.unit == "m" \
+                else (f"{r.cost:.2f} s" if r.cost is not None else r.reason[:60])
+            lines.append(f"| {r.rank or '-'} | {r.candidate.x * 1000:.0f}, "
+                         f"{r.candidate.y * 1000:.0f} | {np.degrees(r.candidate.yaw):.0f} | "
+                         f"{what} |")
+        self.st_list.content = "\n".join(lines)
+        self._study_show_choice()
+
     # ------------------------------------------------------------------ redraw
     def _show_pairs(self) -> None:
         if not self.pairs:
@@ -163,9 +258,21 @@ class PlacePanel(Panel):
     def show_for(self, state: str) -> None:
         super().show_for(state)
         self._sync_gizmo()
+        self.markers.show(self.visible)
 
     def on_event(self, ev: Event) -> None:
         if isinstance(ev, SceneChanged) and ev.what in ("objects", "frames", "all") or \
                 isinstance(ev, StateChanged):
             self.refresh()
+        if isinstance(ev, StateChanged):
+            busy = ev.mode == "busy"
+            self.st_start.disabled, self.st_cancel.disabled = busy, not busy
+        if isinstance(ev, ProgressChanged) and ev.task == "placement study":
+            self.st_progress.visible = not ev.done
+            self.st_progress.value = max(0.0, min(100.0, 100.0 * ev.fraction))
+            if ev.done and ev.message == "cancelled":
+                self.st_status.content = "<small>Study cancelled.</small>"
+        if isinstance(ev, SceneChanged) and ev.what in ("study", "all"):
+            self.markers.refresh()
+            self._study_refresh()
 

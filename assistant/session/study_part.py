@@ -1,0 +1,152 @@
+"""The placement study: where should the robot base (or an object) stand? Runs in the
+background with progress and Cancel like the other long actions; applying a candidate is an
+ordinary undoable edit of the cell.
+
+A part mixed into `Session`; the study itself lives in `assistant.study`.
+"""
+
+from __future__ import annotations
+
+import math
+from concurrent.futures import Future
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from assistant.progress import Progress
+from assistant.session.events import Notice, SceneChanged
+from assistant.session.types import EDIT_PLACEMENT, SessionError
+
+if TYPE_CHECKING:  # the study (and the planner behind it) loads on first use
+    from assistant.study import Region, Scoring, StudyProblem, StudyResult, StudySettings
+
+#: Steps the study may run in: the cell is placed and the mission taught.
+STUDY_STEPS = ("place", "teach", "explore", "plan")
+#: Verbs a script runs before a study (the rest - building, planning, executing,
+#: exporting - is what the study does per candidate, or comes after).
+_STUDY_STOP_VERBS = ("build_world", "explore", "plan", "execute", "resume", "export")
+
+
+class StudyActions:
+    """The placement study and applying one of its candidates."""
+
+    @property
+    def placement_study(self) -> StudyResult | None:
+        """The last study's result (None before the first)."""
+        return getattr(self, "_placement_study", None)
+
+    def study_problem(self, *, object_name: str | None = None, carry: bool = True,
+                      joint_margin_deg: float = 5.0,
+                      clearance_mm: float | None = None) -> StudyProblem:
+        """The study of this session's cell and mission (a copy: later edits do not leak in)."""
+        from dataclasses import replace
+
+        from assistant.cell.model import Cell
+        from assistant.study import StudyCriteria, StudyProblem, Subject
+
+        with self._lock:
+            cell = Cell(self.cell.robot_spec, self.T_world_base().copy(),
+                        dict(self.cell.objects), dict(self.cell.frames))
+            mission = replace(self.mission, paths=list(self.mission.paths))
+            clearance = self.world_settings.clearance_mm if clearance_mm is None \
+                else clearance_mm
+            try:
+                return StudyProblem(
+                    cell, mission, Subject(object_name, carry),
+                    StudyCriteria(math.radians(float(joint_margin_deg)),
+                                  float(clearance) / 1000.0),
+                    q_seed=self.current_joints(),
+                    world_config=self.world_settings.world_config(self.robot),
+                    planner_config=self._planner_config(),
+                    location_names={n: loc.position.copy()
+                                    for n, loc in self.locations.items()})
+            except (ValueError, KeyError) as exc:
+                raise SessionError(str(exc)) from None
+
+    def start_study_placement(self, region: Region, settings: StudySettings | None = None,
+                              *, scoring: Scoring | None = None, **problem: Any) -> Future:
+        """Run a placement study in the background (progress, Cancel); the future gives the
+        `StudyResult`, also kept as `placement_study` and announced as SceneChanged("study").
+        `problem`: `study_problem`'s options (object_name, carry, joint_margin_deg, ...);
+        `scoring`: e.g. `Scoring(cycle_time=...)` once a cycle-time prediction exists."""
+        from assistant.study import StudySettings, run_study
+
+        prob = self.study_problem(**problem)
+        settings = settings or StudySettings()
+
+        def work(progress: Progress) -> StudyResult:
+            result = run_study(prob, region, settings, progress, scoring=scoring)
+            with self._lock:
+                self._placement_study = result
+            best = result.best()
+            c = result.counts
+            msg = (f"placement study: {c['candidates']} candidates, {c['screened_ok']} passed "
+                   f"the screen, {c['planned_ok']} of {c['planned']} planned")
+            if best is not None:
+                msg += f"; best {best.candidate.label()}"
+            self.bus.emit(Notice(msg))
+            self.bus.emit(SceneChanged("study"))
+            return result
+
+        return self._run_busy("placement study", work, STUDY_STEPS)
+
+    def study_placement(self, region: Region, settings: StudySettings | None = None,
+                        *, scoring: Scoring | None = None, **problem: Any) -> StudyResult:
+        return self.start_study_placement(region, settings, scoring=scoring,
+                                          **problem).result()
+
+    def apply_placement(self, index: int) -> np.ndarray:
+        """Move the study's subject (robot base or object) to candidate `index` of the last
+        study - an undoable edit like any placement. Returns the new pose (world)."""
+        study = self.placement_study
+        if study is None:
+            raise SessionError("no placement study yet: run one first")
+        match = [r for r in study.candidates if r.candidate.index == index]
+        if not match:
+            raise SessionError(f"the study has no candidate #{index}")
+        problem = study.problem
+        T = problem.pose_at(match[0].candidate)
+        label = f"move {problem.subject.describe()} to {match[0].candidate.label()}"
+        with self._action(label, EDIT_PLACEMENT, scene="robot" if problem.subject.is_base
+                          else "objects"):
+            if problem.subject.is_base:
+                self.cell.set_base_pose(T)
+                if self.link_settings.kind == "simulated":
+                    self._drop_link()  # its hidden obstacles are placed in the base frame
+            else:
+                assert problem.subject.object_name is not None
+                self.cell.set_object_pose(problem.subject.object_name, T)
+        return T
+
+
+def load_for_study(path: str | Path) -> Any:
+    """A session to study from a saved session folder, a sample cell (name or folder) or a
+    session script (run up to its first build/plan/execute/export). Raises ValueError with
+    the reason."""
+    from assistant.session.session import Session
+    from assistant.session.store import SESSION_JSON
+
+    p = Path(path)
+    if p.is_dir() and (p / SESSION_JSON).exists():
+        return Session.load(p)
+    if p.suffix.lower() in (".yaml", ".yml") and p.is_file():
+        from assistant.session.script import parse_script, run_action
+
+        script = parse_script(p)
+        if script.cell:
+            base = script.path.parent
+            cell = script.cell if not (base / script.cell).is_dir() else base / script.cell
+            s = Session.from_sample(cell, None, with_objects=script.with_objects,
+                                    with_mission=script.with_mission)
+        else:
+            s = Session(None)
+        for action in script.actions:
+            if action.verb in _STUDY_STOP_VERBS:
+                break
+            try:
+                run_action(s, action, script.path.parent, script.path)
+            except Exception as exc:  # noqa: BLE001 - one line: where and why
+                raise ValueError(f"{p}:{action.line}: {action.verb} failed: {exc}") from None
+        return s
+    return Session.from_sample(str(path), None)
