@@ -189,9 +189,8 @@ def cmd_serve(args: argparse.Namespace) -> int:
 
 
 def cmd_run(script_path: Path, out: Path) -> int:
-    from assistant.session import Session
     from assistant.session.report import session_report
-    from assistant.session.script import ScriptError, parse_script, run_action
+    from assistant.session.script import ScriptError, parse_script, run_script
 
     t0 = time.perf_counter()
     try:
@@ -207,26 +206,10 @@ def cmd_run(script_path: Path, out: Path) -> int:
 
     lazy.start()
     try:
-        if script.cell:
-            base = script.path.parent
-            cell = script.cell if not (base / script.cell).is_dir() else base / script.cell
-            session = Session.from_sample(cell, folder, with_objects=script.with_objects,
-                                          with_mission=script.with_mission)
-        else:
-            session = Session(folder)
+        session, error = run_script(script, folder)
     except (ValueError, OSError) as exc:
         print(f"cellteach: {script_path}: {exc}", file=sys.stderr)
         return 2
-    error = None
-    for action in script.actions:
-        try:
-            run_action(session, action, script.path.parent, script.path)
-        except ScriptError as exc:
-            error = str(exc)
-            break
-        except Exception as exc:  # noqa: BLE001 - reported in one line, never a traceback
-            error = f"{script_path}:{action.line}: {action.verb} failed: {exc}"
-            break
     files: list[str] = []
     if session.program is not None:
         for f in session.program.files:

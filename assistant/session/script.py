@@ -371,11 +371,13 @@ def run_action(session: Session, action: ScriptAction, base_dir: Path, script_pa
         raise ScriptError(f"{script_path}:{action.line}: {action.verb} failed: {exc}") from exc
 
 
-def run_script(script: Script, folder: Path, *, stop_before: str | None = None,
+def run_script(script: Script, folder: Path | None, *,
+               stop_before: str | tuple[str, ...] = (),
                ) -> tuple[Session, str | None]:
-    """A session built as the script says (its sample cell or empty) with its actions run in
-    order, and the first error as one line (None: all ran). `stop_before` ends the run at the
-    first action with that verb (e.g. "export", to export in another dialect).
+    """A session built as the script says (its sample cell or empty; saved in `folder`, None:
+    not saved) with its actions run in order, and the first error as one line (None: all
+    ran). `stop_before` ends the run at the first action with that verb or one of those
+    verbs (e.g. "export", to export in another dialect).
 
     Raises ValueError/OSError when the script's cell cannot be loaded."""
     if script.cell:
@@ -385,8 +387,9 @@ def run_script(script: Script, folder: Path, *, stop_before: str | None = None,
                                       with_mission=script.with_mission)
     else:
         session = Session(folder)
+    stops = (stop_before,) if isinstance(stop_before, str) else stop_before
     for action in script.actions:
-        if action.verb == stop_before:
+        if action.verb in stops:
             break
         try:
             run_action(session, action, script.path.parent, script.path)

@@ -131,22 +131,10 @@ def load_for_study(path: str | Path) -> Any:
     if p.is_dir() and (p / SESSION_JSON).exists():
         return Session.load(p)
     if p.suffix.lower() in (".yaml", ".yml") and p.is_file():
-        from assistant.session.script import parse_script, run_action
+        from assistant.session.script import parse_script, run_script
 
-        script = parse_script(p)
-        if script.cell:
-            base = script.path.parent
-            cell = script.cell if not (base / script.cell).is_dir() else base / script.cell
-            s = Session.from_sample(cell, None, with_objects=script.with_objects,
-                                    with_mission=script.with_mission)
-        else:
-            s = Session(None)
-        for action in script.actions:
-            if action.verb in _STUDY_STOP_VERBS:
-                break
-            try:
-                run_action(s, action, script.path.parent, script.path)
-            except Exception as exc:  # noqa: BLE001 - one line: where and why
-                raise ValueError(f"{p}:{action.line}: {action.verb} failed: {exc}") from None
+        s, error = run_script(parse_script(p), None, stop_before=_STUDY_STOP_VERBS)
+        if error is not None:
+            raise ValueError(error)
         return s
     return Session.from_sample(str(path), None)
