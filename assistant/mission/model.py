@@ -147,7 +147,8 @@ class ApplicationPath:
                 "actions_before": [a.to_json() for a in self.actions_before],
                 "actions_after": [a.to_json() for a in self.actions_after],
                 "speed": self.speed, "reversible": self.reversible,
-                "approach": self.approach, "depart": self.depart}
+                **({"approach": self.approach} if self.approach else {}),
+                **({"depart": self.depart} if self.depart else {})}
 
     @staticmethod
     def from_json(d: dict) -> ApplicationPath:

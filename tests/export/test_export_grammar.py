@@ -1,17 +1,14 @@
 """Independent readers (issue 35 item 4): every program we export - the golden files, fresh
-exports of the samples in every file layout the writers have, the sample cells run through
-the command line - passes a grammar of the controller's documented syntax plus a checker of
-what a grammar cannot say (tests/export/grammars). Hand-broken programs are refused with a
-message naming the file and line. The readers share no code with the writers: a test below
-reads their imports.
+exports of the samples in every file layout the writers have (the sample cells' programs:
+tests/samples/test_sample_cells.py) - passes a grammar of the controller's documented
+syntax plus a checker of what a grammar cannot say (tests/export/grammars). Hand-broken
+programs are refused with a message naming the file and line. The readers share no code
+with the writers: a test below reads their imports.
 """
 
 from __future__ import annotations
 
 import ast
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -19,7 +16,6 @@ import pytest
 from grammars import CHECKERS, check_report, check_text
 
 from assistant.export import (
-    ExportError,
     KrlDialect,
     MelfaDialect,
     RapidDialect,
@@ -27,7 +23,6 @@ from assistant.export import (
     get_dialect,
     program_from_trajectory,
 )
-from assistant.export.names import legal_for
 from assistant.export.program import Frame
 from assistant.export.samples import drawing_trajectory, paper_frame
 from assistant.trajectory.bezier_drawings import drawing
@@ -137,71 +132,8 @@ def test_a_blended_joint_move_follows_the_documented_syntax(rv2aj, thesis_progra
     assert problems == []
 
 
-# ------------------------------------------------------------------ sample cells
-SAMPLES = ROOT / "sample_cells"
-EXPORTING = ("thesis_rv2aj", "pick_and_place", "bezier_drawing", "ur5_cell")
-#: A hang guard only, never a timing check.
-HANG_GUARD_S = 1800
-
-
-@pytest.fixture(scope="module")
-def sample_run(tmp_path_factory):
-    """name -> the output folder of `cellteach run` on that sample cell (about 15 s each,
-    run once per module; one sample failing fails its own test only)."""
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(ROOT), *filter(None, [env.get("PYTHONPATH")])])
-    done: dict[str, Path] = {}
-
-    def run(name: str) -> Path:
-        if name not in done:
-            folder = tmp_path_factory.mktemp(name)
-            proc = subprocess.run([sys.executable, "-m", "assistant", "run",
-                                   str(SAMPLES / name / "session.yaml"), "--out",
-                                   str(folder / "out")], cwd=folder, env=env,
-                                  capture_output=True, text=True, timeout=HANG_GUARD_S)
-            assert proc.returncode == 0, f"{name}: {proc.stderr.strip()}"
-            done[name] = folder / "out"
-        return done[name]
-
-    return run
-
-
-@pytest.mark.slow
-@pytest.mark.parametrize("name", EXPORTING)
-def test_sample_cell_programs_follow_the_documented_syntax(sample_run, name):
-    """The program the run wrote, then the same plan written in every other dialect its
-    robot's controller runs (the saved session keeps the verified trajectory)."""
-    import json
-
-    from assistant.session import Session
-
-    out = sample_run(name)
-    rep = json.loads((out / "report.json").read_text(encoding="utf-8"))
-    files = {f: (out / f).read_bytes() for f in rep["program_files"]}
-    written = check_report(rep["dialect"], files)
-    assert written.problems == [], written.problems
-    print(f"{name} ({rep['dialect']}): {written.motions} motions, "
-          f"{written.positions} positions")
-    s = Session.load(out / "session", autosave=False)
-    program = program_from_trajectory(s.trajectory, s.robot, name="MISSION")
-    failures, checked = [], 1
-    for dialect in ALL:
-        d = get_dialect(dialect)
-        if dialect == rep["dialect"] or s.robot.dof not in d.axis_counts:
-            continue
-        checked += 1
-        try:  # write only (names made legal as export_files does): the round-trip proof
-            # is test_export_roundtrip's
-            written_files = d.write(legal_for(program, d)[0], s.robot)
-        except ExportError as exc:  # not syntax, but the sample cannot be exported there
-            failures.append(f"{dialect}: the writer refused: {exc}")
-            continue
-        other = check_report(dialect, {f.name: f.data for f in written_files})
-        print(f"  {dialect}: {other.motions} motions, {other.positions} positions, "
-              f"{len(other.problems)} problems")
-        failures += [f"{dialect}: {p}" for p in other.problems]
-    assert checked >= 3, "every sample's arm runs on at least three of the four controllers"
-    assert failures == []
+# The sample cells' own programs (and their plans in every other dialect) are checked where
+# they are made: tests/samples/test_sample_cells.py, one planned run for both checks.
 
 
 # ------------------------------------------------------------------ hand-written programs

@@ -143,10 +143,46 @@ def test_sample_session_runs_and_matches_its_expected_outcome(name, tmp_path):
             assert err_mm <= want["tol_mm"] and err_deg <= want["tol_deg"], \
                 f"frame {fname}: {err_mm:.4f} mm, {err_deg:.4f} deg from the truth"
 
+    if rep["program_files"]:
+        check_documented_syntax(name, rep, out)
+
     if known_checks:
         assert known_failures, (f"{name}: the known issue is gone ({sorted(known_checks)} "
                                 "pass): remove known_issue from its expected outcome")
         pytest.xfail(f"{known['reason']} [{'; '.join(known_failures)}]")
+
+
+def check_documented_syntax(name: str, rep: dict, out: Path) -> None:
+    """The independent readers (tests/export/grammars, issue 35) on the program the run
+    wrote, then on the same plan written in every other dialect its robot's controller runs
+    (the saved session keeps the verified trajectory; names made legal as `export_files`
+    does). Here, so one planned run serves both checks."""
+    sys.path.insert(0, str(ROOT / "tests" / "export"))
+    from grammars import check_report
+
+    from assistant.export import DIALECT_NAMES, get_dialect, program_from_trajectory
+    from assistant.export.names import legal_for
+    from assistant.session import Session
+
+    files = {f: (out / f).read_bytes() for f in rep["program_files"]}
+    written = check_report(rep["dialect"], files)
+    assert written.problems == [], written.problems
+    print(f"{name} ({rep['dialect']}): {written.motions} motions, "
+          f"{written.positions} positions")
+    s = Session.load(out / "session", autosave=False)
+    program = program_from_trajectory(s.trajectory, s.robot, name="MISSION")
+    problems, checked = [], 1
+    for dialect in DIALECT_NAMES:
+        d = get_dialect(dialect)
+        if dialect == rep["dialect"] or s.robot.dof not in d.axis_counts:
+            continue
+        checked += 1
+        other = check_report(dialect, {f.name: f.data for f in
+                                       d.write(legal_for(program, d)[0], s.robot)})
+        print(f"  {dialect}: {other.motions} motions, {len(other.problems)} problems")
+        problems += [f"{dialect}: {p}" for p in other.problems]
+    assert checked >= 3, "every sample's arm runs on at least three of the four controllers"
+    assert problems == []
 
 
 def test_cells_lists_every_sample_with_its_description(tmp_path):
