@@ -20,6 +20,7 @@ from assistant.session.events import (
     CollisionRecorded,
     ErrorRaised,
     Event,
+    ExecutionFinished,
     Notice,
     PlanReady,
     ProgramReady,
@@ -40,14 +41,19 @@ from web.panels.plan import PlanPanel
 from web.panels.session_file import SessionPanel
 from web.panels.setup import SetupPanel
 from web.panels.teach import TeachPanel
+from web.panels.view import ViewPanel
 from web.pump import EventPump
 from web.scene.layers import SceneLayers
 from web.toolbar import Toolbar
 from web.uploads import install_early_limit
+from web.wording import goal_reached
 
 log = logging.getLogger(__name__)
 
 DEFAULT_MAX_UPLOAD_MB = 50
+#: The simulated robot in the page runs at most this fast (x real time): a person watches it
+#: and presses Collision! in time. Scripts keep the sample's faster pace.
+OPERATOR_PACE = 1.0
 
 
 @dataclass
@@ -68,8 +74,11 @@ class App:
     #: The workflow step the page shows (a step change makes earlier errors stale).
     _shown_state: str = field(init=False, default="")
     _swap_lock: threading.Lock = field(default_factory=threading.Lock, init=False)
+    #: An execution just finished well: its final PlanReady is no news to announce.
+    _executed: bool = field(init=False, default=False)
 
     def __post_init__(self) -> None:
+        operator_pace(self._session)
         self.server.gui.configure_theme(control_width="large", show_share_button=False,
                                         brand_color=(40, 110, 200))
         self.notifier = Notifier(self.server)
@@ -81,7 +90,7 @@ class App:
         self.panels = {p.title: p for p in (
             SetupPanel(self), CadPanel(self), PlacePanel(self), CamerasPanel(self),
             TeachPanel(self), PathsPanel(self), ExplorePanel(self), PlanPanel(self),
-            ExportPanel(self), JogPanel(self), SessionPanel(self))}
+            ExportPanel(self), JogPanel(self), ViewPanel(self), SessionPanel(self))}
         install_early_limit(self)
         if self.access is not None:
             self.access.attach(self)
@@ -100,6 +109,7 @@ class App:
             self.pump.detach()
             old.close()  # its robot, link and cameras stop with it
             self._session = new
+            operator_pace(new)
             self.pump.attach(new.bus)
         self.refresh()
 
@@ -141,8 +151,16 @@ class App:
         elif isinstance(ev, CollisionRecorded):
             self.notifier.notice(f"Collision #{ev.count} recorded ({ev.source}): that posture "
                                  "is now known as blocked.", key="collision")
+        elif isinstance(ev, ExecutionFinished):
+            self._executed = ev.ok
+            if ev.ok:
+                goal = self._session.mission.goal
+                self.notifier.success(goal_reached(goal and goal.name, ev.summary))
         elif isinstance(ev, PlanReady):
-            self.notifier.success("The mission is planned: the path is drawn in the scene.")
+            if self._executed:  # the verified final plan of a run: announced as the goal
+                self._executed = False
+            else:
+                self.notifier.success("The mission is planned: the path is drawn in the scene.")
         elif isinstance(ev, ProgramReady):
             self.notifier.success(f"{ev.dialect} program written: {', '.join(ev.files)}")
 
@@ -166,6 +184,14 @@ class App:
         self.pump.stop()
         self._session.close()
         self.server.stop()
+
+
+def operator_pace(session: Session) -> None:
+    """A sped-up simulated robot (a sample's 20x, for scripts) runs in real time in the page."""
+    ls = session.link_settings
+    if ls.kind == "simulated" and ls.time_scale > OPERATOR_PACE and \
+            session.machine.mode.value == "idle":
+        session.set_simulation_speed(OPERATOR_PACE, count=False)
 
 
 def build_app(session: Session, server: viser.ViserServer, *,

@@ -21,6 +21,8 @@ from assistant.session.events import (
     SceneChanged,
     StateChanged,
 )
+from web.panels.base import busy_reason
+from web.wording import progress_words
 from workflow.states import NUMBER, STATES, leaves
 
 if TYPE_CHECKING:
@@ -80,6 +82,17 @@ class Toolbar:
             "Collision!", description="The robot would hit something: stop and remember it",
             hotkey="space", disabled=True)
         self.key_stop = gui.add_command("Stop / Cancel", hotkey="escape", disabled=True)
+        # Ctrl+K lists these too: moving through the steps and undoing without the mouse.
+        self.key_next = gui.add_command("Next step", description="Go to the next step",
+                                        hotkey="arrowright", modifier="alt",
+                                        icon=viser.Icon.ARROW_RIGHT)
+        self.key_prev = gui.add_command("Previous step", description="Go back one step",
+                                        hotkey="arrowleft", modifier="alt",
+                                        icon=viser.Icon.ARROW_LEFT)
+        self.key_undo = gui.add_command("Undo", description="Take back the last change", hotkey="Z",
+                                        modifier="cmd/ctrl", icon=viser.Icon.ARROW_BACK_UP)
+        self.key_redo = gui.add_command("Redo", description="Do again what was undone", hotkey="Y",
+                                        modifier="cmd/ctrl", icon=viser.Icon.ARROW_FORWARD_UP)
 
         acts = app.actions
         acts.bind(self.prev, lambda e: self.app.session.fire("previous"))
@@ -90,6 +103,10 @@ class Toolbar:
         acts.bind(self.goto, lambda e: self._goto())
         acts.bind(self.key_collision, lambda e: self.app.session.fire("collision"))
         acts.bind(self.key_stop, lambda e: self._stop_or_cancel())
+        acts.bind(self.key_next, lambda e: self.app.session.fire("next"))
+        acts.bind(self.key_prev, lambda e: self.app.session.fire("previous"))
+        acts.bind(self.key_undo, lambda e: self._undo(e.client, redo=False))
+        acts.bind(self.key_redo, lambda e: self._undo(e.client, redo=True))
         app.notifier.on_message = self._on_message
 
     # ------------------------------------------------------------------ actions
@@ -143,8 +160,9 @@ class Toolbar:
             self.progress_text.visible = False
             return
         self.progress.value = max(0.0, min(100.0, 100.0 * ev.fraction))
+        words = progress_words(ev.message) or "working"
         self.progress_text.content = f"<small>{_md_escape(ev.task)}: " \
-                                     f"{_md_escape(ev.message)}</small>"
+                                     f"{_md_escape(words)}</small>"
         self.progress.visible = True
         self.progress_text.visible = True
 
@@ -165,11 +183,19 @@ class Toolbar:
         extra = [t for t in transitions if t.event not in NAV]
         self._sync_extra(extra)
         idle = mode == "idle"
-        _set(self.undo, disabled=not (idle and s.history.can_undo),
-             hint=f"Undo: {s.history.undo_label()}" if s.history.can_undo else "Nothing to undo")
-        _set(self.redo, disabled=not (idle and s.history.can_redo),
-             hint=f"Redo: {s.history.redo_label()}" if s.history.can_redo else "Nothing to redo")
-        self.goto.disabled = not idle
+        wait = busy_reason(mode)
+        h = s.history
+        for btn, cmd, can, what, word in (
+                (self.undo, self.key_undo, h.can_undo, h.undo_label(), "Undo"),
+                (self.redo, self.key_redo, h.can_redo, h.redo_label(), "Redo")):
+            why = wait or ("" if can else f"Nothing to {word.lower()}")
+            label = f"{word}: {_short(what)}" if can else word
+            _set(btn, label=label, disabled=bool(why), hint=why or f"{word} {what}")
+            _set(cmd, label=label, disabled=bool(why))
+        for cmd, event in ((self.key_next, "next"), (self.key_prev, "previous")):
+            t = by_event.get(event)
+            _set(cmd, disabled=t is None or not t.allowed)
+        _set(self.goto, disabled=not idle, hint=wait or "Jump to the step chosen above")
         moving = mode == "moving"
         if self.key_collision.disabled != (not moving):
             self.key_collision.disabled = not moving
@@ -202,6 +228,10 @@ class Toolbar:
         """The toolbar button of a transition (tests)."""
         return {"previous": self.prev, "next": self.next, "exit": self.exit}.get(event) or \
             self._buttons.get(event)
+
+
+def _short(text: str, n: int = 36) -> str:
+    return text if len(text) <= n else text[: n - 3] + "..."
 
 
 def _target_hint(target: str | None) -> str:

@@ -13,8 +13,8 @@ Array = np.ndarray
 def pose_fields(T: Array) -> tuple[tuple[float, float, float], tuple[float, float, float]]:
     """T (m, rad) -> ((x, y, z) mm, (A, B, C) deg) rounded for number fields."""
     v = pose_to_mm_deg(np.asarray(T, float))
-    xyz = tuple(round(float(x), 3) for x in v[:3])
-    abc = tuple(round(float(x), 3) for x in v[3:])
+    xyz = tuple(round(float(x), 3) + 0.0 for x in v[:3])  # + 0.0: no "-0" on screen
+    abc = tuple(round(float(x), 3) + 0.0 for x in v[3:])
     return xyz, abc  # type: ignore[return-value]
 
 
@@ -60,3 +60,19 @@ def T_from_wxyz_position(wxyz: tuple[float, ...] | Array, position: tuple[float,
 def fmt_mm(p: Array) -> str:
     p = np.asarray(p, float) * 1000.0
     return f"({p[0]:.1f}, {p[1]:.1f}, {p[2]:.1f})"
+
+
+#: The angle convention of every typed pose, named once where poses are typed.
+ABC_CONVENTION = "A, B, C turn the tool about Z, then the turned Y', then X'' (degrees, " \
+    "KUKA's convention). (0, 0, 180) points the tool down."
+
+
+def abc_shown(T: Array, typed: tuple[float, ...] | None) -> tuple[float, float, float]:
+    """A pose's A, B, C in degrees: as the operator typed them when they give the same
+    rotation (0, 0, 180 is also -180, 0, 0), else the ones read back from the pose."""
+    computed = pose_fields(T)[1]
+    if typed is not None:
+        R_typed = pose_from_mm_deg(np.array([0.0, 0.0, 0.0, *typed], dtype=float))[:3, :3]
+        if np.allclose(R_typed, np.asarray(T, float)[:3, :3], atol=1e-6):
+            return tuple(float(v) + 0.0 for v in typed)  # type: ignore[return-value]
+    return tuple(v + 0.0 if abs(v) > 5e-4 else 0.0 for v in computed)  # type: ignore

@@ -95,6 +95,9 @@ class PointerUpdated(Event):
     position: np.ndarray | None = field(repr=False, default=None)
     std_m: float = 0.0
     mode: str = "lost"
+    #: How far the ball has been held still (0..1 of `dwell_s` seconds; 0: not holding).
+    dwell_progress: float = 0.0
+    dwell_s: float = 0.0
 
 
 class EventBus:

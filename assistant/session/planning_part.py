@@ -330,6 +330,21 @@ class PlanningActions:
         return OccupiedCells(centres @ T[:3, :3].T + T[:3, 3], occ[tuple(ijk.T)].astype(float),
                              float(grid.leaf), T[:3, :3].copy())
 
+    def learnt_cells(self) -> OccupiedCells | None:
+        """The obstacle learnt from collision indications: occupied leaves that no CAD part
+        explains (world frame), for display."""
+        b = self._world
+        if b is None or not b.world.collisions:
+            return None
+        occ = np.asarray(b.world.occupancy())
+        cad = np.asarray(b.world.cad_leaves()).reshape(occ.shape)
+        ijk = np.argwhere((occ >= b.world.threshold) & ~cad)
+        grid = b.world.grid
+        T = self.T_world_base()
+        return OccupiedCells(grid.centres_of_ijk(ijk) @ T[:3, :3].T + T[:3, 3],
+                             occ[tuple(ijk.T)].astype(float), float(grid.leaf),
+                             T[:3, :3].copy())
+
     def road_cells(self) -> tuple[Array, float] | None:
         """Centres (world frame) of the Voronoi road cells and the leaf size."""
         b = self._world

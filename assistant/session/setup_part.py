@@ -19,6 +19,7 @@ from assistant.session.events import (
 )
 from assistant.session.types import (
     HiddenObstacle,
+    SessionError,
 )
 from assistant.transforms import inv_T
 
@@ -49,6 +50,22 @@ class SetupActions:
         with self._action("choose the robot link", ("setup",), undoable=False, scene="link"):
             self._drop_link()
             self.link_settings = settings
+
+    def set_simulation_speed(self, time_scale: float, *, count: bool = True) -> None:
+        """How fast the simulated robot runs (robot seconds per wall second, 1 = real time);
+        in any step while the robot stands still. The page runs it at a person's pace,
+        scripts as fast as the sample says."""
+        from dataclasses import replace
+
+        if not 0.01 <= float(time_scale) <= 100.0:
+            raise SessionError(f"simulation speed {time_scale:g}x: give 0.01 to 100 times "
+                               "real time")
+        with self._action("change the simulation speed", None, undoable=False, scene="link",
+                          count=count):
+            if self.link_settings.time_scale != float(time_scale):
+                self.link_settings = replace(self.link_settings, time_scale=float(time_scale))
+                if self.link_settings.kind == "simulated":
+                    self._drop_link()  # made again with the new clock where it stands
 
     def set_hidden_obstacles(self, hidden: list[HiddenObstacle]) -> None:
         """Obstacles only the simulated robot knows (they stand in for reality)."""

@@ -18,6 +18,7 @@ from assistant.mission.motion import ToolAction
 from assistant.robots.model import IKResult, UnreachableError
 from assistant.session.events import (
     Notice,
+    PointerUpdated,
 )
 from assistant.session.frames import (
     _drawing_control,
@@ -111,10 +112,20 @@ class TeachActions:
 
     def simulate_pointer_dwell(self, point_world: Array, *, seed: int = 0) -> Any:
         """Scripted sessions: the synthetic pointer moves to `point_world` and holds still; the
-        real vision pipeline measures it. Returns the taught point (measured, not the truth)."""
+        real vision pipeline measures it. Returns the taught point (measured, not the truth).
+        Each frame's ball and dwell progress are announced (`PointerUpdated`) for the page."""
+        from vision.pointer import PointerSystem
         from vision.scripted import simulate_dwell
 
-        return simulate_dwell(self.camera_models(), np.asarray(point_world, float), seed=seed)
+        models = self.camera_models()
+
+        def system(scene: Any) -> _AnnouncedDwell:
+            return _AnnouncedDwell(PointerSystem.synthetic(models, scene, seed=seed), self.bus)
+
+        try:
+            return simulate_dwell(system, np.asarray(point_world, float), seed=seed)
+        finally:
+            self.bus.emit(PointerUpdated(None))
 
     # -- live pointer (UI) ------------------------------------------------------------------
     def start_pointer(self) -> None:
@@ -150,7 +161,9 @@ class TeachActions:
 
         pos = None if state.position_world is None else np.asarray(state.position_world)
         std = float(np.sqrt(np.trace(state.covariance))) if pos is not None else 0.0
-        self.bus.emit(PointerUpdated(pos, std, state.mode))
+        live = self._pointer
+        dwell_s = float(live.system.params.dwell.dwell_s) if live is not None else 0.0
+        self.bus.emit(PointerUpdated(pos, std, state.mode, float(state.dwell_progress), dwell_s))
         if state.taught is not None:
             self.pending_point = state.taught
             p = np.asarray(state.taught.position_world) * 1000
@@ -357,3 +370,27 @@ class TeachActions:
             if not found:
                 raise SessionError(f"no path named {name!r}")
             self.mission = replace(self.mission, paths=paths)
+
+
+class _AnnouncedDwell:
+    """A pointer system whose every frame is announced on the bus (the ball, the dwell)."""
+
+    def __init__(self, system: Any, bus: Any):
+        self.system = system
+        self.bus = bus
+
+    @property
+    def params(self) -> Any:
+        return self.system.params
+
+    def step(self) -> Any:
+        state = self.system.step()
+        pos = None if state.position_world is None else np.asarray(state.position_world)
+        std = float(np.sqrt(np.nanmax([np.trace(state.covariance), 0.0]))) \
+            if pos is not None else 0.0
+        self.bus.emit(PointerUpdated(pos, std, state.mode, float(state.dwell_progress),
+                                     float(self.system.params.dwell.dwell_s)))
+        return state
+
+    def close(self) -> None:
+        self.system.close()

@@ -87,9 +87,10 @@ def test_thesis_scenario_in_the_browser_equals_the_script(cellteach_serve, open_
     ui.click("Next")
     ui.step("3.1")
     # 3. Place by numbers.
-    for part, y in (("O1", -200), ("O2", 200)):
+    # Imported parts wait behind the robot, side by side, until placed (`web.panels.cad`).
+    for part, y, waiting in (("O1", -200, "(-450, -150, 0)"), ("O2", 200, "(-450, 150, 0)")):
         ui.choose("Part", part)
-        ui.wait_text(f"{part} is at (0, 0, 0) mm")  # the fields now show this part
+        ui.wait_text(f"{part} is at {waiting} mm")  # the fields now show this part
         ui.fill_vec("Position (mm)", (220, y, 0))
         ui.click("Place part")
         ui.wait_text(f"{part} is at (220, {y}, 0) mm")
@@ -106,10 +107,10 @@ def test_thesis_scenario_in_the_browser_equals_the_script(cellteach_serve, open_
         ui.fill_vec("A, B, C (deg)", (0, 0, 180))  # as the script: tool down
         ui.click("Teach this pose")
         ui.wait_cell(name)
-    for name, y, seed in (("P7", -70, 7), ("P8", 70, 8)):
+    # The synthetic camera's noise seed follows the name (P7: 7, P8: 8), as in the script.
+    for name, y in (("P7", -70), ("P8", 70)):
         ui.fill("Name", name)
         ui.fill_vec("Point (mm)", (340, y, 60))
-        ui.fill("Simulation seed", seed)
         ui.click("Teach by pointer dwell")
         ui.wait_cell(name)
     ui.choose("Location", "P1")
@@ -142,7 +143,10 @@ def test_thesis_scenario_in_the_browser_equals_the_script(cellteach_serve, open_
     ui.wait_text(re.compile(r"Collision #\d+ recorded"), timeout=LONG_MS)
     ui.shot("6-collision")
     ui.wait_enabled("Next", timeout=LONG_MS)
+    ui.wait_text("Goal reached: the robot is at P10")  # said once, in the operator's words
     ui.shot("6-executed")
+    moves = re.search(r"Mission planned: (\d+) moves", ui.page.inner_text("body"))
+    assert moves is not None
     assert not ui.errors(), ui.errors()  # the execution ended with a verified plan
     ui.click("Next")
     ui.step("7")
@@ -157,6 +161,9 @@ def test_thesis_scenario_in_the_browser_equals_the_script(cellteach_serve, open_
     # The headless twin: the same actions through `cellteach run`.
     ref = run_reference(ref_out)
     assert ref.returncode == 0, ref.stderr
+    # The page counts the moves as report.json does (one source for every count).
+    report = json.loads((ref_out / "report.json").read_text())
+    assert int(moves.group(1)) == sum(report["primitives"].values())
     # Same cell, locations and mission (autosaved by the server after every action) ...
     assert documents(tmp_path / "served-session") == documents(ref_out / "session")
     # ... and the same program, byte for byte.

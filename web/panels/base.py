@@ -59,3 +59,35 @@ class Panel:
 
     def on_event(self, ev: Event) -> None:
         """React to one session event (UI thread); default: nothing."""
+
+
+def busy_reason(mode: str) -> str:
+    """Why a control that needs the robot and the assistant idle is greyed out ("" if idle)."""
+    return {"busy": "Wait: the assistant is working (Cancel in the toolbar stops it)",
+            "moving": "Wait: the robot is moving (Stop halts it)",
+            "error": "Acknowledge the error in the toolbar first"}.get(mode, "")
+
+
+def gate(handle: Any, why: str, hint: str = "") -> None:
+    """Enable a control, or grey it out with `why` as its tooltip: a greyed control always
+    says what to do first. `hint`: the tooltip while it is enabled."""
+    disabled, tip = bool(why), (why or hint)
+    if handle.disabled != disabled:
+        handle.disabled = disabled
+    if getattr(handle, "hint", None) != (tip or None):
+        handle.hint = tip or None
+
+
+def why_greyed(reasons: dict[str, str]) -> str:
+    """One small line under a panel's buttons: what each greyed one waits for (viser shows no
+    tooltip on a button, and none on a disabled control anywhere). Reasons shared by several
+    buttons are said once."""
+    by_reason: dict[str, list[str]] = {}
+    for label, why in reasons.items():
+        if why:
+            by_reason.setdefault(why, []).append(label)
+    if not by_reason:
+        return ""
+    parts = [f"{' / '.join(labels)}: {why[:1].lower() + why[1:]}"
+             for why, labels in by_reason.items()]
+    return "<small>Greyed out - " + "; ".join(parts) + ".</small>"

@@ -12,13 +12,17 @@ import viser
 from assistant.cell.model import ObjectRole
 from assistant.progress import Cancelled
 from assistant.session.events import Event, SceneChanged
-from web.panels.base import Panel
+from web.panels.base import Panel, gate
 from web.units import point_from_mm
 from web.uploads import check_upload_size
 
 UNITS = ("from the file", "mm", "m", "inch")
 ROLES = tuple(r.value for r in ObjectRole)
 FORMATS = "STL, OBJ, PLY, GLB/GLTF, 3MF, DXF, STEP"
+#: Imported parts wait here until placed: behind the robot's base (its -x), in a row.
+STAGING_BEHIND_M = -0.45
+STAGING_STEP_M = 0.3
+STAGING_SLOTS = 4
 
 
 @dataclass
@@ -37,8 +41,8 @@ class CadPanel(Panel):
 
     def build(self) -> None:
         g = self.gui
-        g.add_markdown(f"Upload a part ({FORMATS}). It lands at the world origin; place it "
-                       "in the next step.")
+        g.add_markdown(f"Upload a part ({FORMATS}). It waits beside the robot, out of its "
+                       "way, until you place it in the next step.")
         self.units = g.add_dropdown("Units", UNITS, hint="Leave 'from the file' unless the "
                                     "size comes out wrong")
         self.role = g.add_dropdown("Role", ROLES, initial_value="obstacle")
@@ -85,10 +89,20 @@ class CadPanel(Panel):
         the page stays responsive); the report is shown when it is done."""
         height = self.extrude.value / 1000.0 if self.extrude.value > 0 else None
         fut = self.session.start_import_cad(data, filename, name=name, units=units,
-                                            dxf_extrude_height=height, role=self.role.value)
+                                            dxf_extrude_height=height, role=self.role.value,
+                                            T_world_object=self._waiting_spot())
         self.report.content = f"*Importing {filename}...*"
         fut.add_done_callback(lambda f: self.app.pump.post(
             lambda: self._imported(f, filename, data)))
+
+    def _waiting_spot(self) -> np.ndarray:
+        """Where a new part waits to be placed: behind the robot's base, side by side (the
+        k-th part STAGING_STEP_M further along), not inside the arm where it would hide."""
+        s = self.session
+        k = len(s.cell.objects) % STAGING_SLOTS
+        T = np.eye(4)
+        T[:3, 3] = (STAGING_BEHIND_M, STAGING_STEP_M * (k - (STAGING_SLOTS - 1) / 2.0), 0.0)
+        return s.T_world_base() @ T
 
     def _imported(self, fut: Future, filename: str, data: bytes) -> None:
         exc = fut.exception()
@@ -141,7 +155,8 @@ class CadPanel(Panel):
         names = tuple(o.name for o in objs) or ("-",)
         if tuple(self.pick.options) != names:
             self.pick.options = names
-        self.remove.disabled = self.set_role.disabled = not objs
+        for btn in (self.remove, self.set_role):
+            gate(btn, "" if objs else "Import or add a part first")
         if self.last is not None and self.last.object_name not in self.session.cell.objects:
             self.confirm.visible = False
 

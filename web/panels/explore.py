@@ -1,15 +1,13 @@
 """Step 5 - explore the workspace: build the world model (reachability, CAD, roads) with a
 progress bar and Cancel, optionally move the robot around while pressing Collision! when it
-would hit something; show or hide the octree and the roads."""
+would hit something. What the scene shows is the View panel's (`web.panels.view`)."""
 
 from __future__ import annotations
-
-from typing import Any
 
 import viser
 
 from assistant.session.events import CollisionRecorded, Event, SceneChanged, StateChanged
-from web.panels.base import Panel
+from web.panels.base import Panel, busy_reason, gate, why_greyed
 
 EXPLORE_MODES = {"random moves": "random", "along the roads": "roads", "replay the plan": "replay"}
 
@@ -29,6 +27,7 @@ class ExplorePanel(Panel):
         self.collision = g.add_button("Collision!", color="red", icon=viser.Icon.ALERT_OCTAGON,
                                       disabled=True, hint="Space key. Stops the robot and "
                                                           "remembers this posture as blocked")
+        self.why = g.add_markdown("")
         with g.add_folder("Advanced", expand_by_default=False):
             ws = self.session.world_settings
             self.resolution = g.add_number("Cell size (mm, 0 = auto)", ws.resolution_mm or 0.0,
@@ -45,10 +44,6 @@ class ExplorePanel(Panel):
             self.apply_settings = g.add_button("Apply settings",
                                                hint="The world model is rebuilt on the next "
                                                     "build or plan")
-        with g.add_folder("Show", expand_by_default=True):
-            self.show_occ = g.add_checkbox("Occupied cells", True)
-            self.min_p = g.add_slider("From probability", 0.0, 1.0, 0.05, 0.05)
-            self.show_roads = g.add_checkbox("Roads", True)
         self.bind(self.build_world, lambda e: self.session.start_build_world())
         self.bind(self.apply_settings, lambda e: self.session.set_world_settings(
             resolution_mm=float(self.resolution.value) or None,
@@ -57,24 +52,13 @@ class ExplorePanel(Panel):
         self.bind(self.explore, lambda e: self.session.start_explore(
             EXPLORE_MODES[self.mode.value], int(self.moves.value), seed=0), motion=True)
         self.bind(self.collision, lambda e: self.session.fire("collision"))
-        world = self.app.scene_layers.world
-        self.show_occ.on_update(lambda e: world.set_visibility(occupancy=bool(self.show_occ.value)))
-        self.show_roads.on_update(lambda e: world.set_visibility(roads=bool(self.show_roads.value)))
-        self.min_p.on_update(lambda e: self._min_p(e))
-
-    def _min_p(self, e: Any) -> None:
-        if e.client is None:
-            return
-        self.app.scene_layers.world.min_p = float(self.min_p.value)
-        self.app.pump.post(self.app.scene_layers.world.refresh)
 
     def refresh(self) -> None:
         s = self.session
-        world = self.app.scene_layers.world
         mode = s.machine.mode.value
-        idle = mode == "idle"
-        self.build_world.disabled = not idle
-        self.apply_settings.disabled = not idle
+        wait = busy_reason(mode)
+        gate(self.build_world, wait, "Map the parts and the robot's reach")
+        gate(self.apply_settings, wait, "The world model is rebuilt on the next build or plan")
         ws = s.world_settings
         if ws != getattr(self, "_shown", None):  # changed (applied, loaded): show it; else
             self._shown = ws  # leave what the operator is typing alone
@@ -82,13 +66,21 @@ class ExplorePanel(Panel):
                                   (self.samples, ws.joint_samples), (self.memory, ws.memory_mb),
                                   (self.clearance, ws.clearance_mm)):
                 handle.value = value
-        self.explore.disabled = not idle or not s.world_ready
-        self.collision.disabled = mode != "moving"
+        reasons = {"Build world model": wait,
+                   "Explore": wait or ("" if s.world_ready else "build the world model first"),
+                   "Collision!": "" if mode == "moving" else "only while the robot moves"}
+        gate(self.explore, reasons["Explore"])
+        gate(self.collision, reasons["Collision!"],
+             "Space key. Stops the robot and remembers this posture as blocked")
+        why = why_greyed(reasons)
+        if self.why.content != why:
+            self.why.content = why
         if s.world_ready:
-            self.world_md.content = (f"World model ready: {world.cells_drawn:,} occupied cells "
-                                     f"shown, {world.roads_drawn:,} road cells, "
-                                     f"{s.counters.collision_indications} collision(s) "
-                                     "recorded.")
+            n = s.counters.collision_indications
+            learnt = "" if not n else f" {n} collision{'s' if n != 1 else ''} learnt so far."
+            self.world_md.content = ("World model ready: the parts and the space the robot can "
+                                     "reach are mapped, and the planner knows where it may "
+                                     "move (Scene layers: Occupied cells, Roads)." + learnt)
         else:
             self.world_md.content = "*No world model for the current cell yet.*"
 

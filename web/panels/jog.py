@@ -91,8 +91,8 @@ class JogPanel(Panel):
                                                                    strict=False))
         xyz, abc = pose_fields(s.tcp_world(q))
         self.readout.content = f"<small>Joints (deg): {deg}<br>TCP (mm): " \
-                               f"{fmt_mm(np.array(xyz) / 1000.0)}, A B C " \
-                               f"{abc[0]:.1f} {abc[1]:.1f} {abc[2]:.1f}</small>"
+                               f"{fmt_mm(np.array(xyz) / 1000.0)}, A, B, C (deg) " \
+                               f"({_deg(abc[0])}, {_deg(abc[1])}, {_deg(abc[2])})</small>"
 
     def refresh(self) -> None:
         self._build_sliders()
@@ -115,3 +115,8 @@ class JogPanel(Panel):
                 self._sliders_to_robot()
         elif isinstance(ev, SceneChanged) and ev.what in ("robot", "all"):
             self.refresh()
+
+
+def _deg(v: float) -> str:
+    """One decimal, and never "-0.0" for a tiny negative angle."""
+    return f"{(v if abs(v) >= 0.05 else 0.0):.1f}"

@@ -7,7 +7,7 @@ import numpy as np
 
 from assistant.mission.motion import ToolAction, ToolActionKind
 from assistant.session.events import Event, SceneChanged, StateChanged
-from web.panels.base import Panel
+from web.panels.base import Panel, gate
 
 KINDS = {"line (2+ points)": "line", "arc (start, via, end)": "arc",
          "Bezier chain (1 + 3k points)": "bezier"}
@@ -117,13 +117,14 @@ class PathsPanel(Panel):
         frames = tuple(s.cell.frames) or ("-",)
         if tuple(self.d_frame.options) != frames:
             self.d_frame.options = frames
-        self.add_drawing.disabled = not s.cell.frames
+        gate(self.add_drawing, "" if s.cell.frames else
+             "Calibrate a frame first (step 3.1, Frames)")
         names = tuple(p.name for p in m.paths) or ("-",)
         if tuple(self.pick.options) != names:
             self.pick.options = names
         empty = not m.paths
-        self.up.disabled = self.down.disabled = self.delete.disabled = empty
-        self.set_actions.disabled = self.order_btn.disabled = empty
+        for btn in (self.up, self.down, self.delete, self.set_actions, self.order_btn):
+            gate(btn, "Add a path first" if empty else "")
         used = {p.name for p in m.paths}
         if self.name.value in used:
             k = 1

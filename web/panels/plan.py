@@ -12,12 +12,14 @@ from assistant.session.events import (
     CollisionRecorded,
     ErrorRaised,
     Event,
+    ExecutionFinished,
     PlanReady,
     SceneChanged,
     StateChanged,
 )
-from web.panels.base import Panel
+from web.panels.base import Panel, busy_reason, gate, why_greyed
 from web.scene.plan import KIND_COLORS
+from web.wording import goal_reached, moves_words, report_rows
 
 LEGEND_NAMES = {"joint": "joint move (MOV/PTP)", "linear": "line (MVS/LIN)",
                 "circular": "arc (MVR/CIRC)", "spline": "curve (SPLINE)"}
@@ -30,16 +32,38 @@ def legend() -> str:
 
 
 def report_markdown(report: dict[str, Any] | None) -> str:
-    """The planner's report as a short list (scalars only; nested detail stays in the file)."""
+    """The planner's report as a two-column table in mm, degrees and seconds (the raw one,
+    in metres and radians, is in report.json)."""
     if not report:
         return "*Not planned yet.*"
-    rows = []
-    for k, v in report.items():
-        if isinstance(v, float):
-            rows.append(f"- {k.replace('_', ' ')}: {v:.3g}")
-        elif isinstance(v, (int, str, bool)):
-            rows.append(f"- {k.replace('_', ' ')}: {v}")
-    return "\n".join(rows[:14])
+    rows = ["| | |", "|---|---|"]
+    rows += [f"| {label} | {_cell(value)} |" for label, value in report_rows(report)]
+    return "\n".join(rows)
+
+
+def _content(md: Any, text: str) -> None:
+    if md.content != text:
+        md.content = text
+
+
+def _cell(text: str) -> str:
+    return str(text).replace("|", "/").replace("\n", " ").replace("<", "&lt;")
+
+
+COLLISION_HINT = "Space key. Stops the robot, remembers the posture, re-plans"
+SPEED_HINT = "How fast the simulated robot moves: 1x is as fast as the real robot, slow " \
+    "enough to watch it and press Collision! in time"
+
+#: Choices of the simulated robot's speed, in times real time (1 = as fast as the real one).
+SPEEDS = {"0.5x real time": 0.5, "1x real time": 1.0, "2x real time": 2.0,
+          "5x real time": 5.0, "20x real time": 20.0}
+
+
+def speed_label(time_scale: float) -> str:
+    for label, v in SPEEDS.items():
+        if abs(v - time_scale) < 1e-9:
+            return label
+    return f"{time_scale:g}x real time"
 
 
 class PlanPanel(Panel):
@@ -52,12 +76,15 @@ class PlanPanel(Panel):
         self.execute = g.add_button("Execute on the robot", icon=viser.Icon.PLAYER_PLAY,
                                     disabled=True)
         self.collision = g.add_button("Collision!", color="red", icon=viser.Icon.ALERT_OCTAGON,
-                                      disabled=True, hint="Space key. Stops the robot, remembers "
-                                                          "the posture, re-plans")
+                                      disabled=True, hint=COLLISION_HINT)
         self.stop = g.add_button("Stop", color="orange", icon=viser.Icon.PLAYER_STOP,
                                  disabled=True)
         self.resume = g.add_button("Resume", icon=viser.Icon.PLAYER_TRACK_NEXT, disabled=True,
                                    hint="Continue a stopped mission from where the robot is")
+        self.why = g.add_markdown("")
+        self.speed = g.add_dropdown(
+            "Simulation speed", tuple(SPEEDS), initial_value="1x real time",
+            hint=SPEED_HINT)
         self.legend = g.add_markdown(legend())
         self.summary = g.add_markdown("")
         with g.add_folder("Planner report", expand_by_default=False):
@@ -66,35 +93,74 @@ class PlanPanel(Panel):
         self.bind(self.execute, lambda e: self.session.start_execute(),
                   motion=True)
         self.bind(self.collision, lambda e: self.session.fire("collision"))
+        self.bind(self.speed, lambda e: self._set_speed())
         self.bind(self.stop, lambda e: self.session.fire("stop"))
         self.bind(self.resume, lambda e: self.session.resume_execution(),
                   motion=True)
         self._resumable = False
+        #: "Goal reached: ..." after a good run, until the mission is planned again.
+        self._outcome = ""
+
+    def _set_speed(self) -> None:
+        label = self.speed.value
+        scale = SPEEDS.get(label)
+        if scale is not None and scale != self.session.link_settings.time_scale:
+            self.session.set_simulation_speed(scale)
 
     def refresh(self) -> None:
         s = self.session
         mode = s.machine.mode.value
-        idle = mode == "idle"
         has_plan = s.trajectory is not None
-        self.plan.disabled = not idle
-        self.plan.label = "Re-plan" if has_plan else "Plan"
-        self.execute.disabled = not (idle and has_plan)
-        self.collision.disabled = mode != "moving"
-        self.stop.disabled = mode != "moving"
-        self.resume.disabled = not (idle and self._resumable)
+        wait = busy_reason(mode)
+        label = "Re-plan" if has_plan else "Plan"
+        if self.plan.label != label:
+            self.plan.label = label
+        not_moving = "" if mode == "moving" else "only while the robot moves"
+        reasons = {
+            label: wait,
+            "Execute": wait or ("" if has_plan else "plan the mission first"),
+            "Collision! / Stop": not_moving,
+            "Resume": wait or ("" if self._resumable else "only after a stopped run"),
+        }
+        gate(self.plan, reasons[label], "Plan the mission in the known world")
+        gate(self.execute, reasons["Execute"], "Run the planned mission on the robot")
+        gate(self.collision, not_moving, COLLISION_HINT)
+        gate(self.stop, not_moving, "Halt the robot")
+        gate(self.resume, reasons["Resume"], "Continue a stopped mission from where it stopped")
+        _content(self.why, why_greyed(reasons))
+        ls = s.link_settings
+        self.speed.visible = ls.kind == "simulated"
+        gate(self.speed, wait, SPEED_HINT)
+        if ls.kind == "simulated" and self.speed.value != speed_label(ls.time_scale):
+            if speed_label(ls.time_scale) not in SPEEDS:
+                self.speed.options = (*SPEEDS, speed_label(ls.time_scale))
+            self.speed.value = speed_label(ls.time_scale)
         c = s.counters
-        drawn = self.app.scene_layers.plan.motions_drawn
-        state = "planned" if has_plan else "not planned yet"
-        self.summary.content = (f"Mission {state}; {drawn} motions drawn. Collisions recorded: "
-                                f"{c.collision_indications}, re-plans: {c.replans}, "
-                                f"planning time {c.planning_time_s:.1f} s.")
+        if has_plan:
+            # The counts and times report.json gives (`assistant.session.report`).
+            n, kinds = moves_words(s.trajectory.primitive_counts())
+            plan_text = (f"Mission planned: {n} moves ({kinds}). Planning time "
+                         f"{c.planning_time_s:.1f} s in all.")
+        else:
+            plan_text = "Mission not planned yet."
+        learnt = "" if not c.collision_indications else \
+            f" Collisions learnt: {c.collision_indications}, re-plans: {c.replans}."
+        self.summary.content = (f"**{self._outcome}**\n\n" if self._outcome else "") + \
+            plan_text + learnt
         self.report.content = report_markdown(s.plan_report)
 
     def on_event(self, ev: Event) -> None:
         if isinstance(ev, ErrorRaised):
             self._resumable = "Resume" in ev.message
+        elif isinstance(ev, ExecutionFinished):
+            goal = self.session.mission.goal
+            self._outcome = goal_reached(goal and goal.name, ev.summary) if ev.ok else ""
+            self._after_run = ev.ok
         elif isinstance(ev, PlanReady):
             self._resumable = False
+            if not getattr(self, "_after_run", False):
+                self._outcome = ""  # planned again: the last run's outcome is history
+            self._after_run = False
         if isinstance(ev, (StateChanged, PlanReady, CollisionRecorded, ErrorRaised)) or \
                 isinstance(ev, SceneChanged) and ev.what in ("all", "mission", "plan", "world"):
             self.refresh()

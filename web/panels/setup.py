@@ -43,8 +43,9 @@ class SetupPanel(Panel):
                                        hint="The IRC5's default login unless the cell "
                                             "has its own")
             self.rws_password = g.add_text("RWS password", "robotics", visible=False)
-            self.time_scale = g.add_number("Simulation speed", 1.0, min=0.1, max=50.0, step=0.1,
-                                           hint="Robot seconds per wall second")
+            self.time_scale = g.add_number(
+                "Simulation speed (x real time)", 1.0, min=0.1, max=50.0, step=0.1,
+                hint="1 = as fast as the real robot; 20 runs a minute's motion in 3 s")
             self.apply_link = g.add_button("Use this link")
             self.connect = g.add_button("Connect now")
         self.robot.on_update(lambda e: self._robot_kind_changed())

@@ -8,10 +8,10 @@ from typing import Any
 
 import numpy as np
 
-from assistant.session.events import Event, Notice, SceneChanged, StateChanged
-from web.panels.base import Panel
+from assistant.session.events import Event, Notice, PointerUpdated, SceneChanged, StateChanged
+from web.panels.base import Panel, gate, why_greyed
 from web.scene.picking import pick
-from web.units import fmt_mm, point_from_mm, pose_from_fields
+from web.units import ABC_CONVENTION, abc_shown, fmt_mm, point_from_mm, pose_from_fields
 
 #: Tool pointing down (A, B, C = 0, 0, 180 deg) - the usual pose over a table.
 DOWN_ABC = (0.0, 0.0, 180.0)
@@ -35,14 +35,20 @@ class TeachPanel(Panel):
             self.point = g.add_vector3("Point (mm)", (300.0, 0.0, 100.0), step=1.0,
                                        hint="Synthetic camera: where the simulated hand holds "
                                             "the ball")
-            self.seed = g.add_number("Simulation seed", 0, min=0, max=2**31 - 1, step=1,
-                                     hint="Synthetic camera only: seed of its image noise")
             self.dwell = g.add_button("Teach by pointer dwell")
+            self.dwell_bar = g.add_progress_bar(0.0, visible=False, animated=False)
+            self.dwell_md = g.add_markdown("", visible=False)
             self.pending = g.add_button("Teach the point just held", disabled=True)
+            with g.add_folder("Synthetic camera (advanced)", expand_by_default=False):
+                self.seed = g.add_number(
+                    "Image noise seed", 0, min=0, max=2**31 - 1, step=1,
+                    hint="Follows the location's number (P7: 7), so the same point taught "
+                         "under the same name measures the same")
         with g.add_folder("From the robot or by numbers", expand_by_default=False):
             self.from_robot = g.add_button("Teach the robot's pose")
             self.xyz = g.add_vector3("Position (mm)", (300.0, 0.0, 100.0), step=0.1)
-            self.abc = g.add_vector3("A, B, C (deg)", DOWN_ABC, step=0.1)
+            self.abc = g.add_vector3("A, B, C (deg)", DOWN_ABC, step=0.1, hint=ABC_CONVENTION)
+            g.add_markdown(f"<small>{ABC_CONVENTION}</small>")
             self.typed = g.add_button("Teach this pose")
         with g.add_folder("By clicking a part", expand_by_default=False):
             self.click_mode = g.add_checkbox("Click on a part teaches a point", False)
@@ -53,23 +59,65 @@ class TeachPanel(Panel):
             self.set_start = g.add_button("Make it the start")
             self.set_goal = g.add_button("Make it the goal")
             self.delete = g.add_button("Delete it", color="red")
-        self.bind(self.dwell, lambda e: self._teach(lambda n: self.session.teach_by_pointer_dwell(
-            n, point_from_mm(self.point.value), seed=int(self.seed.value))))
+            self.why = g.add_markdown("")
+        self.bind(self.dwell, lambda e: self._dwell())
+        self.name.on_update(lambda e: self._seed_from_name())
+        self.seed.on_update(lambda e: self._seed_typed(e))
+        self._seed_manual = False
+        #: A, B, C as typed per location, to show them back as typed (see `abc_shown`).
+        self._typed_abc: dict[str, tuple[float, ...]] = {}
         self.bind(self.pending, lambda e: self._teach(self.session.teach_pending_point))
         self.bind(self.from_robot, lambda e: self._teach(self.session.teach_from_robot))
-        self.bind(self.typed, lambda e: self._teach(lambda n: self.session.teach(
-            n, pose_from_fields(self.xyz.value, self.abc.value))))
+        self.bind(self.typed, lambda e: self._teach_typed())
         self.bind(self.set_start, lambda e: self.session.set_start(self.pick.value))
         self.bind(self.set_goal, lambda e: self.session.set_goal(self.pick.value))
         self.bind(self.delete, lambda e: self.session.remove_location(self.pick.value))
         self.app.scene_layers.objects.click_handlers.append(self._clicked)
 
-    def _teach(self, fn: Any) -> None:
+    def _name_seed(self) -> int:
+        m = re.search(r"(\d+)$", self.name.value.strip())
+        return int(m.group(1)) % 2**31 if m else 0
+
+    def _seed_from_name(self) -> None:
+        self._seed_manual = False
+        if int(self.seed.value) != self._name_seed():
+            self.seed.value = self._name_seed()
+
+    def _seed_typed(self, e: Any) -> None:
+        if e.client is not None:  # the operator chose a seed: it holds until the next name
+            self._seed_manual = True
+
+    def _dwell(self) -> None:
+        """The synthetic hand holds the ball still: the ball and the dwell's progress show
+        while the cameras measure it (`PointerUpdated`); the button waits meanwhile."""
+        gate(self.dwell, "Wait: the cameras are measuring the ball")
+        self.dwell_bar.value = 0.0
+        self.dwell_md.content = "<small>Bringing the ball to the point...</small>"
+        self.dwell_bar.visible = self.dwell_md.visible = True
+        try:
+            seed = int(self.seed.value) if self._seed_manual else self._name_seed()
+            self._teach(lambda n: self.session.teach_by_pointer_dwell(
+                n, point_from_mm(self.point.value), seed=seed))
+        finally:
+            gate(self.dwell, "")
+            self.dwell_bar.visible = self.dwell_md.visible = False
+
+    def _teach_typed(self) -> None:
+        abc = tuple(float(v) for v in self.abc.value)
+        loc = self._teach(lambda n: self.session.teach(n, pose_from_fields(self.xyz.value,
+                                                                            abc)))
+        self._typed_abc[loc.name] = abc
+        self.refresh()
+
+    def _teach(self, fn: Any) -> Any:
         name = self.name.value.strip()
         loc = fn(name)
         self.pick.options = tuple(self.session.locations) or ("-",)
         self.pick.value = loc.name
+        self._typed_abc.pop(loc.name, None)  # taught again: typed angles are no longer its
         self.name.value = next_free_name(set(self.session.locations))
+        self._seed_from_name()
+        return loc
 
     def _clicked(self, obj_name: str, ev: Any) -> None:
         if not (self.visible and self.click_mode.value):
@@ -96,18 +144,27 @@ class TeachPanel(Panel):
         if not s.locations:
             self.table.content = "*No locations yet.*"
         else:
-            rows = ["| name | position (mm) | from | +- mm | |", "|---|---|---|---|---|"]
+            rows = ["| name | position (mm) | A, B, C (deg) | from | +- mm | |",
+                    "|---|---|---|---|---|---|"]
             for n, loc in s.locations.items():
                 role = "start" if n == start else "goal" if n == goal else ""
-                rows.append(f"| {n} | {fmt_mm(loc.position)} | {loc.source.value} | "
+                abc = abc_shown(loc.T_world_tool, self._typed_abc.get(n))
+                rows.append(f"| {n} | {fmt_mm(loc.position)} | "
+                            f"({abc[0]:g}, {abc[1]:g}, {abc[2]:g}) | {loc.source.value} | "
                             f"{loc.uncertainty_m * 1000:.1f} | {role} |")
             self.table.content = "\n".join(rows)
         names = tuple(s.locations) or ("-",)
         if tuple(self.pick.options) != names:
             self.pick.options = names
         empty = not s.locations
-        self.set_start.disabled = self.set_goal.disabled = self.delete.disabled = empty
-        self.pending.disabled = s.pending_point is None
+        none = "teach a location first" if empty else ""
+        for btn in (self.set_start, self.set_goal, self.delete):
+            gate(btn, none)
+        why = why_greyed({"Make it the start / goal, Delete": none})
+        if self.why.content != why:
+            self.why.content = why
+        gate(self.pending, "" if s.pending_point is not None else
+             "Hold the ball still first (step 3.2 starts the cameras)")
         if self.name.value in s.locations:
             self.name.value = next_free_name(set(s.locations))
 
@@ -116,4 +173,22 @@ class TeachPanel(Panel):
                 or isinstance(ev, StateChanged):
             self.refresh()
         elif isinstance(ev, Notice) and self.visible:
-            self.pending.disabled = self.session.pending_point is None
+            gate(self.pending, "" if self.session.pending_point is not None else
+                 "Hold the ball still first (step 3.2 starts the cameras)")
+        elif isinstance(ev, PointerUpdated) and self.visible:
+            self._dwell_feedback(ev)
+
+    def _dwell_feedback(self, ev: PointerUpdated) -> None:
+        """The dwell's progress under the pointer buttons: while the synthetic hand holds the
+        ball (the button runs) or while the live pointer is being held still."""
+        running = self.dwell.disabled and self.dwell_bar.visible
+        holding = ev.position is not None and ev.dwell_s > 0
+        if not running:
+            holding = holding and ev.dwell_progress > 0
+            if self.dwell_bar.visible != holding:
+                self.dwell_bar.visible = self.dwell_md.visible = holding
+        if not holding:
+            return
+        held = ev.dwell_progress * ev.dwell_s
+        self.dwell_bar.value = max(0.0, min(100.0, 100.0 * ev.dwell_progress))
+        self.dwell_md.content = f"<small>Hold still... {held:.1f} / {ev.dwell_s:.1f} s</small>"

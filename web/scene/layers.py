@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+import viser
+
 from assistant.session.events import Event
 from web.scene.base import Layer
 from web.scene.frames import FramesLayer
@@ -19,6 +21,10 @@ if TYPE_CHECKING:
     from web.app import App
 
 
+#: Scene subtrees the View panel switches as a whole: parts, the planned path, names.
+GROUPS = ("objects", "plan", "labels")
+
+
 class SceneLayers:
     def __init__(self, app: App):
         scene = app.server.scene
@@ -28,6 +34,11 @@ class SceneLayers:
         scene.configure_default_lights(enabled=True, cast_shadow=False)
         scene.add_grid("/grid", width=1.6, height=1.6, cell_size=0.1, section_size=0.5,
                        plane="xy", shadow_opacity=0.0)
+        # Group nodes the View switches hide and show (their children follow them).
+        self.groups: dict[str, viser.FrameHandle] = {
+            g: scene.add_frame(f"/{g}", show_axes=False) for g in GROUPS}
+        for sub in ("objects", "locations"):
+            scene.add_frame(f"/labels/{sub}", show_axes=False)
         app.server.initial_camera.position = (1.1, -0.95, 0.75)
         app.server.initial_camera.look_at = (0.2, 0.0, 0.15)
         self.robot = RobotLayer(app)
@@ -40,6 +51,11 @@ class SceneLayers:
         self.pointer = PointerLayer(app)
         self.all: tuple[Layer, ...] = (self.robot, self.objects, self.locations, self.frames,
                                        self.paths, self.world, self.plan, self.pointer)
+
+    def set_group_visible(self, group: str, visible: bool) -> None:
+        h = self.groups[group]
+        if h.visible != visible:
+            h.visible = visible
 
     def refresh(self) -> None:
         for layer in self.all:

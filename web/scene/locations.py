@@ -24,7 +24,7 @@ class LocationsLayer(Layer):
                 wxyz=wxyz, position=pos)
             tag = " (start)" if name == start else " (goal)" if name == goal else ""
             self._nodes[name + "/label"] = self.scene.add_label(
-                f"{key}_label", name + tag, position=pos + [0.0, 0.0, 0.02],
+                f"/labels/locations/{node_key(name)}", name + tag, position=pos + [0.0, 0.0, 0.02],
                 font_screen_scale=0.9, anchor="bottom-center")
             if loc.uncertainty_m > 0:
                 self._nodes[name + "/sigma"] = self.scene.add_icosphere(

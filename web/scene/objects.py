@@ -1,5 +1,5 @@
-"""Cell objects coloured by role, clickable (CAD-click teaching, selection), and the placement
-gizmo of the selected object."""
+"""Cell objects coloured by role, clickable (CAD-click teaching, selection), labelled with their
+names, and the placement gizmo of the selected object."""
 
 from __future__ import annotations
 
@@ -15,6 +15,17 @@ from web.units import T_from_wxyz_position, wxyz_position
 
 #: Called with (object name, click event) when the operator clicks a part.
 ClickHandler = Callable[[str, Any], None]
+
+
+def label_position(bounds: Any, T_world_object: Any) -> tuple[float, float, float]:
+    """Just above the middle of a part's top, in the world (its bounding box turned)."""
+    lo, hi = np.asarray(bounds, dtype=float)
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                        for z in (lo[2], hi[2])])
+    T = np.asarray(T_world_object, dtype=float)
+    w = corners @ T[:3, :3].T + T[:3, 3]
+    mid = (w.min(axis=0) + w.max(axis=0)) / 2.0
+    return float(mid[0]), float(mid[1]), float(w[:, 2].max() + 0.01)
 
 
 class ObjectsLayer(Layer):
@@ -43,6 +54,10 @@ class ObjectsLayer(Layer):
                 receive_shadow=False)
             h.on_click(lambda ev, name=obj.name: self._clicked(name, ev))
             self._nodes[obj.name] = h
+            self._nodes[obj.name + "/label"] = self.scene.add_label(
+                f"/labels/objects/{node_key(obj.name)}", obj.name,
+                position=label_position(mesh.bounds, obj.T_world_object),
+                font_screen_scale=0.9, anchor="bottom-center")
         self._sync_gizmo()
 
     def _clicked(self, name: str, ev: Any) -> None:

@@ -1,6 +1,8 @@
 """The world model: octree occupancy as ONE scene node coloured by probability (the outside
 faces of the occupied cells as one unlit mesh, or square sprites when the cells are scattered;
-toggleable), the Voronoi roads as a point cloud, and the recorded collision postures."""
+toggleable), the Voronoi roads as a point cloud (hidden unless asked for: hundreds of dots
+hide the path), the obstacle learnt from collision indications as a translucent red solid of
+the cells it made occupied, labelled, and the recorded collision postures."""
 
 from __future__ import annotations
 
@@ -14,6 +16,9 @@ from web.scene.voxel_surface import surface_glb, voxel_surface
 STOPS = np.array([[0.0, 250, 230, 120], [0.5, 245, 140, 30], [1.0, 200, 25, 25]])
 ROAD_COLOR = (40, 170, 90)
 COLLISION_COLOR = (230, 0, 0)
+#: The learnt obstacle: one colour (it is certain enough to block the planner), see-through.
+LEARNT_COLOR = (215, 30, 60)
+LEARNT_OPACITY = 0.45
 #: The surface mesh is drawn when it has at most this many triangles per occupied cell (or
 #: `SURFACE_TRIANGLES_ANYWAY` in all); scattered cells are sprites. Measured in software WebGL
 #: (benchmarks/ui.py): one sprite costs about as much as 5-9 surface triangles, a compact
@@ -39,7 +44,11 @@ class WorldLayer(Layer):
     def __init__(self, app) -> None:  # noqa: ANN001
         super().__init__(app)
         self.show_occupancy = True
-        self.show_roads = True
+        self.show_roads = False
+        self.show_learnt = True
+        self.show_labels = True
+        #: Cells of the learnt obstacle drawn last time (tests, the panels' figures).
+        self.learnt_drawn = 0
         self.min_p = 0.05
         #: Occupied cells drawn last time (benchmarks, the explore panel's figures).
         self.cells_drawn = 0
@@ -61,6 +70,7 @@ class WorldLayer(Layer):
                 f"{self.root}/roads", np.asarray(centres, np.float32), ROAD_COLOR,
                 point_size=float(leaf) * 0.12, point_shape="circle", precision="float32",
                 visible=self.show_roads)
+        self.draw_learnt()
         qs = list(s.recorded_collisions)
         if qs:
             pts = np.array([s.tcp_world(q)[:3, 3] for q in qs], np.float32)
@@ -97,7 +107,36 @@ class WorldLayer(Layer):
             visible=self.show_occupancy)
         self.occupancy_style = "sprites"
 
-    def set_visibility(self, *, occupancy: bool | None = None, roads: bool | None = None) -> None:
+    def draw_learnt(self) -> None:
+        """The obstacle the collision indications taught: its occupied cells (those no CAD
+        part explains) as one translucent solid, with a label above it."""
+        self.learnt_drawn = 0
+        learnt = self.session.learnt_cells()
+        if learnt is None or not len(learnt.centres):
+            return
+        centres, _p, leaf, R = learnt
+        self.learnt_drawn = len(centres)
+        surface = voxel_surface(centres, leaf, R, 1.0)
+        colors = np.tile(np.array(LEARNT_COLOR, np.uint8), (len(centres), 1))
+        self._nodes["learnt"] = self.scene.add_glb(
+            f"{self.root}/learnt", surface_glb(surface, colors, LEARNT_OPACITY),
+            cast_shadow=False, receive_shadow=False, visible=self.show_learnt)
+        top = np.asarray(centres).mean(axis=0)
+        top[2] = float(np.asarray(centres)[:, 2].max()) + leaf
+        self._nodes["learnt_label"] = self.scene.add_label(
+            f"{self.root}/learnt_label", "learnt obstacle", position=tuple(top),
+            font_screen_scale=0.9, anchor="bottom-center",
+            visible=self.show_learnt and self.show_labels)
+
+    def set_visibility(self, *, occupancy: bool | None = None, roads: bool | None = None,
+                       learnt: bool | None = None, labels: bool | None = None) -> None:
+        if learnt is not None:
+            self.show_learnt = learnt
+        if labels is not None:
+            self.show_labels = labels
+        if "learnt" in self._nodes:
+            self._nodes["learnt"].visible = self.show_learnt
+            self._nodes["learnt_label"].visible = self.show_learnt and self.show_labels
         if occupancy is not None:
             self.show_occupancy = occupancy
             if "occupancy" in self._nodes:
