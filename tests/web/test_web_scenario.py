@@ -164,6 +164,15 @@ def test_thesis_scenario_in_the_browser_equals_the_script(cellteach_serve, open_
     # The page counts the moves as report.json does (one source for every count).
     report = json.loads((ref_out / "report.json").read_text())
     assert int(moves.group(1)) == sum(report["primitives"].values())
+    # The predicted cycle time: the same total in the export panel (said to be a
+    # prediction), report.json (the sum of its per-move times) and the program's header.
+    total = report["predicted_cycle_time_s"]
+    ui.wait_text(f"Predicted cycle time {total:.1f} s.")
+    ui.wait_text("not measured on a controller")
+    per_move = report["cycle_time"]["moves"]
+    assert sum(m["seconds"] for m in per_move) == pytest.approx(total, abs=1e-3 * len(per_move))
+    header = (ref_out / "MISSION.MB4").read_text("ascii")
+    assert f"predicted cycle time {total:.1f} s" in header
     # Same cell, locations and mission (autosaved by the server after every action) ...
     assert documents(tmp_path / "served-session") == documents(ref_out / "session")
     # ... and the same program, byte for byte.
