@@ -4,25 +4,16 @@ the table and "Move the robot here" moves the base (undoable)."""
 
 from __future__ import annotations
 
-import importlib.util
-import sys
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from assistant.session import Session
 
-_WEB_TESTS = Path(__file__).resolve().parents[1] / "web"
-sys.path.insert(0, str(_WEB_TESTS))  # the page driver (`web_ui`) the browser tests share
-_spec = importlib.util.spec_from_file_location("_web_conftest", _WEB_TESTS / "conftest.py")
-_web = importlib.util.module_from_spec(_spec)
-_spec.loader.exec_module(_web)
-playwright_driver = _web.playwright_driver
-open_ui = _web.open_ui
-serve_session = _web.serve_session
-
+# Here, not in tests/study: the page fixtures (one Playwright driver per test session) are
+# this folder's conftest; a second driver loaded from another folder breaks every later
+# browser test ("Sync API inside the asyncio loop").
 pytestmark = [pytest.mark.browser, pytest.mark.slow]
 
 
