@@ -19,6 +19,8 @@ from __future__ import annotations
 import contextlib
 import time
 from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -94,70 +96,108 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            primitive_pose_rows)
 
 
-def warm_up() -> float:
+def warm_up(*, reverse: bool = False) -> float:
     """Compile (or load from the cache) every kernel in this process, as plain njit: call each
     through the real API with the argument types it gets in use; returns the seconds it took.
-    The tests call it; the CLI compiles in the background instead (`lazy.start`)."""
+    The tests call it; the CLI compiles in the background instead (`lazy.start`).
+
+    `reverse` runs the steps last to first: a second process warming up at the same time
+    (the tests' second worker) then compiles the other end of the list, and each loads
+    from the shared cache what the other has saved - a cold cache costs about half."""
     from assistant.kernels.lazy import REGISTRY, set_pending, write_marker
 
     set_pending(False)
     t0 = time.perf_counter()
-    for _ in warm_steps():
+    for _ in warm_steps(reverse=reverse):
         pass
     with contextlib.suppress(OSError):  # an unwritable cache: the next run compiles again
         write_marker(sum(1 for d in REGISTRY.values() if d.overloads))
     return time.perf_counter() - t0
 
 
-def warm_steps() -> Iterator[None]:
+def warm_steps(*, reverse: bool = False) -> Iterator[None]:
     """`warm_up` in steps, in the order a first run needs them (the collision checker and the
-    world's kernels, the roadmap's, then the trajectory's); yields after each, when the
-    kernels it compiled are in the cache (`compile` reports them then)."""
-    from assistant.collision.checker import CollisionChecker
-    from assistant.collision.reports import Obstacle
-    from assistant.roadmap.astar import lazy_astar
-    from assistant.roadmap.graph import GraphBase, JointGraph
-    from assistant.roadmap.path_first import lazy_path_search
-    from assistant.roadmap.voronoi import build_voronoi, terminal_labels, update_voronoi
-    from assistant.robots.model import CollisionShape, ShapeKind, Tool
-    from assistant.robots.rv2aj import RV2AJ, RV2AJConfig
-    from assistant.trajectory.assemble import joint_interpolation
-    from assistant.trajectory.cartesian_follow import follow_poses, slerp_rotations
-    from assistant.trajectory.elastic_net import ElasticNetParams, run_elastic_net
-    from assistant.trajectory.primitives import (
-        ArcPrimitive,
-        FitParams,
-        fit_primitives,
-        primitive_poses,
-    )
-    from assistant.transforms import make_T
+    world's kernels, the roadmap's, then the trajectory's; `reverse`: last first); yields
+    after each, when the kernels it compiled are in the cache (`compile` reports them)."""
+    ctx = _Context.make()
+    steps = (_world_checks, _motion_checks, _roads, _search, _moves, _net, _fit)
+    for step in reversed(steps) if reverse else steps:
+        step(ctx)
+        yield
 
-    robot = RV2AJ(RV2AJConfig(tool=Tool.straight(0.1)))
-    q = np.zeros((1, robot.dof))
-    elbow = robot.link_poses(q[0])[3][:3, 3]
-    # a box at the elbow: the broad phase passes pairs on to the pruning and FCL
-    block = Obstacle("warm-up", make_T(p=elbow), (CollisionShape(ShapeKind.BOX, (0.1,) * 3),))
-    checker = CollisionChecker(robot, [block])
+
+@dataclass
+class _Context:
+    """What the steps share: the RV-2AJ, a checker with a box at its elbow, a few points."""
+
+    robot: Any
+    checker: Any
+    q: np.ndarray
+    bent: np.ndarray
+    arc: np.ndarray
+
+    @staticmethod
+    def make() -> _Context:
+        from assistant.collision.checker import CollisionChecker
+        from assistant.collision.reports import Obstacle
+        from assistant.robots.model import CollisionShape, ShapeKind, Tool
+        from assistant.robots.rv2aj import RV2AJ, RV2AJConfig
+        from assistant.transforms import make_T
+
+        robot = RV2AJ(RV2AJConfig(tool=Tool.straight(0.1)))
+        q = np.zeros((1, robot.dof))
+        elbow = robot.link_poses(q[0])[3][:3, 3]
+        # a box at the elbow: the broad phase passes pairs on to the pruning and FCL
+        block = Obstacle("warm-up", make_T(p=elbow),
+                         (CollisionShape(ShapeKind.BOX, (0.1,) * 3),))
+        # a quarter circle then a straight run: lines, arcs (free and tangent), their ends
+        a = np.linspace(0.0, np.pi / 2, 12)
+        arc = np.stack([0.1 * np.cos(a), 0.1 * np.sin(a), np.zeros_like(a)], axis=1)
+        return _Context(robot, CollisionChecker(robot, [block]), q,
+                        np.array([0.3, 0.2, 0.5, 0.3, 0.1]), arc)
+
+
+def _roads_source() -> np.ndarray:
+    source = np.zeros((4, 4, 4), dtype=np.int32)
+    source[0, 0, 0], source[3, 3, 3] = 1, 2
+    return source
+
+
+def _world_checks(c: _Context) -> None:
+    q, checker = c.q, c.checker
     checker.is_valid_batch(np.vstack([q, q + 0.3]))  # the plain batch (and its pruning)
     checker.min_clearance_along([q[0], q[0] + 0.3])
-    tcp = robot.batch_fk(q).positions
+    tcp = c.robot.batch_fk(q).positions
     leaf_flags(np.ascontiguousarray(tcp, dtype=float), np.full(3, -1.0), 0.0625, 32,
                np.ones(32 ** 3, dtype=bool))
     leaf_indices(np.ascontiguousarray(tcp, dtype=float), np.full(3, -1.0), 0.0625, 32)
-    yield  # the world build's checks
+
+
+def _motion_checks(c: _Context) -> None:
+    q, checker = c.q, c.checker
     checker.is_valid_batch_margin(np.vstack([q, q + 0.3]))  # the net's starting margins
     checker.check_motion(q[0], q[0] + 0.3)
     checker.check_path([q[0], q[0] + 0.3], trusted=np.zeros(1, dtype=bool))
     checker.check_path([q[0], q[0] + 0.3])
-    yield  # motion checks
-    source = np.zeros((4, 4, 4), dtype=np.int32)
-    source[0, 0, 0], source[3, 3, 3] = 1, 2
+
+
+def _roads(c: _Context) -> None:
+    from assistant.roadmap.voronoi import build_voronoi, terminal_labels, update_voronoi
+
+    source = _roads_source()
     vmap = build_voronoi(source)
     source[0, 3, 0] = 3  # a query's terminal: the incremental update
     update_voronoi(vmap, source)
     terminal_labels(vmap, np.array([21, 42]), np.array([4, 5]))  # a query's start and goal
     connected26(source > 0, 0, 63)
-    yield  # the roads
+
+
+def _search(c: _Context) -> None:
+    from assistant.roadmap.astar import lazy_astar
+    from assistant.roadmap.graph import GraphBase, JointGraph
+    from assistant.roadmap.path_first import lazy_path_search
+
+    q, checker = c.q, c.checker
     cells = np.arange(8, dtype=np.int64)
     graph, _ = JointGraph.build((2, 2, 2), cells, np.arange(9), np.zeros((8, 5)),
                                 np.ones(8, bool), np.zeros(8, bool), np.zeros(8), np.ones(5))
@@ -172,39 +212,60 @@ def warm_steps() -> Iterator[None]:
     # a found path's free joints (J6 here) ramped start to goal (`planner`)
     ramp_free_joints(np.vstack([q, q + 0.1, q + 0.3]), np.arange(5) == 4, np.ones(5))
     # a query's searchable cells (`planner`): labels, free / offering / CAD leaves
+    source = _roads_source()
+    source[0, 3, 0] = 3
     flags, cad = np.ones(4 ** 3, dtype=bool), np.ones(4 ** 3, dtype=bool)
     cad.setflags(write=False)  # as `WorldModel.cad_leaves` hands it out
     search_masks(source.reshape(-1), -1, 4, 5, flags, flags, cad, 4, 0, 63, 2)
-    yield  # the search
+
+
+def _moves(c: _Context) -> None:
+    from assistant.trajectory.assemble import joint_interpolation
+    from assistant.trajectory.cartesian_follow import follow_poses, slerp_rotations
+
+    robot, q, bent = c.robot, c.q, c.bent
+    tcp = robot.batch_fk(q).positions
     joint_interpolation(robot, q[0], q[0] + 0.3, 0.01)  # the assembly's joint moves
     robot.batch_position_ik(tcp + 0.001, q, q)
-    bent = np.array([0.3, 0.2, 0.5, 0.3, 0.1])  # off the J1 axis: the batch answers
+    # `bent` is off the J1 axis: the batch answers
     follow_poses(robot, np.stack([robot.fk(bent), robot.fk(bent + 0.01)]), bent)
     slerp_rotations(robot.fk(bent)[:3, :3], robot.fk(bent + 0.01)[:3, :3], np.linspace(0, 1, 3))
-    yield  # joint and Cartesian moves
-    # a quarter circle then a straight run: lines, arcs (free and tangent) and their ends
-    a = np.linspace(0.0, np.pi / 2, 12)
-    arc = np.stack([0.1 * np.cos(a), 0.1 * np.sin(a), np.zeros_like(a)], axis=1)
+
+
+def _net(c: _Context) -> None:
+    from assistant.trajectory.elastic_net import ElasticNetParams, run_elastic_net
+
     # a short net on the RV-2AJ: its compiled move test (`net_kernel`), and the kernel that
     # applies the moves FCL clears, called from Python with no rows
     short = ElasticNetParams.final(stage1_iterations=2, stage2_iterations=1)
-    res = run_elastic_net(robot, np.stack([bent, bent + 0.05]), validity=checker, params=short)
+    res = run_elastic_net(c.robot, np.stack([c.bent, c.bent + 0.05]), validity=c.checker,
+                          params=short)
     P, Q = res.particles.points.copy(), res.particles.joints.copy()
     none = np.zeros(0, dtype=np.int64)
     apply_moves(P, Q, none, np.zeros(0, dtype=bool), Q[:0], P[:0], np.zeros(0), np.zeros(0),
                 Q.copy(), np.zeros(len(Q)), np.zeros(len(Q)))
     net = ElasticNetParams.final()
     for stage in (1, 2):
-        propose_moves(arc, stage, 0.5, net.c_equidistance, net.c_rotation, net.c_shrink,
+        propose_moves(c.arc, stage, 0.5, net.c_equidistance, net.c_rotation, net.c_shrink,
                       net.c_line_shrink, net.stage1_shrink, net.r_max, net.r_min, net.max_move)
-    yield  # the elastic net
+
+
+def _fit(c: _Context) -> None:
+    from assistant.trajectory.primitives import (
+        ArcPrimitive,
+        FitParams,
+        fit_primitives,
+        primitive_poses,
+    )
+
+    arc = c.arc
     run = arc[-1] + np.outer(np.linspace(0.02, 0.2, 10), [-1.0, 0.0, 0.0])
     fit = fit_primitives(np.vstack([arc, run]), FitParams(tolerance=0.001))
     for prim in fit.primitives:
         prim.distance(arc)
-        primitive_poses(prim, 0.01, np.eye(3), robot.fk(bent)[:3, :3])  # a move's poses
+        primitive_poses(prim, 0.01, np.eye(3), c.robot.fk(c.bent)[:3, :3])  # a move's poses
     ArcPrimitive.through(arc[0], arc[5], arc[-1])
-    yield  # the line and arc fit
+
 
 class _AllFree:
     """An edge checker that finds every edge free (the warm-up's search)."""
