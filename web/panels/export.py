@@ -108,7 +108,8 @@ class ExportPanel(Panel):
         ct = getattr(result, "cycle_time", None)
         cycle = "" if ct is None else f" Predicted cycle time **{ct.total_s:.1f} s**."
         self.summary.content = (f"**{DIALECT_LABELS.get(result.dialect, result.dialect)}**, "
-                                f"{result.primitives} motion primitives ({counts}).{cycle} "
+                                f"{result.primitives} motions as written, the move to the "
+                                f"start included ({counts}).{cycle} "
                                 f"Download gives **{name}**.")
         self.cycle.content = cycle_markdown(result)
         self.preview.content = preview_markdown(result)
