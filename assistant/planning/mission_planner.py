@@ -41,7 +41,7 @@ import numpy as np
 from assistant.collision.checker import CollisionChecker
 from assistant.collision.reports import ObstacleView
 from assistant.mission.model import Location, Mission
-from assistant.mission.motion import Motion, MotionKind, Trajectory, Waypoint
+from assistant.mission.motion import Trajectory
 from assistant.planning.config import MissionPlannerConfig
 from assistant.planning.joint_moves import prefer_joint_moves
 from assistant.planning.known_world import KnownValidity, KnownVerifier, WorldAllowed
@@ -55,6 +55,7 @@ from assistant.planning.locations import (
 from assistant.planning.pieces import PieceKind, PlanPiece, join_pieces
 from assistant.planning.report import MissionPlanReport, PieceReport
 from assistant.planning.shortcut import shortcut_joint_path
+from assistant.planning.transfer_ends import _joint_moves, _snap_end
 from assistant.progress import Progress
 from assistant.roadmap.planner import PlanFailure, RoadmapPlan, RoadmapPlanner
 from assistant.robots.model import Robot
@@ -563,41 +564,3 @@ def _tcp_length(robot: Robot, joint_path: Sequence[Array], step: float = 0.01) -
              zip(joint_path[:-1], joint_path[1:], strict=True)]
     P = robot.batch_fk(np.concatenate(dense)).positions
     return float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum())
-
-
-def _snap_end(robot: Robot, traj: Trajectory, q_goal: Array, tol: float = 1e-3,
-              ) -> Trajectory | None:
-    """Make the trajectory end exactly at q_goal (the next piece starts there).
-
-    The assembly re-solves the last pose by IK, so its joints may differ from the goal
-    posture by rounding; beyond `tol` (rad) it is another posture and None is returned.
-    """
-    last = traj.motions[-1]
-    gap = float(np.abs(np.asarray(last.target.q) - q_goal).max())
-    if gap > tol:
-        return None
-    if gap == 0.0:
-        return traj
-    target = Waypoint(robot.fk(q_goal), q_goal.copy(), last.target.name)
-    jp = None
-    if last.joint_path is not None:
-        jp = np.array(last.joint_path, dtype=float, copy=True)
-        jp[-1] = q_goal
-    motions = list(traj.motions)
-    motions[-1] = replace(last, target=target, joint_path=jp)
-    return Trajectory(traj.start, motions, traj.actions_at_start)
-
-
-def _joint_moves(robot: Robot, joint_path: Sequence[Array], label: str, assembly) -> Trajectory:
-    """The roadmap's joint path as JOINT motions (dense paths for execution and checks)."""
-    q0 = np.asarray(joint_path[0], dtype=float)
-    motions = []
-    prev = q0
-    for q in joint_path[1:]:
-        q = np.asarray(q, dtype=float)
-        Q = joint_interpolation(robot, prev, q, assembly.step)
-        motions.append(Motion(MotionKind.JOINT, Waypoint(robot.fk(q), q), joint_path=Q,
-                              label=label, speed=assembly.joint_speed))
-        prev = q
-    return Trajectory(Waypoint(robot.fk(q0), q0), motions)
-
