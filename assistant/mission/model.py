@@ -22,6 +22,7 @@ class LocationSource(str, Enum):
     CAD_CLICK = "cad_click"
     ROBOT_POSE = "robot_pose"
     POINTER = "pointer"
+    CAD_FILE = "cad_file"  # labelled in a cell-layout drawing
 
 
 @dataclass(frozen=True)

@@ -125,6 +125,14 @@ def _hidden(s: Session, a: dict) -> Any:
 
 
 def _import_cad(s: Session, a: dict, base: Path) -> Any:
+    path = base / a["file"]
+    if path.suffix.lower() == ".dxf" and path.is_file() and \
+            s.read_layout(path.read_bytes(), path.name) is not None:
+        if "pose" in a or "name" in a:
+            raise ValueError(f"{a['file']} is a cell layout: its parts are placed and named as "
+                             "drawn (no pose or name)")
+        return s.import_layout_path(path, units=a.get("units"),
+                                    role=ObjectRole(a.get("role", "obstacle")))
     T = _pose(a["pose"]) if "pose" in a else None
     height = a.get("extrude_mm")
     return s.import_cad_path(base / a["file"], name=a.get("name"), units=a.get("units"),

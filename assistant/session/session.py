@@ -40,6 +40,7 @@ from assistant.session.events import (
 )
 from assistant.session.export_part import ExportActions
 from assistant.session.history import History
+from assistant.session.layout_part import LayoutActions
 from assistant.session.motion_part import MotionActions
 from assistant.session.persistence_part import Persistence
 from assistant.session.planning_part import PlanningActions
@@ -59,8 +60,8 @@ from workflow.machine import Facts, Machine, Mode, TransitionRefused
 Array = np.ndarray
 
 
-class Session(SetupActions, CellActions, TeachActions, MotionActions, PlanningActions,
-              SceneQueries, ExportActions, Persistence, StudyActions):
+class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActions,
+              PlanningActions, SceneQueries, ExportActions, Persistence, StudyActions):
     """Everything the operator does, headless or behind the web page: the state, the action
     plumbing and the workflow here; the actions by concern in the parts it mixes in."""
 
@@ -87,6 +88,9 @@ class Session(SetupActions, CellActions, TeachActions, MotionActions, PlanningAc
         self._lock = threading.RLock()
         self._link: RobotLink | None = None
         self._q_sim: Array | None = None  # joints of the robot when no link is connected
+        #: The page's simulated robot halts against a hidden obstacle and waits for the
+        #: operator's Collision!; scripts keep the self-reporting robot.
+        self.operator_confirms_contacts = False
         self._world: Any = None  # planning back end (world model + roadmap), built on demand
         self._world_key: tuple | None = None
         self._last_error: str = ""

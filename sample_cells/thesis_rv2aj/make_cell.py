@@ -7,6 +7,9 @@ Writes, next to this script (or into OUT_DIR):
 * ``dxf/O1.dxf``, ``dxf/O2.dxf`` - the two known obstacles as DXF drawings of 3-D faces in
   millimetres (the thesis imported O1 and O2 from DXF); each drawing's origin is the middle of
   the part's footprint on the table, so the cell places it by a translation.
+* ``dxf/cell_layout.dxf`` - the same two parts as one cell-layout drawing: each on its own
+  layer where it stands, with the start P1 and goal P10 labelled on a LOCATIONS layer (the
+  thesis' "locations stored within DXF"; `assistant.cell.cad.layout`).
 * ``cell/`` - the cell saved with `save_cell`: the RV-2AJ with a 100 mm straight gripper, its
   base at the world origin on the table, the table top (z = 0) as a fixture, O1 and O2.
 * ``hidden.json`` - obstacle O3, a box the planner does not know; only the simulated robot
@@ -61,21 +64,27 @@ P8 = (0.34, 0.07, 0.06)
 P10 = (0.08, 0.34, 0.20)
 
 
-def box_dxf(size_xyz: tuple[float, float, float]) -> bytes:
-    """A closed box of 3DFACE entities in millimetres, origin at the bottom face's centre."""
+def box_faces(size_xyz: tuple[float, float, float],
+              at_mm: tuple[float, float] = (0.0, 0.0)) -> list[list[tuple[float, ...]]]:
+    """The six faces of a closed box in millimetres, its bottom face centred at `at_mm`."""
     sx, sy, sz = (1000.0 * v for v in size_xyz)
     x, y = sx / 2.0, sy / 2.0
-    v = [(-x, -y, 0.0), (x, -y, 0.0), (x, y, 0.0), (-x, y, 0.0),
-         (-x, -y, sz), (x, -y, sz), (x, y, sz), (-x, y, sz)]
+    cx, cy = at_mm
+    v = [(cx - x, cy - y, 0.0), (cx + x, cy - y, 0.0), (cx + x, cy + y, 0.0),
+         (cx - x, cy + y, 0.0), (cx - x, cy - y, sz), (cx + x, cy - y, sz),
+         (cx + x, cy + y, sz), (cx - x, cy + y, sz)]
     # Outward faces, counter-clockwise seen from outside.
     quads = [(0, 3, 2, 1), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7)]
+    return [[v[i] for i in q] for q in quads]
+
+
+def dxf_bytes(fill) -> bytes:
+    """A millimetre R2010 drawing filled by `fill(doc)`, with the same bytes on every run."""
     # Fixed dates and GUIDs: a re-run writes the same bytes (the cell names files by hash).
     ezdxf.options.write_fixed_meta_data_for_testing = True
     doc = ezdxf.new("R2010")
     doc.header["$INSUNITS"] = 4  # millimetres
-    msp = doc.modelspace()
-    for q in quads:
-        msp.add_3dface([v[i] for i in q])
+    fill(doc)
     # ezdxf collects the CLASSES section from a set: sort it so the bytes do not depend on
     # the interpreter's hash seed.
     classes = doc.classes
@@ -93,6 +102,30 @@ def box_dxf(size_xyz: tuple[float, float, float]) -> bytes:
     return buf.getvalue().encode("utf-8")
 
 
+def box_dxf(size_xyz: tuple[float, float, float]) -> bytes:
+    """A closed box of 3DFACE entities in millimetres, origin at the bottom face's centre."""
+    def fill(doc) -> None:
+        for face in box_faces(size_xyz):
+            doc.modelspace().add_3dface(face)
+    return dxf_bytes(fill)
+
+
+def layout_dxf() -> bytes:
+    """The cell-layout drawing (`assistant.cell.cad.layout`): O1 and O2 drawn where they
+    stand, each on its own layer, and the start P1 and goal P10 as labels on LOCATIONS."""
+    def fill(doc) -> None:
+        msp = doc.modelspace()
+        for name, ((x, y), size) in KNOWN.items():
+            doc.layers.add(name)
+            for face in box_faces(size, (1000.0 * x, 1000.0 * y)):
+                msp.add_3dface(face, dxfattribs={"layer": name})
+        doc.layers.add("LOCATIONS")
+        for label, p in (("P1 start", P1), ("P10 goal", P10)):
+            msp.add_text(label, height=10.0, dxfattribs={"layer": "LOCATIONS"}).set_placement(
+                tuple(1000.0 * v for v in p))
+    return dxf_bytes(fill)
+
+
 def make_cell(out: Path = HERE) -> Cell:
     spec = RobotSpec(kind="rv2aj", tool=ToolSpec.straight(0.1))
     cell = Cell(robot_spec=spec, T_world_base=np.eye(4))
@@ -106,6 +139,7 @@ def make_cell(out: Path = HERE) -> Cell:
         cad = load_cad(data, f"{name}.dxf")
         cell.add_object(CellObject.from_cad(name, cad, make_T(p=(x, y, 0.0)),
                                             role=ObjectRole.OBSTACLE))
+    (dxf_dir / "cell_layout.dxf").write_bytes(layout_dxf())
     return cell
 
 

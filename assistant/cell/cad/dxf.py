@@ -53,7 +53,7 @@ def read_dxf(data: bytes, filename: str, options: ImportOptions) -> RawGeometry:
                             "the unit is guessed from the size")
 
     try:
-        triangles, curves, acis, open_polylines = _collect(doc)
+        triangles, curves, acis, open_polylines = _collect(doc, options.dxf_layer)
     except Exception as exc:  # odd entities or broken block references in untrusted data
         raise CadImportError(filename, f"its entities could not be interpreted ({exc})",
                              "the drawing may be damaged; export it again") from exc
@@ -93,13 +93,16 @@ def read_dxf(data: bytes, filename: str, options: ImportOptions) -> RawGeometry:
     return raw
 
 
-def _collect(doc) -> tuple[list[np.ndarray], list, int, int]:
-    """Triangles of the 3-D entities, the 2-D curves, and counts of what cannot be used."""
+def _collect(doc, layer: str | None = None) -> tuple[list[np.ndarray], list, int, int]:
+    """Triangles of the 3-D entities, the 2-D curves, and counts of what cannot be used
+    (of one layer only, for a part of a cell-layout drawing)."""
     triangles: list[np.ndarray] = []
     curves = []
     acis = 0
     open_polylines = 0
-    for e in disassemble.recursive_decompose(doc.modelspace()):
+    entities = doc.modelspace() if layer is None else \
+        [e for e in doc.modelspace() if str(e.dxf.get("layer", "0")) == layer]
+    for e in disassemble.recursive_decompose(entities):
         kind = e.dxftype()
         if kind == "3DFACE":
             v = np.array([tuple(p) for p in e.wcs_vertices()], dtype=float)

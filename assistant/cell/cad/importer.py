@@ -89,6 +89,7 @@ def load_cad(
     proxy_max_faces: int = DEFAULT_PROXY_MAX_FACES,
     proxy_tolerance_m: float = DEFAULT_PROXY_TOLERANCE_M,
     step_tolerance_m: float = DEFAULT_STEP_TOLERANCE_M,
+    dxf_layer: str | None = None,
     progress: Progress | None = None,
 ) -> CadImport:
     """Import a CAD file given as bytes (an upload); the format comes from the file name.
@@ -102,6 +103,7 @@ def load_cad(
         proxy_max_faces: above this many triangles collision uses a simpler proxy.
         proxy_tolerance_m: how far a proxy may deviate from the mesh.
         step_tolerance_m: chordal tolerance of STEP tessellation.
+        dxf_layer: read only this layer of a DXF (a part of a cell-layout drawing).
         progress: reports the stages and raises `Cancelled` between them after `cancel()`.
 
     Returns:
@@ -114,7 +116,7 @@ def load_cad(
         options = ImportOptions(units=units, dxf_extrude_height=dxf_extrude_height,
                                 proxy_max_faces=proxy_max_faces,
                                 proxy_tolerance_m=proxy_tolerance_m,
-                                step_tolerance_m=step_tolerance_m)
+                                step_tolerance_m=step_tolerance_m, dxf_layer=dxf_layer)
     except ValueError as exc:
         raise CadImportError(filename, f"bad import option: {exc}") from exc
     return import_with_options(data, filename, options, progress)

@@ -27,6 +27,8 @@ class ImportOptions:
     proxy_max_faces: int = DEFAULT_PROXY_MAX_FACES
     proxy_tolerance_m: float = DEFAULT_PROXY_TOLERANCE_M
     step_tolerance_m: float = DEFAULT_STEP_TOLERANCE_M
+    #: Read only this layer of a DXF (one part of a cell-layout drawing); None = all layers.
+    dxf_layer: str | None = None
 
     def __post_init__(self) -> None:
         if self.dxf_extrude_height is not None and not (
@@ -42,11 +44,16 @@ class ImportOptions:
             v = getattr(self, name)
             if not isinstance(v, (int, float)) or not math.isfinite(v) or v <= 0:
                 raise ValueError(f"{name} must be a positive length in metres, got {v!r}")
+        if self.dxf_layer is not None and not isinstance(self.dxf_layer, str):
+            raise ValueError(f"dxf_layer must be a layer name, got {self.dxf_layer!r}")
         if self.units is not None and not isinstance(self.units, str):
             raise ValueError(f"units must be a unit name such as 'mm', got {self.units!r}")
 
     def to_json(self) -> dict[str, Any]:
-        return asdict(self)
+        d = asdict(self)
+        if d["dxf_layer"] is None:  # cells saved before layouts existed stay byte-identical
+            del d["dxf_layer"]
+        return d
 
     @staticmethod
     def from_json(d: Any) -> ImportOptions:

@@ -1,0 +1,125 @@
+"""Step 2: a cell-layout drawing (`assistant.cell.cad.layout`) - its parts placed as drawn and
+its labelled locations taught, start and goal set, in one undoable action.
+
+A part mixed into `Session`."""
+
+from __future__ import annotations
+
+from concurrent.futures import Future
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+from assistant.cell.cad import CadImport, load_cad
+from assistant.cell.cad.layout import CellLayout, read_layout
+from assistant.cell.model import CellObject, ObjectRole
+from assistant.mission.model import LocationSource
+from assistant.progress import Cancelled, Progress
+from assistant.session.events import Notice, SceneChanged
+from assistant.session.types import EDIT_CELL, SessionError, _safe_name, hint_for
+from assistant.transforms import pose_from_mm_deg
+from workflow.machine import TransitionRefused
+
+
+class LayoutActions:
+    """Import a cell-layout DXF: the thesis' "absolute data of the DXF file" and "locations
+    attached to the CAD objects", which spare the operator placing and teaching them."""
+
+    def read_layout(self, data: bytes, filename: str) -> CellLayout | None:
+        """The layout in a DXF, or None when it is an ordinary one-part drawing."""
+        return read_layout(data, filename)
+
+    def import_layout(self, data: bytes, filename: str, *, units: str | None = None,
+                      role: ObjectRole | str = ObjectRole.OBSTACLE) -> list[CellObject]:
+        return self.start_import_layout(data, filename, units=units, role=role).result()
+
+    def start_import_layout(self, data: bytes, filename: str, *, units: str | None = None,
+                            role: ObjectRole | str = ObjectRole.OBSTACLE) -> Future:
+        """Read every part off the session lock (with progress and Cancel), then add them and
+        the locations as one action: all of it or, on any error, nothing."""
+        task = f"import {filename}"
+        layout = read_layout(data, filename)
+        if layout is None:
+            raise SessionError(f"{filename} is not a cell layout (no LOCATIONS layer)")
+        with self._lock:
+            try:
+                self.machine.require(EDIT_CELL, task)
+            except TransitionRefused as exc:
+                self._error(str(exc))
+                raise
+            self.machine.begin_busy(task)
+        self._emit_state()
+        commit_failed = False
+
+        def work(progress: Progress) -> list[CellObject]:
+            nonlocal commit_failed
+            cads: dict[str, CadImport] = {}
+            n = len(layout.parts)
+            for i, (name, layer) in enumerate(layout.parts.items()):
+                cads[name] = load_cad(data, filename, units=units, dxf_layer=layer,
+                                      progress=progress.sub(i / n * 0.95, (i + 1) / n * 0.95,
+                                                            f"part {name}"))
+            progress.update(0.97, "adding the parts and locations to the cell")
+            with self._lock:
+                self.machine.end_mode()
+                commit_failed = True
+                objs = self._add_layout(layout, cads, filename, role)
+                commit_failed = False
+            return objs
+
+        def done(fut: Future) -> None:
+            with self._lock:
+                self.machine.end_mode()
+                exc = fut.exception()
+                if isinstance(exc, Cancelled):
+                    self.bus.emit(Notice(f"{task} cancelled; nothing was changed"))
+                elif exc is not None and not commit_failed:
+                    self._error(f"{task}: {exc}", hint_for(exc))
+            self._emit_state()
+
+        try:
+            return self.worker.submit(task, work, done)
+        except RuntimeError:
+            with self._lock:
+                self.machine.end_mode()
+            self._emit_state()
+            raise
+
+    def _add_layout(self, layout: CellLayout, cads: dict[str, CadImport], filename: str,
+                    role: ObjectRole | str) -> list[CellObject]:
+        objs: list[CellObject] = []
+        with self._action(f"import {filename}", EDIT_CELL, scene="objects"):
+            for name, cad in cads.items():
+                obj_name = self.cell.unique_name(_safe_name(name))
+                # Drawn in cell coordinates: the part stands where the drawing has it.
+                obj = CellObject.from_cad(obj_name, cad, np.eye(4), role=role)
+                self.cell.add_object(obj)
+                objs.append(obj)
+                for w in (*cad.warnings, *cad.bounded):
+                    self.bus.emit(Notice(f"{filename} ({name}): {w}"))
+                self._note_working_volume(obj)
+            scale = next(iter(cads.values())).scale_to_m * 1000.0  # drawing units -> mm
+            for loc in layout.locations:
+                pose = np.array([*(scale * v for v in loc.xyz), *loc.abc_deg], float)
+                self.locations[loc.name] = self._make_location(
+                    loc.name, pose_from_mm_deg(pose), LocationSource.CAD_FILE, None, 0.0)
+                self._relink_mission(loc.name)
+                if loc.role == "start":
+                    self.mission = replace(self.mission, start=self.locations[loc.name],
+                                           order=None)
+                elif loc.role == "goal":
+                    self.mission = replace(self.mission, goal=self.locations[loc.name],
+                                           order=None)
+        for note in layout.notes:
+            self.bus.emit(Notice(f"{filename}: {note}"))
+        self.bus.emit(SceneChanged("all"))
+        return objs
+
+    def import_layout_path(self, path: str | Path, **kw) -> list[CellObject]:
+        p = Path(path)
+        try:
+            data = p.read_bytes()
+        except OSError as exc:
+            raise SessionError(f"cannot read {p}: {exc.strerror}") from None
+        return self.import_layout(data, p.name, **kw)
