@@ -74,6 +74,10 @@ class SimulatedRobot(RobotLink):
         self._moving = threading.Lock()
         self._programs: dict[str, dict[str, bytes]] = {}
         self._upload_seq = itertools.count(1)
+        #: The page's robot: touching a hidden obstacle halts the arm (as a real robot's
+        #: collision detection would) and waits for the operator's Collision! (or Stop);
+        #: scripts and tests keep the self-reporting robot (False).
+        self.wait_for_operator = False
 
     def _make_checker(self) -> CollisionChecker | None:
         obstacles = list(self._hidden) + (list(self._known) if self._check_known else [])
@@ -188,11 +192,36 @@ class SimulatedRobot(RobotLink):
             self.clock.sleep(adv.used_s)
             self._q = adv.q
             if adv.collision is not None:
+                if self.wait_for_operator:
+                    return self._halt_for_operator(adv.q, index(adv.segment),
+                                                   adv.collision.report)
                 return self._finish_collision(adv.q, index(adv.segment), adv.collision.report)
             if adv.finished:
                 return self._finish(LinkEventKind.REACHED, len(path) - 1, "reached")
             self._emit(LinkEvent(LinkEventKind.MOVED, adv.q, self.clock.now(), "",
                                  index(adv.segment)))
+
+    def _halt_for_operator(self, q: Array, path_index: int, report) -> LinkEvent:
+        """Halted against something: wait for the operator's Collision! (recorded here, where
+        the arm touched) or Stop. A MOVED event now and then keeps Cancel working."""
+        self._q = np.asarray(q, dtype=float).copy()
+        what = report.describe() if report is not None else "contact"
+        self._emit(LinkEvent(LinkEventKind.MOVED, self._q.copy(), self.clock.now(),
+                             f"halted, touching something: {what}", path_index,
+                             {"halted": True}))
+        while True:
+            if self._indicate.wait(0.5):
+                contacts = report.contacts if report is not None else ()
+                return self._finish(LinkEventKind.COLLISION_INDICATED, path_index,
+                                    f"{self._indicate_msg} (touching: {what})",
+                                    {"source": "operator",
+                                     "obstacles": sorted({c.other for c in contacts}),
+                                     "links": sorted({c.link for c in contacts}),
+                                     "started_in_contact": False})
+            if self._stop.is_set():
+                return self._finish(LinkEventKind.STOPPED, path_index, "stopped on request")
+            self._emit(LinkEvent(LinkEventKind.MOVED, self._q.copy(), self.clock.now(),
+                                 "halted", path_index, {"halted": True}))
 
     def _finish(self, kind: LinkEventKind, path_index: int, message: str,
                 details: dict | None = None) -> LinkEvent:

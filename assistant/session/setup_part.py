@@ -15,6 +15,7 @@ from assistant.robots.catalog import RobotSpec, ToolSpec
 from assistant.robots.model import Robot
 from assistant.session.events import (
     CollisionRecorded,
+    Notice,
     RobotMoved,
 )
 from assistant.session.types import (
@@ -82,6 +83,8 @@ class SetupActions:
                 link = make_link(self.link_settings, self.robot, hidden)
                 if self._q_sim is not None and hasattr(link, "set_joints"):
                     link.set_joints(self._q_sim)  # type: ignore[attr-defined]
+                if hasattr(link, "wait_for_operator"):
+                    link.wait_for_operator = self.operator_confirms_contacts
                 link.subscribe(self._on_link_event)
                 self._link = link
             if not self._link.connected:
@@ -96,10 +99,22 @@ class SetupActions:
                 self._link.close()
             self._link = None
 
+    def set_operator_confirms_contacts(self, on: bool) -> None:
+        """The simulated robot halts against a hidden obstacle and waits for Collision!
+        (the page: a person presses it) instead of reporting the contact itself."""
+        self.operator_confirms_contacts = bool(on)
+        link = self._link
+        if link is not None and hasattr(link, "wait_for_operator"):
+            link.wait_for_operator = bool(on)
+
     def _on_link_event(self, ev: LinkEvent) -> None:
         if ev.q is not None:
             self._q_sim = np.asarray(ev.q, dtype=float)
             self.bus.emit(RobotMoved(self._q_sim.copy()))
+        if ev.message.startswith("halted, touching"):
+            self.bus.emit(Notice("The robot has stopped against something the model does not "
+                                 "know. Press Collision! (Space) to teach it: the plan is "
+                                 "then repaired and the robot carries on."))
         if ev.kind == LinkEventKind.COLLISION_INDICATED and ev.q is not None:
             # The executor/explorer feeds the world model; the session keeps the posture so a
             # reloaded session knows it too.

@@ -164,3 +164,38 @@ def test_refusals_and_uploads(rv2aj):
     a = sim.upload_program("pick place", {"prog.mb4": b"10 MOV P1\n"})
     b = sim.upload_program("pick place", {"prog.mb4": b"10 MOV P2\n"})
     assert a != b and sim.programs[a] != sim.programs[b]
+
+
+@pytest.mark.parametrize("press", ["collision", "stop"])
+def test_the_pages_robot_halts_at_the_contact_and_waits_for_the_operator(rv2aj, press):
+    """The page's simulated robot (`wait_for_operator`) halts where the self-reporting one
+    reports the contact, and waits: Collision! records that very posture, Stop ends the move."""
+    box = box_on_sweep(rv2aj, Q_A, Q_B, 0.5)
+    path = sweep(Q_A, Q_B, 5)
+    reference = connected(rv2aj, clock=VirtualClock(), hidden_obstacles=[box], start_q=Q_A)
+    expected = reference.move_path(path)
+    sim = connected(rv2aj, clock=VirtualClock(), hidden_obstacles=[box], start_q=Q_A)
+    sim.wait_for_operator = True
+    halted = threading.Event()
+    sim.subscribe(lambda e: e.details.get("halted") and halted.set())
+    result: list = []
+    mover = threading.Thread(target=lambda: result.append(sim.move_path(path)))
+    mover.start()
+    assert halted.wait(30)  # it halts ...
+    mover.join(0.8)
+    assert mover.is_alive()  # ... and waits (more than one 0.5 s check of the buttons)
+    if press == "collision":
+        sim.indicate_collision()
+    else:
+        sim.stop()
+    mover.join(10)
+    assert not mover.is_alive()
+    ev = result[0]
+    if press == "collision":
+        assert ev.kind == LinkEventKind.COLLISION_INDICATED
+        assert ev.details["source"] == "operator" and ev.details["obstacles"] == ["hidden"]
+        # the same posture and segment as the self-reporting robot, bit for bit: the same
+        # code computes both on this machine
+        assert np.array_equal(ev.q, expected.q) and ev.path_index == expected.path_index
+    else:
+        assert ev.kind == LinkEventKind.STOPPED
