@@ -16,6 +16,7 @@ from assistant.cell.cad.layout import CellLayout, read_layout
 from assistant.cell.model import CellObject, ObjectRole
 from assistant.mission.model import LocationSource
 from assistant.progress import Cancelled, Progress
+from assistant.robots.model import UnreachableError
 from assistant.session.events import Notice, SceneChanged
 from assistant.session.types import EDIT_CELL, SessionError, _safe_name, hint_for
 from assistant.transforms import pose_from_mm_deg
@@ -102,8 +103,11 @@ class LayoutActions:
             scale = next(iter(cads.values())).scale_to_m * 1000.0  # drawing units -> mm
             for loc in layout.locations:
                 pose = np.array([*(scale * v for v in loc.xyz), *loc.abc_deg], float)
-                self.locations[loc.name] = self._make_location(
-                    loc.name, pose_from_mm_deg(pose), LocationSource.CAD_FILE, None, 0.0)
+                try:
+                    self.locations[loc.name] = self._make_location(
+                        loc.name, pose_from_mm_deg(pose), LocationSource.CAD_FILE, None, 0.0)
+                except UnreachableError as exc:
+                    raise SessionError(f"location {loc.name}: {exc}") from exc
                 self._relink_mission(loc.name)
                 if loc.role == "start":
                     self.mission = replace(self.mission, start=self.locations[loc.name],

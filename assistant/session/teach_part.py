@@ -16,6 +16,7 @@ from assistant.mission.model import (
 )
 from assistant.mission.motion import ToolAction
 from assistant.robots.model import IKResult, UnreachableError
+from assistant.robots.reach import reach_note
 from assistant.session.events import (
     Notice,
     PointerUpdated,
@@ -73,7 +74,8 @@ class TeachActions:
                                      f"{ang:.1f} deg into the arm plane"))
                 T_base, res = near, res2
         if not res.ok:
-            raise UnreachableError(f"{name}: {res.message}", res)
+            note = reach_note(self.robot, T_base[:3, 3])
+            raise UnreachableError(res.message + (f"; {note}" if note else ""), res)
         q = res.best(seed)
         return Location(name, self.T_world_base() @ T_base, source, q, uncertainty_m)
 

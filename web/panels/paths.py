@@ -3,8 +3,11 @@ the gripper actions before and after; reorder and delete them."""
 
 from __future__ import annotations
 
+from collections.abc import Iterable
+
 import numpy as np
 
+from assistant.mission.model import Mission
 from assistant.mission.motion import ToolAction, ToolActionKind
 from assistant.session.events import Event, SceneChanged, StateChanged
 from web.panels.base import Panel, gate
@@ -31,6 +34,24 @@ def parse_points(text: str) -> list[str]:
     return names
 
 
+def application_points(locations: Iterable[str], mission: Mission) -> list[str]:
+    """The taught locations a new path most likely runs through, in the order they were
+    taught (`locations` in insertion order): all but the mission's start and goal and those a
+    path of the mission already uses."""
+    taken = {p.name for p in (mission.start, mission.goal) if p is not None}
+    taken |= {n for path in mission.paths for seg in path.segments for n in seg.names if n}
+    return [n for n in locations if n not in taken]
+
+
+def free_path_name(used: Iterable[str], prefix: str = "L") -> str:
+    """L1, L2, ...: the first not used by a path (compared without case)."""
+    taken = {n.lower() for n in used}
+    k = 1
+    while f"{prefix}{k}".lower() in taken:
+        k += 1
+    return f"{prefix}{k}"
+
+
 class PathsPanel(Panel):
     title = "Application paths"
     steps = ("teach.paths",)
@@ -39,7 +60,12 @@ class PathsPanel(Panel):
         g = self.gui
         self.name = g.add_text("Path name", "L1")
         self.kind = g.add_dropdown("Kind", tuple(KINDS))
-        self.points = g.add_text("Through", "P7, P8", hint="Taught locations, in order")
+        self.points = g.add_text("Through", "", hint="Taught locations, in order (the "
+                                 "ones no path uses yet, but the start and goal, by default)")
+        #: The defaults last put in Name / Through: a field still showing its default was not
+        #: typed in, so it follows the locations and paths; what the operator typed stays.
+        self._auto_name = self.name.value
+        self._auto_points = self.points.value
         self.before = g.add_dropdown("Before", tuple(ACTIONS), initial_value="close the gripper")
         self.after = g.add_dropdown("After", tuple(ACTIONS), initial_value="open the gripper")
         self.speed = g.add_number("Speed (mm/s)", 50.0, min=1.0, max=2000.0, step=1.0)
@@ -77,6 +103,9 @@ class PathsPanel(Panel):
         self.session.add_path(name, KINDS[self.kind.value], parse_points(self.points.value),
                               before=ACTIONS[self.before.value], after=ACTIONS[self.after.value],
                               speed=float(self.speed.value) / 1000.0)
+        # Added: what was typed served its purpose, the next path gets fresh defaults.
+        self._auto_name, self._auto_points = self.name.value, self.points.value
+        self.refresh()
 
     def _order(self, client: object) -> None:
         names = self.session.order_mission()
@@ -125,12 +154,21 @@ class PathsPanel(Panel):
         empty = not m.paths
         for btn in (self.up, self.down, self.delete, self.set_actions, self.order_btn):
             gate(btn, "Add a path first" if empty else "")
-        used = {p.name for p in m.paths}
-        if self.name.value in used:
-            k = 1
-            while f"L{k}" in used:
-                k += 1
-            self.name.value = f"L{k}"
+        self._defaults()
+
+    def _defaults(self) -> None:
+        """Name and Through follow the mission unless the operator typed in them."""
+        s = self.session
+        used = [p.name for p in s.mission.paths]
+        name = self.name.value.strip()
+        if name == self._auto_name or name.lower() in {n.lower() for n in used}:
+            self._auto_name = free_path_name(used)
+            if self.name.value != self._auto_name:
+                self.name.value = self._auto_name
+        if self.points.value.strip() == self._auto_points.strip():
+            self._auto_points = ", ".join(application_points(s.locations, s.mission))
+            if self.points.value != self._auto_points:
+                self.points.value = self._auto_points
 
     def on_event(self, ev: Event) -> None:
         if isinstance(ev, SceneChanged) and ev.what in ("mission", "locations", "frames",

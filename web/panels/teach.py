@@ -3,23 +3,47 @@ or a click on a part; then choose the mission's start and goal."""
 
 from __future__ import annotations
 
+import logging
 import re
+from collections.abc import Callable, Iterable
 from typing import Any
 
 import numpy as np
 
+from assistant.robots.model import UnreachableError
+from assistant.robots.reach import arm_reach
 from assistant.session.events import Event, Notice, PointerUpdated, SceneChanged, StateChanged
 from web.panels.base import Panel, gate, why_greyed
 from web.scene.picking import pick
+from web.scene.reach import ReachLayer, RefusedTarget
 from web.units import ABC_CONVENTION, abc_shown, fmt_mm, point_from_mm, pose_from_fields
+
+log = logging.getLogger(__name__)
 
 #: Tool pointing down (A, B, C = 0, 0, 180 deg) - the usual pose over a table.
 DOWN_ABC = (0.0, 0.0, 180.0)
+#: Where the tool points when the pointer teaches (down, `teach_from_pointer`'s default).
+DOWN = np.array([0.0, 0.0, -1.0])
 
 
 def next_free_name(existing: set[str], prefix: str = "P") -> str:
     nums = [int(m.group(1)) for n in existing if (m := re.fullmatch(rf"{prefix}(\d+)", n))]
     return f"{prefix}{max(nums, default=0) + 1}"
+
+
+def name_after(taught: str, existing: Iterable[str]) -> str:
+    """The name to suggest after `taught`: its trailing number + 1 (P7 -> P8, SEAM_3 ->
+    SEAM_4, P09 -> P10), `_2`, `_3`, ... after a name without one (SEAM -> SEAM_2); names in
+    `existing` are skipped, compared without case (a controller does not tell P8 from p8)."""
+    taken = {n.lower() for n in existing}
+    m = re.fullmatch(r"(.*?)(\d+)", taught)
+    stem, num, width = (m.group(1), int(m.group(2)), len(m.group(2))) if m else \
+        (f"{taught}_", 1, 1)
+    while True:
+        num += 1
+        name = f"{stem}{num:0{width}d}"
+        if name.lower() not in taken:
+            return name
 
 
 class TeachPanel(Panel):
@@ -30,6 +54,7 @@ class TeachPanel(Panel):
         g = self.gui
         self.name = g.add_text("Name", "P1", hint="A letter, then letters, digits or _")
         self.five_axis = g.add_markdown("")
+        self.refused_md = g.add_markdown("", visible=False)
         with g.add_folder("With the pointer"):
             g.add_markdown("Hold the ball still at the spot: the cameras measure it.")
             self.point = g.add_vector3("Point (mm)", (300.0, 0.0, 100.0), step=1.0,
@@ -60,15 +85,21 @@ class TeachPanel(Panel):
             self.set_goal = g.add_button("Make it the goal")
             self.delete = g.add_button("Delete it", color="red")
             self.why = g.add_markdown("")
-        self.bind(self.dwell, lambda e: self._dwell())
+        #: The refused target and the arm's reach, drawn after an out-of-reach teach.
+        self.reach = ReachLayer(self.app)
+        #: The last location taught from this page: the Name field suggests the one after it.
+        self._last_taught: str | None = None
+        self._state_seen = ""
+        self.bind(self.dwell, lambda e: self._dwell(e.client))
         self.name.on_update(lambda e: self._seed_from_name())
         self.seed.on_update(lambda e: self._seed_typed(e))
         self._seed_manual = False
         #: A, B, C as typed per location, to show them back as typed (see `abc_shown`).
         self._typed_abc: dict[str, tuple[float, ...]] = {}
-        self.bind(self.pending, lambda e: self._teach(self.session.teach_pending_point))
+        self.bind(self.pending, lambda e: self._teach(
+            self.session.teach_pending_point, self._pending_position(), client=e.client))
         self.bind(self.from_robot, lambda e: self._teach(self.session.teach_from_robot))
-        self.bind(self.typed, lambda e: self._teach_typed())
+        self.bind(self.typed, lambda e: self._teach_typed(e.client))
         self.bind(self.set_start, lambda e: self.session.set_start(self.pick.value))
         self.bind(self.set_goal, lambda e: self.session.set_goal(self.pick.value))
         self.bind(self.delete, lambda e: self.session.remove_location(self.pick.value))
@@ -87,7 +118,7 @@ class TeachPanel(Panel):
         if e.client is not None:  # the operator chose a seed: it holds until the next name
             self._seed_manual = True
 
-    def _dwell(self) -> None:
+    def _dwell(self, client: Any = None) -> None:
         """The synthetic hand holds the ball still: the ball and the dwell's progress show
         while the cameras measure it (`PointerUpdated`); the button waits meanwhile."""
         gate(self.dwell, "Wait: the cameras are measuring the ball")
@@ -96,28 +127,77 @@ class TeachPanel(Panel):
         self.dwell_bar.visible = self.dwell_md.visible = True
         try:
             seed = int(self.seed.value) if self._seed_manual else self._name_seed()
-            self._teach(lambda n: self.session.teach_by_pointer_dwell(
-                n, point_from_mm(self.point.value), seed=seed))
+            point = point_from_mm(self.point.value)
+            self._teach(lambda n: self.session.teach_by_pointer_dwell(n, point, seed=seed),
+                        point, DOWN, client=client)
         finally:
             gate(self.dwell, "")
             self.dwell_bar.visible = self.dwell_md.visible = False
 
-    def _teach_typed(self) -> None:
+    def _teach_typed(self, client: Any = None) -> None:
         abc = tuple(float(v) for v in self.abc.value)
-        loc = self._teach(lambda n: self.session.teach(n, pose_from_fields(self.xyz.value,
-                                                                            abc)))
+        T = pose_from_fields(self.xyz.value, abc)
+        loc = self._teach(lambda n: self.session.teach(n, T), T[:3, 3], T[:3, 2],
+                          client=client)
         self._typed_abc[loc.name] = abc
         self.refresh()
 
-    def _teach(self, fn: Any) -> Any:
+    def _pending_position(self) -> np.ndarray | None:
+        tp = self.session.pending_point
+        return None if tp is None else np.asarray(tp.position_world, float)
+
+    def _teach(self, fn: Callable[[str], Any], target: np.ndarray | None = None,
+               tool_axis: np.ndarray | None = None, *, client: Any = None) -> Any:
+        """Teach under the Name field's name. `target` (world, m) and `tool_axis` (world,
+        unit: where the tool points): what to draw, with the arm's reach, if it is refused
+        (and `client`'s camera turned onto it)."""
+        self._hide_refused()  # the operator acts again: the last refusal is stale
         name = self.name.value.strip()
-        loc = fn(name)
+        try:
+            loc = fn(name)
+        except UnreachableError:
+            # The session has said why (one error toast); the panel shows where and how far.
+            if target is not None:
+                try:
+                    self._show_refused(name, target, tool_axis)
+                    if client is not None:
+                        self.reach.frame(client)
+                except Exception:  # noqa: BLE001 - the drawing must not hide the refusal
+                    log.exception("drawing the refused target failed")
+            raise
         self.pick.options = tuple(self.session.locations) or ("-",)
         self.pick.value = loc.name
         self._typed_abc.pop(loc.name, None)  # taught again: typed angles are no longer its
-        self.name.value = next_free_name(set(self.session.locations))
+        self._last_taught = loc.name
+        self.name.value = name_after(loc.name, self.session.locations)
         self._seed_from_name()
         return loc
+
+    def _show_refused(self, name: str, target: np.ndarray, tool_axis: np.ndarray | None
+                      ) -> None:
+        """Draw the refused target and the arm's reach; say how far beyond it the target is."""
+        s = self.session
+        T_world_base = s.T_world_base()
+        reach = arm_reach(s.robot)
+        beyond = reach.beyond_world(target, T_world_base)
+        shown = RefusedTarget(name or "?", np.asarray(target, float), tool_axis,
+                              reach.centre_world(T_world_base), reach.radius, beyond)
+        self.reach.show(shown)
+        if beyond > 0:
+            text = f"**{name}: {beyond * 1000:.0f} mm beyond the arm's reach** " \
+                   f"({reach.radius * 1000:.0f} mm from the shoulder): the red ball and the " \
+                   "blue sphere in the scene."
+        else:
+            text = f"**{shown.label}**: the point is within the arm's reach " \
+                   f"({-beyond * 1000:.0f} mm inside the blue sphere), the tool's " \
+                   "orientation or a joint limit is the problem."
+        self.refused_md.content = f"<small>{text}</small>"
+        self.refused_md.visible = True
+
+    def _hide_refused(self) -> None:
+        self.reach.hide()
+        if self.refused_md.visible:
+            self.refused_md.visible = False
 
     def _clicked(self, obj_name: str, ev: Any) -> None:
         if not (self.visible and self.click_mode.value):
@@ -129,8 +209,10 @@ class TeachPanel(Panel):
                    np.array(ev.ray_direction))
         if hit is None:
             return
+        axis = -np.asarray(hit.normal_world, float)  # the tool points against the surface
         self.app.actions.run(lambda: self._teach(lambda n: self.session.teach_from_cad_click(
-            n, hit.point_world, hit.normal_world)), ev.client)
+            n, hit.point_world, hit.normal_world), np.asarray(hit.point_world, float),
+            axis / np.linalg.norm(axis), client=ev.client), ev.client)
 
     def refresh(self) -> None:
         s = self.session
@@ -165,10 +247,22 @@ class TeachPanel(Panel):
             self.why.content = why
         gate(self.pending, "" if s.pending_point is not None else
              "Hold the ball still first (step 3.2 starts the cameras)")
-        if self.name.value in s.locations:
-            self.name.value = next_free_name(set(s.locations))
+        if self.name.value.strip().lower() in {n.lower() for n in s.locations}:
+            self.name.value = self._suggested_name()
+
+    def _suggested_name(self) -> str:
+        """After a teach from this page: the name after it; before: P1 or the next free P<k>."""
+        s = self.session
+        if self._last_taught is None:
+            return next_free_name(set(s.locations))
+        return name_after(self._last_taught, s.locations)
 
     def on_event(self, ev: Event) -> None:
+        if isinstance(ev, StateChanged) and ev.state != self._state_seen or \
+                isinstance(ev, SceneChanged) and ev.what in ("all", "robot"):
+            self._hide_refused()  # another step or another robot: the refusal is history
+        if isinstance(ev, StateChanged):
+            self._state_seen = ev.state
         if isinstance(ev, SceneChanged) and ev.what in ("locations", "mission", "all", "robot") \
                 or isinstance(ev, StateChanged):
             self.refresh()
