@@ -13,7 +13,8 @@ fresh interpreters (subprocesses), as a user's commands are:
 4. cold first plan: `python -m assistant serve` on the default cell (the thesis RV-2AJ cell
    with its parts and mission) with ANOTHER empty cache and a new session folder, the page in
    headless Chromium driven as an operator does (visible labels and buttons only): Next to
-   step 5, "Build world model", Next, "Plan" - from `page.goto` until the plan panel says
+   step 5 (entering it builds the world model), Next (entering 6 plans) - from `page.goto`
+   until the plan panel says
    "Mission planned; N motions drawn" and two frames are drawn;
 5. warm first plan: the same with the complete cache of 1-3 (a new server, a new session).
 
@@ -171,12 +172,14 @@ def timed_run(cache: Path, out: Path) -> dict:
 class Server:
     """`python -m assistant serve` in its own process group; stderr collected."""
 
-    def __init__(self, cache: Path, session: Path):
+    def __init__(self, cache: Path | None, session: Path, extra: tuple[str, ...] = ()):
+        """`cache`: a kernel cache of its own (None: this process's environment)."""
         self.port = free_port()
-        cmd = [sys.executable, "-m", "assistant", "serve", "--session", str(session),
+        cmd = [sys.executable, "-m", "assistant", "serve", *extra, "--session", str(session),
                "--port", str(self.port)]
         self.t0 = time.perf_counter()
-        self.proc = subprocess.Popen(cmd, cwd=ROOT, env=child_env(cache),
+        env = child_env(cache) if cache is not None else dict(os.environ)
+        self.proc = subprocess.Popen(cmd, cwd=ROOT, env=env,
                                      stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
                                      stderr=subprocess.PIPE, text=True, start_new_session=True)
         self.lines: list[str] = []
@@ -265,12 +268,11 @@ def first_plan(pw, cache: Path, session: Path, profile: Path) -> dict:
                 click(page, "Next")
                 wait_text(page, step_pattern(number), 120_000)
             res["at_explore_s"] = round(time.perf_counter() - t0, 2)
-            click(page, "Build world model")
+            # Entering step 5 builds the world model, entering step 6 plans (web.panels).
             wait_text(page, r"World model ready", PAGE_TIMEOUT_MS)
             res["world_ready_s"] = round(time.perf_counter() - t0, 2)
             click(page, "Next")
             wait_text(page, step_pattern("6"), 120_000)
-            click(page, "Plan")
             wait_text(page, r"Mission planned; [1-9]\d* motions drawn", PAGE_TIMEOUT_MS)
             page.evaluate(FRAMES_JS)
             res["first_plan_s"] = round(time.perf_counter() - t0, 2)

@@ -131,10 +131,9 @@ def main() -> int:
             out["page_toolbar_s"] = round(time.perf_counter() - t0, 3)
             page.evaluate(FRAMES_JS)
             out["page_usable_s"] = round(time.perf_counter() - t0, 3)
-            # 2. plan drawn (the sample cell's mission, planned from step 6)
+            # 2. plan drawn (the sample cell's mission: entering step 6 plans it)
             session.goto("plan")
             page.get_by_text("Step 6 of 7").first.wait_for()
-            page.get_by_role("button", name="Plan", exact=True).click()
             page.wait_for_function(
                 "() => /Mission planned; [1-9]\\d* motions drawn/.test(document.body.innerText)",
                 polling="raf", timeout=600_000)

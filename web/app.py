@@ -135,11 +135,16 @@ class App:
         """Apply one event on the UI thread: scene first, then panels, then the toolbar."""
         self.scene_layers.on_event(ev)
         if isinstance(ev, StateChanged):
-            if ev.state != self._shown_state:  # the step moved on: earlier errors are stale
+            entered = ev.state != self._shown_state
+            if entered:  # the step moved on: earlier errors are stale
                 self._shown_state = ev.state
                 self.notifier.clear_errors()
             for p in self.panels.values():
                 p.show_for(ev.state)
+            if entered:
+                for p in self.panels.values():
+                    if ev.state in p.steps:
+                        p.on_enter()
         for p in self.panels.values():
             p.on_event(ev)
         self.toolbar.on_event(ev)
@@ -187,11 +192,14 @@ class App:
 
 
 def operator_pace(session: Session) -> None:
-    """A sped-up simulated robot (a sample's 20x, for scripts) runs in real time in the page."""
+    """A sped-up simulated robot (a sample's 20x, for scripts) runs in real time in the page,
+    and halts against what the model does not know until the operator presses Collision!."""
     ls = session.link_settings
     if ls.kind == "simulated" and ls.time_scale > OPERATOR_PACE and \
             session.machine.mode.value == "idle":
         session.set_simulation_speed(OPERATOR_PACE, count=False)
+    # A person presses Collision! in the page: the simulated robot halts and waits for it.
+    session.set_operator_confirms_contacts(True)
 
 
 def build_app(session: Session, server: viser.ViserServer, *,

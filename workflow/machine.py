@@ -84,6 +84,8 @@ class JumpSpec:
 
 
 JUMPS: tuple[JumpSpec, ...] = (
+    # A cell-layout drawing places its parts as drawn: placing and calibrating may wait.
+    JumpSpec("cad", "teach_now", "teach.locations", "Skip to teaching"),
     JumpSpec("place", "import_more", "cad", "Import more CAD"),
     JumpSpec("teach", "fix_placement", "place.objects", "Fix placement"),
     JumpSpec("teach", "calibrate_cameras", "place.cameras", "Calibrate cameras"),

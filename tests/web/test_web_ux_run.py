@@ -1,12 +1,14 @@
 """A run at a human pace in the real page: the speed is chosen with its unit, a greyed button
-says why, the page counts the moves as report.json does, and the run ends with "Goal reached"
-(once) and the learnt obstacle drawn as a solid of the cells it made occupied."""
+says why, the robot halts at the hidden obstacle until the operator presses Collision!, the
+page counts the moves as report.json does, and the run ends with "Goal reached" (once) and the
+learnt obstacle drawn as a solid of the cells it made occupied."""
 
 from __future__ import annotations
 
 import time
 
 import pytest
+from thesis_page import press_collision_at_each_halt
 from web_ui import UI
 
 from assistant.session import Session
@@ -39,7 +41,10 @@ def test_a_run_at_the_chosen_pace_ends_with_the_goal_and_the_learnt_obstacle(
         ui.page.wait_for_timeout(100)
     assert session.link_settings.time_scale == 20.0
     ui.click("Execute on the robot")
+    # The page's robot halts at the hidden O3 until the operator presses Collision! (Space).
+    presses = press_collision_at_each_halt(ui, lambda: ui.page.keyboard.press("Space"))
     ui.wait_text("Goal reached: the robot is at P10", timeout=LONG_MS)
+    assert presses == session.counters.collision_indications
     ui.shot("6-goal")
     assert session.counters.collision_indications > 0  # the hidden O3 was met
     app.wait_idle(10)

@@ -60,6 +60,10 @@ class Panel:
     def on_event(self, ev: Event) -> None:
         """React to one session event (UI thread); default: nothing."""
 
+    def on_enter(self) -> None:
+        """The workflow has just moved to one of this panel's steps (UI thread); default:
+        nothing. A step whose work is obvious starts it here, saving the operator a click."""
+
 
 def busy_reason(mode: str) -> str:
     """Why a control that needs the robot and the assistant idle is greyed out ("" if idle)."""

@@ -23,6 +23,8 @@ FORMATS = "STL, OBJ, PLY, GLB/GLTF, 3MF, DXF, STEP"
 STAGING_BEHIND_M = -0.45
 STAGING_STEP_M = 0.3
 STAGING_SLOTS = 4
+#: The one-click work table: a common 1200 x 1200 mm top, 20 mm thick, under the robot's base.
+TABLE_SIZE_MM = (1200.0, 1200.0, 20.0)
 
 
 @dataclass
@@ -42,13 +44,19 @@ class CadPanel(Panel):
     def build(self) -> None:
         g = self.gui
         g.add_markdown(f"Upload a part ({FORMATS}). It waits beside the robot, out of its "
-                       "way, until you place it in the next step.")
+                       "way, until you place it in the next step. A DXF with a LOCATIONS "
+                       "layer is a cell layout: its parts stand where drawn and its labelled "
+                       "points are taught.")
         self.units = g.add_dropdown("Units", UNITS, hint="Leave 'from the file' unless the "
                                     "size comes out wrong")
         self.role = g.add_dropdown("Role", ROLES, initial_value="obstacle")
         self.extrude = g.add_number("DXF height (mm)", 0.0, min=0.0, max=5000.0, step=1.0,
                                     hint="Only for a DXF holding a 2-D outline; 0 = none")
         self.upload = g.add_upload_button("Upload CAD file", icon=viser.Icon.UPLOAD)
+        self.table_btn = g.add_button(
+            "Add the work table", icon=viser.Icon.TABLE,
+            hint=f"A {TABLE_SIZE_MM[0]:.0f} x {TABLE_SIZE_MM[1]:.0f} mm table top under the "
+                 "robot's base (a fixture); other sizes under 'Add a simple shape'")
         self.report = g.add_markdown("")
         with g.add_folder("Units of the last part", visible=False) as self.confirm:
             self.reunits = g.add_dropdown("Re-import as", UNITS[1:])
@@ -75,13 +83,36 @@ class CadPanel(Panel):
                                                                         self.new_role.value))
         self.bind(self.remove, lambda e: self.session.remove_object(self.pick.value))
         self.bind(self.add_shape, lambda e: self._add_shape())
+        self.bind(self.table_btn, lambda e: self._add_table())
 
     # ------------------------------------------------------------------ actions
     def _uploaded(self, event: viser.GuiEvent) -> None:
         f = event.target.value
         check_upload_size(self.app, f.name, len(f.content))
         units = None if self.units.value == UNITS[0] else self.units.value
+        if self.session.read_layout(f.content, f.name) is not None:
+            self._import_layout(f.name, f.content, units)
+            return
         self._import(f.name, f.content, units, name=None)
+
+    def _import_layout(self, filename: str, data: bytes, units: str | None) -> None:
+        """A cell layout: its parts stand where drawn, its locations are taught (one action)."""
+        fut = self.session.start_import_layout(data, filename, units=units,
+                                               role=self.role.value)
+        self.report.content = f"*Importing the cell layout {filename}...*"
+
+        def shown(f: Future) -> None:
+            if f.exception() is not None:
+                self.report.content = f"*{filename}: not imported.*"
+                return
+            names = ", ".join(o.name for o in f.result())
+            layout = self.session.read_layout(data, filename)
+            locs = ", ".join(loc.name + (f" ({loc.role})" if loc.role else "")
+                             for loc in (layout.locations if layout else []))
+            self.report.content = (f"**Imported {names}** from the cell layout {filename}, "
+                                   "standing where drawn" +
+                                   (f"; taught {locs}" if locs else "") + ".")
+        fut.add_done_callback(lambda f: self.app.pump.post(lambda: shown(f)))
 
     def _import(self, filename: str, data: bytes, units: str | None, *, name: str | None
                 ) -> None:
@@ -139,6 +170,14 @@ class CadPanel(Panel):
         T[:3, 3] = at
         self.session.add_primitive(kind, size, name=self.shape_name.value.strip() or None,
                                    role=self.shape_role.value, T_world_object=T)
+
+    def _add_table(self) -> None:
+        s = self.session
+        T = np.eye(4)
+        T[2, 3] = -TABLE_SIZE_MM[2] / 2000.0  # its top at the base
+        name = "table" if "table" not in s.cell.objects else s.cell.unique_name("table")
+        s.add_primitive("box", tuple(v / 1000.0 for v in TABLE_SIZE_MM), name=name,
+                        role="fixture", T_world_object=s.T_world_base() @ T)
 
     # ------------------------------------------------------------------ redraw
     def refresh(self) -> None:

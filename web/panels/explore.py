@@ -4,6 +4,8 @@ would hit something. What the scene shows is the View panel's (`web.panels.view`
 
 from __future__ import annotations
 
+import contextlib
+
 import viser
 
 from assistant.session.events import CollisionRecorded, Event, SceneChanged, StateChanged
@@ -52,6 +54,14 @@ class ExplorePanel(Panel):
         self.bind(self.explore, lambda e: self.session.start_explore(
             EXPLORE_MODES[self.mode.value], int(self.moves.value), seed=0), motion=True)
         self.bind(self.collision, lambda e: self.session.fire("collision"))
+
+    def on_enter(self) -> None:
+        """Entering the step builds the world model when there is none (progress and Cancel
+        in the toolbar): it is what the step is for, and the operator saves a click."""
+        s = self.session
+        if not s.world_ready and s.machine.mode.value == "idle":
+            with contextlib.suppress(Exception):  # the session has shown the reason
+                s.start_build_world()
 
     def refresh(self) -> None:
         s = self.session

@@ -4,6 +4,7 @@ posture, re-plans and carries on. The path is drawn with lines and arcs in their
 
 from __future__ import annotations
 
+import contextlib
 from typing import Any
 
 import viser
@@ -13,6 +14,7 @@ from assistant.session.events import (
     ErrorRaised,
     Event,
     ExecutionFinished,
+    Notice,
     PlanReady,
     SceneChanged,
     StateChanged,
@@ -59,6 +61,10 @@ SPEEDS = {"0.5x real time": 0.5, "1x real time": 1.0, "2x real time": 2.0,
           "5x real time": 5.0, "20x real time": 20.0}
 
 
+HALTED = ("**Halted against something the model does not know: press Collision! (Space) "
+          "to teach it.**")
+
+
 def speed_label(time_scale: float) -> str:
     for label, v in SPEEDS.items():
         if abs(v - time_scale) < 1e-9:
@@ -82,6 +88,8 @@ class PlanPanel(Panel):
         self.resume = g.add_button("Resume", icon=viser.Icon.PLAYER_TRACK_NEXT, disabled=True,
                                    hint="Continue a stopped mission from where the robot is")
         self.why = g.add_markdown("")
+        #: Shown only while the simulated robot stands against something unknown.
+        self.halted = g.add_markdown(HALTED, visible=False)
         self.speed = g.add_dropdown(
             "Simulation speed", tuple(SPEEDS), initial_value="1x real time",
             hint=SPEED_HINT)
@@ -100,6 +108,15 @@ class PlanPanel(Panel):
         self._resumable = False
         #: "Goal reached: ..." after a good run, until the mission is planned again.
         self._outcome = ""
+
+    def on_enter(self) -> None:
+        """Entering the step plans the mission when there is no plan yet (progress and Cancel
+        in the toolbar), so the operator's first click here is Execute."""
+        s = self.session
+        if s.trajectory is None and s.mission.start is not None and \
+                s.mission.goal is not None and s.machine.mode.value == "idle":
+            with contextlib.suppress(Exception):  # the session has shown the reason
+                s.start_plan()
 
     def _set_speed(self) -> None:
         label = self.speed.value
@@ -150,6 +167,15 @@ class PlanPanel(Panel):
         self.report.content = report_markdown(s.plan_report)
 
     def on_event(self, ev: Event) -> None:
+        if isinstance(ev, Notice) and ev.message.startswith("The robot has stopped against"):
+            self._halts = getattr(self, "_halts", 0) + 1  # numbered: each wants its press
+            self.halted.content = f"{HALTED} (halt {self._halts} of this run)"
+            self.halted.visible = True
+        elif isinstance(ev, (CollisionRecorded, ExecutionFinished, ErrorRaised)) or \
+                isinstance(ev, StateChanged) and self.session.machine.mode.value != "moving":
+            self.halted.visible = False
+            if not isinstance(ev, CollisionRecorded):
+                self._halts = 0
         if isinstance(ev, ErrorRaised):
             self._resumable = "Resume" in ev.message
         elif isinstance(ev, ExecutionFinished):
