@@ -25,9 +25,12 @@ class LocationSource(str, Enum):
     CAD_FILE = "cad_file"  # labelled in a cell-layout drawing
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Location:
-    """A taught TCP pose (world frame), where it came from, and its uncertainty if measured."""
+    """A taught TCP pose (world frame), where it came from, and its uncertainty if measured.
+
+    Equal when every field is (arrays element-wise): documents are compared to tell whether
+    an action changed anything, and a location taught again under its name must compare."""
 
     name: str
     T_world_tool: Array
@@ -35,6 +38,18 @@ class Location:
     #: Joint configuration it was taught with (robot-pose teaching), to keep that arm branch.
     q_hint: Array | None = None
     uncertainty_m: float = 0.0
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Location):
+            return NotImplemented
+        if (self.q_hint is None) != (other.q_hint is None):
+            return False
+        return (self.name == other.name and self.source == other.source
+                and self.uncertainty_m == other.uncertainty_m
+                and np.array_equal(self.T_world_tool, other.T_world_tool)
+                and (self.q_hint is None or np.array_equal(self.q_hint, other.q_hint)))
+
+    __hash__ = None  # type: ignore[assignment]  # mutable arrays inside: not a dict key
 
     @property
     def position(self) -> Array:

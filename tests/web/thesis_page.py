@@ -33,6 +33,9 @@ class Effort:
     world: list[str] = field(default_factory=list)  # stand-ins for the physical pointer
     machine_wait_s: dict[str, float] = field(default_factory=dict)  # step -> seconds
     robot_run_s: float = 0.0  # Execute -> goal reached (robot time at 1x, re-plans, halts)
+    #: The synthetic pointer's dwells: the ball held still (1 s) plus rendering its frames;
+    #: with real cameras the operator's hold, not the machine's work.
+    pointer_s: float = 0.0
     shots: list[Path] = field(default_factory=list)
     download: tuple[str, bytes] | None = None
     moves_shown: int | None = None
@@ -87,6 +90,12 @@ class Operator:
             self.effort.machine_wait_s.get(self.where, 0.0) + time.perf_counter() - t0
         return out
 
+    def dwell(self, name: str) -> None:
+        """The pointer held still until the dwell teaches `name` (see `Effort.pointer_s`)."""
+        t0 = time.perf_counter()
+        self.ui.wait_cell(name)
+        self.effort.pointer_s += time.perf_counter() - t0
+
     def at(self, number: str) -> None:
         self.ui.step(number)
         self.where = number
@@ -117,11 +126,11 @@ def run_thesis_scenario(ui: UI, sample: Path) -> Effort:
     op.type("Name", "P7")
     op.hold_pointer_at((340, -70, 60))
     op.click("Teach by pointer dwell")
-    op.wait(ui.wait_cell, "P7")
+    op.dwell("P7")
     _wait_value(ui, "Name", "P8")
     op.hold_pointer_at((340, 70, 60))
     op.click("Teach by pointer dwell")
-    op.wait(ui.wait_cell, "P8")
+    op.dwell("P8")
     op.shot("4-taught")
     op.click("Next")
     op.at("4.2")
