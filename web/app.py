@@ -81,6 +81,8 @@ class App:
         operator_pace(self._session)
         self.server.gui.configure_theme(control_width="large", show_share_button=False,
                                         brand_color=(40, 110, 200))
+        # viser's widest preset is ~350 px: the tables and the program preview need room.
+        self.server.gui.main_panel.set_width(PANEL_WIDTH_PX)
         self.notifier = Notifier(self.server)
         self._shown_state = self._session.machine.state
         self.actions = Actions(self)
@@ -189,6 +191,10 @@ class App:
         self.pump.stop()
         self._session.close()
         self.server.stop()
+
+
+#: Wide enough for the parts/locations tables and most program lines unwrapped.
+PANEL_WIDTH_PX = 520
 
 
 def operator_pace(session: Session) -> None:

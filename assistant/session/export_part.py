@@ -24,15 +24,16 @@ class ExportActions:
 
     # ================================================================== 7. export
     def export(self, dialect: str | None = None, *, name: str | None = None,
-               frame: str | None = None) -> Any:
+               frame: str | None = None, count: bool = True) -> Any:
         """Write the planned mission as a robot program; returns the files (and a zip).
         With `frame` (a named, e.g. calibrated, frame) the targets are written in that frame
-        (KRL $BASE, RAPID wobj, URScript pose_trans, ...) instead of the robot base."""
+        (KRL $BASE, RAPID wobj, URScript pose_trans, ...) instead of the robot base.
+        `count=False`: written by the page on its own (not an operator action)."""
         from assistant.export import export_files, get_dialect, program_from_trajectory
         from assistant.export.program import Frame
 
         with self._action("export the program", ("export", "plan"), undoable=False,
-                          scene="program"):
+                          scene="program", count=count):
             if self.trajectory is None:
                 raise SessionError("Plan the mission first: there is no verified trajectory yet")
             d = get_dialect(dialect or self.export_dialect)
