@@ -18,6 +18,7 @@ from assistant.session.events import (
     PlanReady,
     ProgramReady,
     ProgressChanged,
+    RobotHalted,
     SceneChanged,
     StateChanged,
 )
@@ -37,7 +38,7 @@ NAV = ("previous", "next", "exit")
 MAIN_STEPS = [s for s in STATES if "." not in s]
 
 
-def step_heading(state: str, mode: str, busy_task: str) -> str:
+def step_heading(state: str, mode: str, busy_task: str, halted: bool = False) -> str:
     n_main = len(MAIN_STEPS)
     spec = STATES[state]
     parent = STATES[state.split(".")[0]]
@@ -47,6 +48,10 @@ def step_heading(state: str, mode: str, busy_task: str) -> str:
         head += f"\n\n{spec.help}"
     if mode == "busy":
         head += f"\n\n**Working:** {busy_task or 'long task'} (Cancel stops it; nothing is lost)"
+    elif mode == "moving" and halted:
+        head += "\n\n**The robot has stopped against something the model does not know.** " \
+                "Press **Collision!** (Space) to teach it: the plan is repaired and the " \
+                "robot carries on; Stop ends the run."
     elif mode == "moving":
         head += "\n\n**The robot is moving.** Press **Collision!** (or the Space key) the " \
                 "moment it would hit something; Stop halts it."
@@ -148,6 +153,11 @@ class Toolbar:
 
     # ------------------------------------------------------------------ redraw
     def on_event(self, ev: Event) -> None:
+        if isinstance(ev, RobotHalted):
+            self._halted = True
+            self.refresh()
+        elif isinstance(ev, (CollisionRecorded, StateChanged)):
+            self._halted = False
         if isinstance(ev, ProgressChanged):
             self._progress(ev)
         elif isinstance(ev, (StateChanged, SceneChanged, PlanReady, ProgramReady,
@@ -170,7 +180,8 @@ class Toolbar:
         s = self.app.session
         m = s.machine
         mode = m.mode.value
-        self.heading.content = step_heading(m.state, mode, m.busy_task)
+        self.heading.content = step_heading(m.state, mode, m.busy_task,
+                                            getattr(self, "_halted", False))
         transitions = s.transitions()
         by_event = {t.event: t for t in transitions}
         for name, btn in (("previous", self.prev), ("next", self.next), ("exit", self.exit)):

@@ -84,6 +84,14 @@ class ErrorRaised(Event):
 
 
 @dataclass(frozen=True)
+class RobotHalted(Event):
+    """The simulated robot stands against something the model does not know and waits for
+    the operator's Collision! (`Session.set_operator_confirms_contacts`)."""
+
+    what: str
+
+
+@dataclass(frozen=True)
 class Notice(Event):
     """Information worth a notification (e.g. 'orientation projected into the arm plane')."""
 

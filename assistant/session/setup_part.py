@@ -15,7 +15,7 @@ from assistant.robots.catalog import RobotSpec, ToolSpec
 from assistant.robots.model import Robot
 from assistant.session.events import (
     CollisionRecorded,
-    Notice,
+    RobotHalted,
     RobotMoved,
 )
 from assistant.session.types import (
@@ -112,9 +112,7 @@ class SetupActions:
             self._q_sim = np.asarray(ev.q, dtype=float)
             self.bus.emit(RobotMoved(self._q_sim.copy()))
         if ev.message.startswith("halted, touching"):
-            self.bus.emit(Notice("The robot has stopped against something the model does not "
-                                 "know. Press Collision! (Space) to teach it: the plan is "
-                                 "then repaired and the robot carries on."))
+            self.bus.emit(RobotHalted(ev.message.split(":", 1)[-1].strip()))
         if ev.kind == LinkEventKind.COLLISION_INDICATED and ev.q is not None:
             # The executor/explorer feeds the world model; the session keeps the posture so a
             # reloaded session knows it too.

@@ -42,7 +42,14 @@ def test_a_run_at_the_chosen_pace_ends_with_the_goal_and_the_learnt_obstacle(
     assert session.link_settings.time_scale == 20.0
     ui.click("Execute on the robot")
     # The page's robot halts at the hidden O3 until the operator presses Collision! (Space).
-    presses = press_collision_at_each_halt(ui, lambda: ui.page.keyboard.press("Space"))
+    # The step heading says the robot stopped (not "is moving"); no notification repeats it.
+    def halted_once() -> None:
+        ui.wait_text("The robot has stopped against something the model does not know.")
+        assert ui.page.locator(".mantine-Notification-root",
+                               has_text="stopped against").count() == 0
+
+    presses = press_collision_at_each_halt(ui, lambda: ui.page.keyboard.press("Space"),
+                                           first=halted_once)
     ui.wait_text("Goal reached: the robot is at P10", timeout=LONG_MS)
     assert presses == session.counters.collision_indications
     ui.shot("6-goal")

@@ -14,8 +14,8 @@ from assistant.session.events import (
     ErrorRaised,
     Event,
     ExecutionFinished,
-    Notice,
     PlanReady,
+    RobotHalted,
     SceneChanged,
     StateChanged,
 )
@@ -167,7 +167,7 @@ class PlanPanel(Panel):
         self.report.content = report_markdown(s.plan_report)
 
     def on_event(self, ev: Event) -> None:
-        if isinstance(ev, Notice) and ev.message.startswith("The robot has stopped against"):
+        if isinstance(ev, RobotHalted):
             self._halts = getattr(self, "_halts", 0) + 1  # numbered: each wants its press
             self.halted.content = f"{HALTED} (halt {self._halts} of this run)"
             self.halted.visible = True
