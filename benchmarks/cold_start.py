@@ -15,7 +15,7 @@ fresh interpreters (subprocesses), as a user's commands are:
    headless Chromium driven as an operator does (visible labels and buttons only): Next to
    step 5 (entering it builds the world model), Next (entering 6 plans) - from `page.goto`
    until the plan panel says
-   "Mission planned; N motions drawn" and two frames are drawn;
+   "Mission planned: N moves" and two frames are drawn;
 5. warm first plan: the same with the complete cache of 1-3 (a new server, a new session).
 
 The children run with NUMBA_CACHE_DIR and NUMBA_DISABLE_JIT removed from their environment.
@@ -273,10 +273,10 @@ def first_plan(pw, cache: Path, session: Path, profile: Path) -> dict:
             res["world_ready_s"] = round(time.perf_counter() - t0, 2)
             click(page, "Next")
             wait_text(page, step_pattern("6"), 120_000)
-            wait_text(page, r"Mission planned; [1-9]\d* motions drawn", PAGE_TIMEOUT_MS)
+            wait_text(page, r"Mission planned: [1-9]\d* moves", PAGE_TIMEOUT_MS)
             page.evaluate(FRAMES_JS)
             res["first_plan_s"] = round(time.perf_counter() - t0, 2)
-            res["plan_summary"] = page.get_by_text(re.compile(r"Mission planned; ")).first \
+            res["plan_summary"] = page.get_by_text(re.compile(r"Mission planned: ")).first \
                 .inner_text().strip()
         finally:
             ctx.close()

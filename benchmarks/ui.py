@@ -2,8 +2,8 @@
 
 1. page usable: from `page.goto` on the sample cell to the toolbar shown and two frames drawn;
 2. plan drawn: from the planner finishing (`PlanReady`, server clock) to the page showing the
-   drawn path (the plan panel's "N motions drawn" line, written right after the path's scene
-   nodes, plus two frames) - same machine, so the clocks agree;
+   drawn path (the plan panel's "Mission planned: N moves" line, refreshed right after the
+   path's scene nodes, plus two frames) - same machine, so the clocks agree;
 3. octree: 50 000 occupied cells as ONE scene node, twice: CAD-like (solid blocks, as the
    octree holds obstacles: drawn as one surface mesh) and scattered at random over a 1.2 m cube
    (the worst case: drawn as square sprites); frame times from requestAnimationFrame while the
@@ -135,7 +135,7 @@ def main() -> int:
             session.goto("plan")
             page.get_by_text("Step 6 of 7").first.wait_for()
             page.wait_for_function(
-                "() => /Mission planned; [1-9]\\d* motions drawn/.test(document.body.innerText)",
+                "() => /Mission planned: [1-9]\\d* moves/.test(document.body.innerText)",
                 polling="raf", timeout=600_000)
             page.evaluate(FRAMES_JS)
             t_drawn = page.evaluate("() => Date.now()") / 1000.0
