@@ -1,5 +1,6 @@
 """Step 2: a cell-layout drawing (`assistant.cell.cad.layout`) - its parts placed as drawn and
-its labelled locations taught, start and goal set, in one undoable action.
+its labelled locations taught, start and goal set, in one undoable action. The same layout
+imported again replaces its parts and locations (the drawing was updated in CAD).
 
 A part mixed into `Session`."""
 
@@ -92,7 +93,14 @@ class LayoutActions:
         objs: list[CellObject] = []
         with self._action(f"import {filename}", EDIT_CELL, scene="objects"):
             for name, cad in cads.items():
-                obj_name = self.cell.unique_name(_safe_name(name))
+                obj_name = _safe_name(name)
+                old = self.cell.objects.get(obj_name)
+                if old is not None and old.source is not None and \
+                        old.source.filename == filename:
+                    # The same layout again (e.g. updated in CAD): its parts are replaced.
+                    self.cell.remove_object(obj_name)
+                else:
+                    obj_name = self.cell.unique_name(obj_name)
                 # Drawn in cell coordinates: the part stands where the drawing has it.
                 obj = CellObject.from_cad(obj_name, cad, np.eye(4), role=role)
                 self.cell.add_object(obj)

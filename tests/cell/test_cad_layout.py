@@ -139,3 +139,14 @@ def test_a_saved_cell_reimports_the_layout_parts(tmp_path):
         np.testing.assert_allclose(again.cell.objects[name].display_mesh.bounds,
                                    s.cell.objects[name].display_mesh.bounds, atol=1e-12)
         assert again.cell.objects[name].source.options["dxf_layer"] == name
+
+
+def test_the_same_layout_again_replaces_its_parts_another_adds_beside(tmp_path):
+    s = Session.from_sample("thesis_rv2aj", tmp_path / "s", with_objects=False,
+                            with_mission=False)
+    s.fire("next")
+    s.import_layout_path(LAYOUT)
+    s.import_layout_path(LAYOUT)  # updated in CAD and imported again
+    assert sorted(s.cell.objects) == ["O1", "O2"]
+    s.import_layout(LAYOUT.read_bytes(), "other_layout.dxf")  # another drawing, same layers
+    assert sorted(s.cell.objects) == ["O1", "O1_2", "O2", "O2_2"]
