@@ -76,7 +76,10 @@ def test_stream_silent_past_the_timeout(ready):
     emu.faults.delay_replies(1.0)
     t0 = time.monotonic()
     ev = link.move_path(np.array([Q_A, HOME]))
-    assert ev.kind == LinkEventKind.LINK_LOST and "no data" in ev.message
+    # Silence is noticed by the stream's watchdog ("no data") or by the wait for the program's
+    # state ("did not come within"), whichever fires first on a loaded machine: both say it.
+    assert ev.kind == LinkEventKind.LINK_LOST
+    assert "no data" in ev.message or "did not come within 0.30 s" in ev.message, ev.message
     assert time.monotonic() - t0 < 1.5 and not link.connected
     emu.faults.clear()
     time.sleep(1.0)  # the emulator's stalled package goes out

@@ -146,6 +146,12 @@ class EmulatedArm:
         with self._cond:
             return self._faulted
 
+    @property
+    def faulted_now(self) -> bool:
+        """`faulted` without waiting for the motion lock (a state stream at 500 Hz must not
+        queue behind the motion loop; reading one bool needs no lock)."""
+        return self._faulted
+
     def clear_fault(self) -> None:
         with self._cond:
             self._faulted = False

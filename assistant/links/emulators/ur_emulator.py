@@ -147,10 +147,16 @@ class UREmulator:
         """The RTDE output values now."""
         q = self.arm.q
         running = self.runner.running  # before the registers: a finished program's last
+        # After `running` too: the arm halts at a contact (releasing the program, which may
+        # end) a moment before `_on_collision` records the protective stop; a UR shows both
+        # at once, so a contact already made is a protective stop here.
+        collided = self.arm.faulted_now
         with self._lock:  # register write is then always seen together with its end
             mode, smode = self.robot_mode, self.safety_mode
             regs = list(self.int_registers)
             robot = self.robot
+        if collided and smode == w.SafetyMode.NORMAL:
+            smode = w.SafetyMode.PROTECTIVE_STOP
         powered = mode in (w.RobotMode.POWER_ON, w.RobotMode.IDLE, w.RobotMode.RUNNING)
         key = (q.tobytes(), id(robot))
         if key != self._tcp_key:  # a still arm: no kinematics at 500 Hz
