@@ -4,6 +4,7 @@ A part mixed into `Session`."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from concurrent.futures import Future
 from pathlib import Path
 from typing import Any
@@ -58,7 +59,19 @@ class CellActions:
         without the session lock (the machine is busy meanwhile, so the page keeps answering
         and edits are refused with the reason); only adding the part is a short locked
         action, checked again like any other."""
-        task = f"import {filename}"
+        def read(progress: Progress) -> CadImport:
+            return load_cad(data, filename, units=units,
+                            dxf_extrude_height=dxf_extrude_height, progress=progress)
+
+        return self._start_cell_job(
+            f"import {filename}", read,
+            lambda cad: (self._add_imported(cad, filename, name, role, T_world_object), cad))
+
+    def _start_cell_job(self, task: str, read: Callable[[Progress], Any],
+                        commit: Callable[[Any], Any]) -> Future:
+        """`read` (seconds of parsing and repair) on the worker without the session lock, with
+        progress and Cancel, while the machine is busy (edits are refused with the reason);
+        then `commit(what was read)` as one short locked action. The future gives its result."""
         with self._lock:
             try:
                 self.machine.require(EDIT_CELL, task)
@@ -69,17 +82,16 @@ class CellActions:
         self._emit_state()
         commit_failed = False
 
-        def work(progress: Progress) -> tuple[CellObject, CadImport]:
+        def work(progress: Progress) -> Any:
             nonlocal commit_failed
-            cad = load_cad(data, filename, units=units, dxf_extrude_height=dxf_extrude_height,
-                           progress=progress.sub(0.0, 0.97))
-            progress.update(0.98, "adding the part to the cell")
+            got = read(progress.sub(0.0, 0.97))
+            progress.update(0.98, "adding to the cell")
             with self._lock:  # the heavy part is over: add it as an ordinary short action
                 self.machine.end_mode()
                 commit_failed = True
-                obj = self._add_imported(cad, filename, name, role, T_world_object)
+                out = commit(got)
                 commit_failed = False
-            return obj, cad
+            return out
 
         def done(fut: Future) -> None:
             with self._lock:

@@ -16,12 +16,11 @@ from assistant.cell.cad import CadImport, load_cad
 from assistant.cell.cad.layout import CellLayout, read_layout
 from assistant.cell.model import CellObject, ObjectRole
 from assistant.mission.model import LocationSource
-from assistant.progress import Cancelled, Progress
+from assistant.progress import Progress
 from assistant.robots.model import UnreachableError
 from assistant.session.events import Notice, SceneChanged
-from assistant.session.types import EDIT_CELL, SessionError, _safe_name, hint_for
+from assistant.session.types import EDIT_CELL, SessionError, _safe_name
 from assistant.transforms import pose_from_mm_deg
-from workflow.machine import TransitionRefused
 
 
 class LayoutActions:
@@ -40,53 +39,22 @@ class LayoutActions:
                             role: ObjectRole | str = ObjectRole.OBSTACLE) -> Future:
         """Read every part off the session lock (with progress and Cancel), then add them and
         the locations as one action: all of it or, on any error, nothing."""
-        task = f"import {filename}"
         layout = read_layout(data, filename)
         if layout is None:
             raise SessionError(f"{filename} is not a cell layout (no LOCATIONS layer)")
-        with self._lock:
-            try:
-                self.machine.require(EDIT_CELL, task)
-            except TransitionRefused as exc:
-                self._error(str(exc))
-                raise
-            self.machine.begin_busy(task)
-        self._emit_state()
-        commit_failed = False
 
-        def work(progress: Progress) -> list[CellObject]:
-            nonlocal commit_failed
+        def read(progress: Progress) -> dict[str, CadImport]:
             cads: dict[str, CadImport] = {}
             n = len(layout.parts)
             for i, (name, layer) in enumerate(layout.parts.items()):
                 cads[name] = load_cad(data, filename, units=units, dxf_layer=layer,
-                                      progress=progress.sub(i / n * 0.95, (i + 1) / n * 0.95,
+                                      progress=progress.sub(i / n, (i + 1) / n,
                                                             f"part {name}"))
-            progress.update(0.97, "adding the parts and locations to the cell")
-            with self._lock:
-                self.machine.end_mode()
-                commit_failed = True
-                objs = self._add_layout(layout, cads, filename, role)
-                commit_failed = False
-            return objs
+            return cads
 
-        def done(fut: Future) -> None:
-            with self._lock:
-                self.machine.end_mode()
-                exc = fut.exception()
-                if isinstance(exc, Cancelled):
-                    self.bus.emit(Notice(f"{task} cancelled; nothing was changed"))
-                elif exc is not None and not commit_failed:
-                    self._error(f"{task}: {exc}", hint_for(exc))
-            self._emit_state()
-
-        try:
-            return self.worker.submit(task, work, done)
-        except RuntimeError:
-            with self._lock:
-                self.machine.end_mode()
-            self._emit_state()
-            raise
+        return self._start_cell_job(  # type: ignore[attr-defined]  # CellActions
+            f"import {filename}", read, lambda cads: self._add_layout(layout, cads, filename,
+                                                                       role))
 
     def _add_layout(self, layout: CellLayout, cads: dict[str, CadImport], filename: str,
                     role: ObjectRole | str) -> list[CellObject]:
