@@ -194,8 +194,11 @@ def test_the_pages_robot_halts_at_the_contact_and_waits_for_the_operator(rv2aj, 
     if press == "collision":
         assert ev.kind == LinkEventKind.COLLISION_INDICATED
         assert ev.details["source"] == "operator" and ev.details["obstacles"] == ["hidden"]
-        # the same posture and segment as the self-reporting robot, bit for bit: the same
-        # code computes both on this machine
-        assert np.array_equal(ev.q, expected.q) and ev.path_index == expected.path_index
+        # where the self-reporting robot reports the contact: within one 5 mm check step of
+        # the arm (not bit for bit - a kernel may finish compiling between the two runs and
+        # the contact test run compiled in one and interpreted in the other)
+        gap = float(np.sum(rv2aj.arm_radii() * np.abs(ev.q - expected.q)))
+        assert gap <= 0.005 + 1e-9, gap
+        assert abs(ev.path_index - expected.path_index) <= 1
     else:
         assert ev.kind == LinkEventKind.STOPPED
