@@ -297,13 +297,14 @@ def _pose_and_broad_numpy(frames: Array, ready: Array, F: Array, Q: Array, rows:
     gap = _broad_rows_numpy(frames[rows], sph_link, sph_local, sph_r, sph_shape, env_lo,
                             env_hi, sp_a, sp_b, sp_pair, env_r, self_r)[0]
     env_c[rows], self_c[rows] = env_r, self_r
-    A, B = np.empty((seg_r.shape[0], 3)), np.empty((seg_r.shape[0], 3))
-    la, lb = np.empty(3), np.empty(3)
-    flagged = env_r.reshape(rows.size, -1).any(axis=1) | self_r.any(axis=1)
+    flagged = rows[env_r.reshape(rows.size, -1).any(axis=1) | self_r.any(axis=1)]
     status[rows] = FREE
-    for k in rows[flagged]:
-        status[k] = _prune_and_flag(frames, k, env_c, self_c, shape_link, seg_a, seg_b, seg_r,
-                                    box_R, box_c, box_h, pair_a, pair_b, apart, A, B, la, lb)
+    if flagged.size:  # the flagged rows pruned in one pass (`_prune_and_flag` per row)
+        prune_round_pairs_numpy(frames, flagged, env_c, self_c, shape_link, seg_a, seg_b,
+                                seg_r, box_R, box_c, box_h, pair_a, pair_b, apart)
+        left = (env_c[flagged].reshape(flagged.size, -1).any(axis=1)
+                | self_c[flagged].any(axis=1))
+        status[flagged[left]] = ASK_FCL
     return gap
 
 

@@ -14,7 +14,7 @@ float array, because numba's heapq on a list of tuples is ~15 % slower; the expa
 appends its successors to the heap array itself, `graph_kernel.successors_into`.)
 
 Serves (the user-felt figure): the A* of every plan and re-plan: 0.4 s in Python in the
-thesis run.
+thesis run. Until compiled (a first run), `search_numpy` stands in for it.
 """
 
 from __future__ import annotations
@@ -23,6 +23,7 @@ import numpy as np
 
 from assistant.kernels.lazy import kernel
 from assistant.roadmap.graph_kernel import successors_into
+from assistant.roadmap.search_numpy import search_numpy
 
 Array = np.ndarray
 
@@ -31,7 +32,7 @@ NO_PATH = 1
 BUDGET = 2
 
 
-@kernel(cache=True, nogil=True)
+@kernel(cache=True, nogil=True, fallback=search_numpy)
 def search(start: int, goal: int, nx: int, ny: int, nz: int, searchable: Array,
            squeeze_blocked: Array, exempt: Array, cell_start: Array, node_q: Array,
            node_cell: Array, weights: Array, max_edge: float, penalty: Array, dead: Array,

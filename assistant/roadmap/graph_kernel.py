@@ -7,7 +7,7 @@ exempt cells) and their nodes take ~15 numpy calls, ~40 us. The rules are those 
 `itertools.product((-1, 0, 1), repeat=3)`, nodes ascending within a cell).
 
 Serves (the user-felt figure): the search on every plan and re-plan: in the thesis run its
-Python form costs 3.1 s.
+Python form costs 3.1 s. Until compiled (a first run), `search_numpy`'s array forms stand in.
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from assistant.kernels.lazy import kernel
+from assistant.roadmap.search_numpy import expand_numpy, successor_costs_numpy
 
 Array = np.ndarray
 
@@ -135,7 +136,7 @@ def weighted_distances(q: Array, Q: Array, w: Array) -> Array:
     return out
 
 
-@kernel(cache=True)
+@kernel(cache=True, fallback=successor_costs_numpy)
 def successor_costs(u: int, nx: int, ny: int, nz: int, searchable: Array,
                     squeeze_blocked: Array, exempt: Array, cell_start: Array, node_q: Array,
                     node_cell: Array, weights: Array, max_edge: float, penalty: Array,
@@ -156,7 +157,7 @@ def successor_costs(u: int, nx: int, ny: int, nz: int, searchable: Array,
     return out[:n], cost[:n]
 
 
-@kernel(cache=True)
+@kernel(cache=True, fallback=expand_numpy)
 def expand(u: int, gu: float, nx: int, ny: int, nz: int, searchable: Array,
            squeeze_blocked: Array, exempt: Array, cell_start: Array, node_q: Array,
            node_cell: Array, weights: Array, max_edge: float, penalty: Array, closed: Array,

@@ -122,7 +122,9 @@ class TeachActions:
         models = self.camera_models()
 
         def system(scene: Any) -> _AnnouncedDwell:
-            return _AnnouncedDwell(PointerSystem.synthetic(models, scene, seed=seed), self.bus)
+            # 30 frames a second, a common camera's rate: half the rendering of 60
+            return _AnnouncedDwell(PointerSystem.synthetic(models, scene, seed=seed, fps=30.0),
+                                   self.bus)
 
         try:
             return simulate_dwell(system, np.asarray(point_world, float), seed=seed)

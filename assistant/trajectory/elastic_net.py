@@ -70,6 +70,7 @@ from enum import Enum
 import numpy as np
 
 from assistant.collision.validity import ValidityChecker
+from assistant.kernels.lazy import is_pending
 from assistant.progress import Progress
 from assistant.robots.model import Robot
 from assistant.trajectory.net_kernel import (
@@ -284,8 +285,11 @@ class _Net:
             valid, margin = validity.is_valid_batch_margin(self.Q)
             self._ref_margin = np.where(np.asarray(valid, bool), margin, -np.inf)
             self._gap = self._ref_margin.copy()
+        # The compiled move test once it is compiled; while a first run's background compile
+        # has not delivered it, the numpy path (its interpreted Python is ~10x slower).
         self._kernel = (_kernel_model(robot, allowed, validity)
-                        if self._certify and COMPILED_MOVES else None)
+                        if self._certify and COMPILED_MOVES and not is_pending(check_moves)
+                        else None)
         p = params
         self._forces = np.array([p.c_error, p.c_equidistance, p.c_rotation, p.c_shrink,
                                  p.c_line_shrink, p.stage1_shrink, p.r_max, p.r_min,
@@ -312,7 +316,7 @@ class _Net:
         while it <= budget:
             if progress is not None and it % per == 1:
                 progress.update((done + it) / total, f"elastic net stage {stage}, iteration {it}")
-            if self._kernel is not None and COMPILED_SWEEPS:
+            if self._kernel is not None and COMPILED_SWEEPS and not is_pending(run_sweeps):
                 # the sweeps up to the next report in one call (`net_stage`)
                 last = min(budget, it + per - 1 - (it - 1) % per)
                 code, it, n_len, self.E = self._run_sweeps(stage, it, last, lengths, n_len,

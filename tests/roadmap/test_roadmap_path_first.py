@@ -162,3 +162,105 @@ def test_path_first_looks_at_the_clock_between_rounds(monkeypatch):
     monkeypatch.setattr(time, "monotonic", lambda: t0 + 1e7 * (real() - t0))
     res = lazy_path_search(graph, s, g, Batched(top=0.7))
     assert not res.found and res.reason == REASON_SAFETY and res.rejected_edges >= 1
+
+
+def _args(graph, s, g, dead=None, bad=(), weight=1.0, max_expansions=60_000):
+    n = graph.n_nodes
+    return (s, g, *graph.shape, graph.searchable, graph.squeeze_blocked,
+            graph.squeeze_exempt, graph.cell_start, graph.node_q, graph.node_cell,
+            graph.weights, float(graph.max_edge), graph.penalty,
+            np.zeros(n, bool) if dead is None else dead, np.array(sorted(bad), dtype=np.int64),
+            np.full(n, np.nan), weight, max_expansions, graph.extra_cell)
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("weight", [1.0, 1.5])
+def test_the_search_fallback_finds_the_compiled_searchs_path(seed, weight):
+    """`search_numpy` (the search until compiled, on a first run) pops as the compiled
+    search: the same path, cost and expansions, also with bad edges and dead nodes. The
+    cost within 1e-9 (the same sums, compiled or numpy); the path exactly, as no two paths
+    of these random graphs tie within that."""
+    from assistant.roadmap.search_numpy import search_numpy
+
+    rng = np.random.default_rng(seed)
+    graph, (s, g) = toy_graph(rng, blocked=rng.choice(40, 6, replace=False).tolist()[2:])
+    n = graph.n_nodes
+    _, path, _, _ = _search(graph, s, g)
+    u, v = path.tolist()[1:3]
+    dead = np.zeros(n, bool)
+    dead[path.tolist()[-2]] = True
+    for kw in ({}, {"bad": [u * n + v]}, {"dead": dead}, {"max_expansions": 3}):
+        want = _search(graph, s, g, weight=weight, **kw)
+        got = search_numpy(*_args(graph, s, g, weight=weight, **kw))
+        assert got[0] == want[0] and got[3] == want[3], kw
+        assert got[1].tolist() == want[1].tolist(), kw
+        assert abs(got[2] - want[2]) <= 1e-9 or got[2] == want[2] == np.inf, kw
+
+
+def test_the_search_fallback_keeps_the_squeeze_rule_and_its_exemptions():
+    """The fallback's neighbour cells are the kernel's on random grids with blocked,
+    unsearchable and exempt cells (cell ids: exact)."""
+    from test_graph_kernel import _random_graph
+
+    from assistant.roadmap.search_numpy import neighbour_cells
+
+    rng = np.random.default_rng(11)
+    for shape in [(4, 5, 3), (1, 6, 6), (3, 3, 3)]:
+        g = _random_graph(rng, shape)
+        for cell in range(int(np.prod(shape))):
+            got = neighbour_cells(cell, *g.shape, g.searchable, g.squeeze_blocked,
+                                  g.squeeze_exempt)
+            assert sorted(got.tolist()) == sorted(g.neighbour_cells(cell).tolist()), cell
+
+
+def test_the_expansion_fallbacks_give_the_kernels_successors():
+    """`successor_costs_numpy` and `expand_numpy` (the pop-checking A*'s expansion until
+    compiled) give the kernels' nodes in the kernels' order (exact: ids), on graphs with
+    extra nodes; costs within 1e-12 (the same five products summed compiled or in numpy)."""
+    from test_graph_kernel import _random_graph
+
+    from assistant.roadmap.graph import GraphBase, JointGraph
+    from assistant.roadmap.graph_kernel import expand, successor_costs
+    from assistant.roadmap.search_numpy import expand_numpy, successor_costs_numpy
+
+    rng = np.random.default_rng(3)
+    shape = (5, 4, 4)
+    n_cells = int(np.prod(shape))
+    cells = np.sort(rng.choice(n_cells, size=n_cells * 3 // 4, replace=False))
+    offsets = np.r_[0, np.cumsum(rng.integers(1, 4, len(cells)))]
+    Q = rng.uniform(-1.0, 1.0, (offsets[-1], 5))
+    picks = rng.choice(n_cells, size=3)
+    picks[1] = picks[0]  # two extras in one cell
+    searchable = rng.random(n_cells) < 0.7
+    searchable[picks] = True  # (an extra in an unsearchable cell: `build`'s graph instead)
+    over, _ = JointGraph.over(GraphBase.of(shape, cells, offsets, Q), searchable,
+                              rng.random(n_cells) < 0.3, rng.uniform(0.0, 0.2, n_cells),
+                              np.ones(5),
+                              extra=[(int(c), rng.uniform(-1, 1, 5)) for c in picks[:2]],
+                              max_edge=1.2, squeeze_exempt=[int(picks[2])])
+    graph, _ = toy_graph(rng, blocked=[5, 6, 13])
+    for gr in (over, graph, _random_graph(rng, (4, 5, 3))):
+        args = (*gr.shape, gr.searchable, gr.squeeze_blocked, gr.squeeze_exempt,
+                gr.cell_start, gr.node_q, gr.node_cell, gr.weights, float(gr.max_edge),
+                gr.penalty)
+        n = gr.n_nodes
+        for u in range(n):
+            vs, cost = successor_costs(u, *args, gr.extra_cell)
+            vs_np, cost_np = successor_costs_numpy(u, *args, gr.extra_cell)
+            assert vs_np.tolist() == vs.tolist(), u
+            np.testing.assert_allclose(cost_np, cost, rtol=0, atol=1e-12)
+        state = [np.zeros(n, bool), np.zeros(n, bool), np.full(n, np.inf),
+                 np.full(n, -1, dtype=np.int64), np.full(n, np.nan)]
+        state[0][::5] = True  # some closed
+        state_np = [a.copy() for a in state]
+        q_goal = gr.node_q[-1]
+        for u in range(0, n, 3):
+            want = expand(u, 0.1, *args, *state, q_goal, 1.2, np.zeros(0, np.int64),
+                          gr.extra_cell)
+            got = expand_numpy(u, 0.1, *args, *state_np, q_goal, 1.2,
+                               np.zeros(0, np.int64), gr.extra_cell)
+            assert got[2].tolist() == want[2].tolist(), u
+            np.testing.assert_allclose(got[1], want[1], rtol=0, atol=1e-12)
+            np.testing.assert_allclose(got[0], want[0], rtol=0, atol=1e-12)
+        np.testing.assert_array_equal(state_np[3], state[3])  # parents: exact
+    assert len(over.extra_cell) == 2  # the query's extra nodes, both in one cell
