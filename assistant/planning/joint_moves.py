@@ -84,7 +84,9 @@ def prefer_joint_moves(robot: Robot, asm: AssemblyResult, notes: list[str],
                        ) -> tuple[AssemblyResult, list[str]]:
     """The verified smoothed transfer `asm`, or its fewest joint moves if they keep
     `clearance` (or the smoothed path's own, if that is less) and the program runs quicker
-    with them (the predicted cycle time, `export.cycle_time`; fewer motions on a tie)."""
+    with them (the predicted cycle time, `export.cycle_time`; fewer motions on a tie) - or
+    if they keep the required `clearance` where the smoothed path does not: the clearance
+    is a requirement, the cycle time a preference."""
     assert asm.trajectory is not None
     own = asm.report.min_clearance
     floor = clearance if own is None else min(clearance, own)
@@ -97,7 +99,9 @@ def prefer_joint_moves(robot: Robot, asm: AssemblyResult, notes: list[str],
     t_smooth = _cycle_seconds(robot, asm.trajectory)
     t_joint = _cycle_seconds(robot, moves.trajectory)
     n, n0 = len(moves.trajectory.motions), len(asm.trajectory.motions)
-    if t_joint is not None and t_smooth is not None:
+    if own is not None and own < clearance <= jm.clearance:
+        better = True  # the required clearance, which only the joint moves keep, comes first
+    elif t_joint is not None and t_smooth is not None:
         better = t_joint < t_smooth - 1e-3 or (abs(t_joint - t_smooth) <= 1e-3 and n < n0)
     else:
         better = n < n0

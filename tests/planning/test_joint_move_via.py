@@ -34,3 +34,31 @@ def test_the_choice_is_that_of_scoring_every_via(seed):
         if any(s >= target for s in scores):  # stopped at the first keeping the target
             assert scores[asked[-1]] >= target
             assert all(scores[i] < target for i in asked[:-1])
+
+
+@pytest.mark.parametrize(("own_mm", "moves_mm", "joint_s", "want"), [
+    (5.0, 12.0, 3.0, "joint"),    # only the joint moves keep 10 mm: chosen though slower
+    (5.0, 8.0, 3.0, "smooth"),    # neither keeps 10 mm: the quicker one
+    (15.0, 20.0, 3.0, "smooth"),  # both keep it: the quicker one
+    (15.0, 20.0, 1.0, "joint"),
+])
+def test_the_required_clearance_comes_before_the_cycle_time(monkeypatch, own_mm, moves_mm,
+                                                            joint_s, want):
+    """`prefer_joint_moves`: the smoothed path (2 s) or its joint moves (`joint_s`) by the
+    predicted cycle time - unless only the joint moves keep the required 10 mm."""
+    from types import SimpleNamespace
+
+    from assistant.planning import joint_moves as jm
+
+    def asm(motions, clearance_mm):
+        return SimpleNamespace(trajectory=SimpleNamespace(motions=motions),
+                               report=SimpleNamespace(min_clearance=clearance_mm / 1000))
+
+    smooth, moves = asm(["l1", "a1", "l2"], own_mm), asm(["j1", "j2"], moves_mm)
+    monkeypatch.setattr(jm, "fewest_joint_moves", lambda *a, **k: jm.JointMoveResult(
+        moves, 1, clearance=moves_mm / 1000))
+    monkeypatch.setattr(jm, "_cycle_seconds",
+                        lambda robot, traj: joint_s if traj is moves.trajectory else 2.0)
+    got, _ = jm.prefer_joint_moves(None, smooth, [], None, exempt=frozenset(),
+                                   clearance=0.01, step=0.01, label="T")
+    assert got is (moves if want == "joint" else smooth)
