@@ -20,6 +20,7 @@ from dataclasses import dataclass
 import fcl
 import numpy as np
 
+from assistant.collision.bounding_capsule import mesh_capsule
 from assistant.collision.broad_phase import (
     ASK_FCL,
     CERTIFIED,
@@ -151,7 +152,8 @@ class CollisionChecker(MotionChecks):
         self._env_R = np.array([o.R for o in obb]).reshape(-1, 3, 3)
         self._env_c = np.array([o.centre for o in obb]).reshape(-1, 3)
         self._env_h = np.array([o.half for o in obb]).reshape(-1, 3)
-        segs = [axis_segment(rs.shape) for rs in self._rshapes]
+        # (mesh links: a capsule around the mesh, a bound only - `bounding_capsule`)
+        segs = [axis_segment(rs.shape) or mesh_capsule(rs.shape) for rs in self._rshapes]
         self._seg_a = np.array([g[0] if g else np.full(3, np.nan) for g in segs]).reshape(-1, 3)
         self._seg_b = np.array([g[1] if g else np.full(3, np.nan) for g in segs]).reshape(-1, 3)
         self._seg_r = np.array([g[2] if g else np.nan for g in segs])
