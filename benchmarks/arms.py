@@ -1,4 +1,4 @@
-"""6- and 7-axis arms at their own joint limits: our world model and planner vs OMPL RRTConnect.
+"""6- and 7-axis arms at their own joint limits: our world model and planner vs two peers.
 
     python benchmarks/arms.py [--quick] [--cells N] [--seed S]
 
@@ -12,10 +12,13 @@ world's anchors, as the session passes them (`WorldModel.anchors`).
 Per robot: world build time (joint samples from the disk cache after the first build of a
 robot) and peak memory growth, success, median / p95 query time (ours: roadmap + smoothing
 + verification, `MissionPlanner.plan_transfer`; OMPL: RRTConnect + simplifySolution on the
-same checker), TCP length, primitives, min clearance, re-plan after one indication in the
-middle of our path (until a collision-free joint path exists). For scale: VAMP (Thomason et
-al. 2024) publishes a 35 us median for a Panda on one desktop core, geometric planning with
-sphere models and no mesh verification.
+same checker; roboplan: RRT-Connect + its shortcutting on its own scene of the same cell,
+see `roboplan_peer`), TCP length, primitives, min clearance, re-plan after one indication in
+the middle of our path (until a collision-free joint path exists). Every peer path is checked
+again with our checker; roboplan's paths that it refuses count as failures ("refused").
+Without roboplan installed the run says so in one line and compares ours with OMPL only.
+For scale: VAMP (Thomason et al. 2024) publishes a 35 us median for a Panda on one desktop
+core, geometric planning with sphere models and no mesh verification.
 
 The final line is one JSON object with the figures and the issue's targets.
 """
@@ -23,6 +26,7 @@ The final line is one JSON object with the figures and the issue's targets.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import resource
@@ -35,6 +39,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(1, str(Path(__file__).resolve().parents[1]))
 
 import numpy as np  # noqa: E402
+import roboplan_peer  # noqa: E402
 from planning import OmplPlanner, Result, med, run_ours, synthetic_replan  # noqa: E402
 
 from assistant.collision.checker import CollisionChecker  # noqa: E402
@@ -106,10 +111,37 @@ def peak_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
+def p95(v: list[float]) -> float:
+    v = [x for x in v if np.isfinite(x)]
+    return float(np.percentile(v, 95)) if v else float("nan")
+
+
+def peer_figures(peer: list[Result], ours: list[Result]) -> dict:
+    """Success and times over all queries; path figures where ours and the peer both
+    succeeded (the same queries for both, as for OMPL)."""
+    both = [b for a, b in zip(ours, peer, strict=True) if a.ok and b.ok]
+    times = [r.seconds for r in peer if r.ok]
+    return {"success": sum(r.ok for r in peer) / max(1, len(peer)),
+            "median_query_s": med(times), "p95_query_s": p95(times),
+            "median_tcp_m": med([b.tcp_length for b in both]),
+            "median_primitives": med([float(b.primitives) for b in both]),
+            "median_min_clearance_mm": med([b.clearance * 1000 for b in both])}
+
+
+def fmt(r: Result) -> str:
+    return (f"{'yes' if r.ok else 'NO':4s} {r.seconds:6.2f} s {r.tcp_length:6.3f} m "
+            f"{r.primitives:3d} prim {r.clearance * 1000:6.1f} mm")
+
+
 def run_robot(name: str, n_cells: int, n_queries: int, seed: int, ompl_limit: float) -> dict:
     robot = load_robot(name)
     reach = tcp_reach(robot)
     builds, peaks, ours, ompl, replans, rows = [], [], [], [], [], []
+    rplan: list[Result] = []
+    rplan_default: list[Result] = []  # the same at roboplan's default edge-check step
+    agreement: list[float] = []
+    scene_parts: dict = {}
+    use_rp = roboplan_peer.available()
     for c in range(n_cells):
         obstacles, checker, queries = cell(robot, reach, seed + c, n_queries)
         world = WorldModel(robot, obstacles, WorldConfig.for_robot(robot))
@@ -122,13 +154,25 @@ def run_robot(name: str, n_cells: int, n_queries: int, seed: int, ompl_limit: fl
         peaks.append(peak_mb() - m0)
         mp = MissionPlanner(robot, obstacles, world, rp, checker)
         peer = OmplPlanner(robot, checker, ompl_limit)
+        rpp = (roboplan_peer.RoboplanPlanner(robot, obstacles, checker, ompl_limit, seed + c)
+               if use_rp else None)
+        rpd = None
+        if rpp is not None:
+            agreement.append(rpp.agreement(300, seed + c))
+            scene_parts = dataclasses.asdict(rpp.report)
+            rpd = roboplan_peer.RoboplanPlanner(robot, obstacles, checker, ompl_limit, seed + c,
+                                                step=roboplan_peer.default_step())
         done = []
         for qa, qb in queries:
             a = run_ours(mp, qa, qb)
             b = peer.plan(qa, qb)
+            r = rpp.plan(qa, qb) if rpp is not None else None
             ours.append(a)
             ompl.append(b)
-            rows.append((name, c, a, b))
+            if r is not None and rpd is not None:
+                rplan.append(r)
+                rplan_default.append(rpd.plan(qa, qb))
+            rows.append((name, c, a, b, r))
             done.append((qb, a))
         for qb, a in done:
             if a.ok and len(a.extra["dense"]) > 8:
@@ -137,29 +181,65 @@ def run_robot(name: str, n_cells: int, n_queries: int, seed: int, ompl_limit: fl
                     replans.append(r[0])
     both = [(a, b) for a, b in zip(ours, ompl, strict=True) if a.ok and b.ok]
     times = [r.seconds for r in ours if r.ok]
-    for robot_name, c, a, b in rows:
-        def f(r: Result) -> str:
-            return (f"{'yes' if r.ok else 'NO':4s} {r.seconds:6.2f} s {r.tcp_length:6.3f} m "
-                    f"{r.primitives:3d} prim {r.clearance * 1000:6.1f} mm")
+    for robot_name, c, a, b, r in rows:
         why = "" if a.ok else f"  ({a.extra.get('reason', '')})"
-        print(f"{robot_name:6s} cell {c} | ours {f(a)} | OMPL {f(b)}{why}")
+        third = "" if r is None else f" | roboplan {fmt(r)}"
+        if r is not None and not r.ok:
+            why += f"  (roboplan: {r.extra.get('status', '')})"
+        print(f"{robot_name:6s} cell {c} | ours {fmt(a)} | OMPL {fmt(b)}{third}{why}")
     so = sum(r.ok for r in ours) / max(1, len(ours))
     sp = sum(r.ok for r in ompl) / max(1, len(ompl))
+    rp_fig: dict = {"installed": False, "reason": roboplan_peer.IMPORT_ERROR}
+    if use_rp:
+        rp_fig = {"installed": True, "version": roboplan_peer.version(),
+                  **peer_figures(rplan, ours),
+                  "refused_by_our_checker": sum(bool(r.extra.get("refused")) for r in rplan),
+                  "returned_paths": sum(r.ok or bool(r.extra.get("refused")) for r in rplan),
+                  "scene_agreement": min(agreement, default=float("nan")),
+                  "scene_last_cell": scene_parts,
+                  "edge_check_step_rad": roboplan_peer.STEP,
+                  "at_default_step": {
+                      "edge_check_step_rad": roboplan_peer.default_step(),
+                      "success": sum(r.ok for r in rplan_default) / max(1, len(rplan_default)),
+                      "median_query_s": med([r.seconds for r in rplan_default if r.ok]),
+                      "refused_by_our_checker": sum(bool(r.extra.get("refused"))
+                                                    for r in rplan_default)}}
+    summary = [("ours", {"success": so, "median_query_s": med(times), "p95_query_s": p95(times),
+                         "median_tcp_m": med([a.tcp_length for a, _ in both]),
+                         "median_min_clearance_mm": med([a.clearance * 1000 for a, _ in both])}),
+               ("OMPL", peer_figures(ompl, ours))]
+    if use_rp:
+        summary.append(("roboplan", rp_fig))
+    for who, s in summary:
+        extra = ""
+        if who == "roboplan":
+            extra = (f", {s['refused_by_our_checker']} of {s['returned_paths']} returned paths "
+                     f"refused by our checker, scene agrees with ours on "
+                     f"{100 * s['scene_agreement']:.1f} % of postures; at its default "
+                     f"step {s['at_default_step']['edge_check_step_rad']:g} rad: success "
+                     f"{100 * s['at_default_step']['success']:.1f} %, "
+                     f"{s['at_default_step']['refused_by_our_checker']} refused")
+        print(f"{name:6s} {who:9s} success {100 * s['success']:5.1f} %  median "
+              f"{s['median_query_s'] * 1000:8.1f} ms  p95 {s['p95_query_s'] * 1000:8.1f} ms  "
+              f"TCP {s['median_tcp_m']:6.3f} m  min clearance "
+              f"{s['median_min_clearance_mm']:6.1f} mm{extra}")
     return {
         "dof": robot.dof, "queries": len(ours), "world_build_s": med(builds),
         "world_build_max_s": max(builds, default=float("nan")),
         "world_peak_mb": max(peaks, default=float("nan")),
         "ours": {"success": so, "median_query_s": med(times),
-                 "p95_query_s": float(np.percentile(times, 95)) if times else float("nan"),
+                 "p95_query_s": p95(times),
                  "median_tcp_m": med([a.tcp_length for a, _ in both]),
                  "median_primitives": med([float(a.primitives) for a, _ in both]),
                  "median_min_clearance_mm": med([a.clearance * 1000 for a, _ in both]),
                  "replan_median_s": med(replans), "replans": len(replans)},
         "ompl_rrtconnect_simplified": {
             "success": sp, "median_query_s": med([r.seconds for r in ompl if r.ok]),
+            "p95_query_s": p95([r.seconds for r in ompl if r.ok]),
             "median_tcp_m": med([b.tcp_length for _, b in both]),
             "median_primitives": med([float(b.primitives) for _, b in both]),
             "median_min_clearance_mm": med([b.clearance * 1000 for _, b in both])},
+        "roboplan": rp_fig,
     }
 
 
@@ -177,6 +257,12 @@ def main() -> None:
 
     ou.setLogLevel(ou.LOG_NONE)
     ou.RNG.setSeed(args.seed)
+    if roboplan_peer.available():
+        print(f"roboplan peer: roboplan {roboplan_peer.version()}, RRT-Connect + shortcutting "
+              "on its own scene of the same cell, paths checked again by ours")
+    else:
+        print(f"roboplan peer: not installed ({roboplan_peer.IMPORT_ERROR}); "
+              "`pip install roboplan` to compare with it - running ours and OMPL only")
     t0 = time.perf_counter()
     per = {name: run_robot(name, n_cells, n_queries, args.seed, 5.0 if args.quick else 10.0)
            for name in args.robots.split(",")}
@@ -187,7 +273,10 @@ def main() -> None:
                            "success_vs_ompl": r["ours"]["success"]
                            >= r["ompl_rrtconnect_simplified"]["success"],
                            "median_query_s": r["ours"]["median_query_s"] <= 0.05,
-                           "replan_median_s": r["ours"]["replan_median_s"] <= 0.1}
+                           "replan_median_s": r["ours"]["replan_median_s"] <= 0.1,
+                           **({"success_vs_roboplan": r["ours"]["success"]
+                               >= r["roboplan"]["success"]}
+                              if r["roboplan"]["installed"] else {})}
                        for n, r in per.items()},
                "wall_s": time.perf_counter() - t0}
     sys.stdout.write(json.dumps(figures, sort_keys=True, default=float) + "\n")
