@@ -12,6 +12,9 @@ Never imports viser; the web layer shows what the tracker produces. Modules, by 
   estimate), `kalman`, `tracking2d`, `tracking3d`, `clutter` (still look-alikes), `dwell`
 - `pointer`: `PointerSystem`, the facade the Session uses (`pointer_types`: its params and
   states: `offered_position` is the only position to teach from); `scripted`: `simulate_dwell`
+- `appearance` (`AppearanceMemory`): finds a ball merged with a same-coloured region by its
+  last clean look (marked `Detection.method == "appearance"`); `pointer_hypotheses`: the
+  candidate stereo fixes of a frame, for `PointerSystem` to choose from
 - `photo_scenes` (sequences over real photographs; needs scikit-image, tests and benchmarks
   only) and `pointer_scoring` (a run's figures against ground truth)
 - `errors`: every exception raised on purpose

@@ -52,6 +52,12 @@ class Detection:
     fill: float
     shading: float = 0.0  # std/mean of brightness inside the blob
     hole_fraction: float = 0.0  # share of the outline's area not in the colour mask
+    method: str = "blob"  # "blob": a whole blob of the mask; "appearance": found by its look
+    # inside a same-coloured region (`vision.appearance`), held to stricter rules
+    match: float = float("nan")  # appearance matches: the normalised correlation
+    ring_fraction: float = float("nan")  # share of a ring just outside the outline in the
+    # colour mask (0: stands alone; NaN: not measured) - a blob touching a same-coloured
+    # region may pass the shape tests with a centre a pixel off
 
     @property
     def diameter_px(self) -> float:

@@ -11,19 +11,22 @@ is shown for at most `coast_s` and flagged, a new or re-acquired track is offere
 `offer_after_hits` fixes, a fix is associated with the track only inside a gate in 3-D (the
 Kalman gate, capped by how far a hand can move the ball) and in every image (the search
 window), and still look-alikes seen next to the measured ball are remembered and refused.
+
+A ball merged in one view with a background region of its colour is not a blob any more; while
+the track is followed it is looked for by its last clean look (`vision.appearance`) inside the
+window the track predicts, and such a view is offered only under stricter rules.
 """
 
 from __future__ import annotations
 
 import contextlib
 import dataclasses
-import itertools
 import time
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 
 import numpy as np
 
+from vision.appearance import AppearanceMemory, AppearanceParams
 from vision.camera_model import CameraModel
 from vision.clutter import ClutterMemory
 from vision.color import DEFAULT_POINTER_RED, ColorProfile
@@ -32,13 +35,12 @@ from vision.dwell import DwellDetector
 from vision.errors import CameraClosed, CameraError, CameraTimeout, FrameError
 from vision.frame import Frame, validate_image
 from vision.geometry import (
-    PointEstimate,
     expected_radius_px,
     mono_from_size,
     project_covariance,
     sphere_ray,
-    triangulate,
 )
+from vision.pointer_hypotheses import Hypothesis, size_ok, stereo_hypotheses
 from vision.pointer_types import CameraView, PointerParams, PointerState
 from vision.scene import PointerScene
 from vision.sources import FrameSource, synthetic_cameras
@@ -48,19 +50,14 @@ from vision.tracking3d import Track3D
 __all__ = ["CameraView", "PointerParams", "PointerState", "PointerSystem"]
 
 
-@dataclass
-class _Hypothesis:
-    est: PointEstimate
-    used: dict[int, int]  # camera index -> detection index
-
-
 class PointerSystem:
     """Cameras + their calibrations + a colour profile -> pointer positions and taught points."""
 
     def __init__(self, sources: Sequence[FrameSource],
                  models: Sequence[CameraModel] | Mapping[str, CameraModel],
                  profile: ColorProfile = DEFAULT_POINTER_RED,
-                 params: PointerParams | None = None) -> None:
+                 params: PointerParams | None = None,
+                 appearance: AppearanceParams | None = None) -> None:
         if not sources:
             raise CameraError("no camera: connect a camera, pick a video/folder, or use the "
                               "synthetic camera")
@@ -90,6 +87,7 @@ class PointerSystem:
         self._last_stamp: list[float | None] = [None] * len(self.sources)
         self._pointer_track2d: list[int | None] = [None] * len(self.sources)
         self.clutter = ClutterMemory(len(self.sources))
+        self.appearance = AppearanceMemory(len(self.sources), appearance)
         self._gate_px: list[tuple[np.ndarray, float] | None] = [None] * len(self.sources)
         self._steps = 0
         self._measured_last = True
@@ -121,6 +119,7 @@ class PointerSystem:
         self.track.reset()
         self.dwell.reset()
         self.clutter.reset()
+        self.appearance.reset()
         self._last_stereo_t = None
         self._last_offered = (None, 0.0)
         self._pointer_track2d = [None] * len(self.sources)
@@ -233,74 +232,40 @@ class PointerSystem:
                                                   for e in dets) > 2.0]
             window = None
         view.window = window
+        if self._gate_px[i] is not None:
+            dets = self._look_for_merged(i, frame, dets)
         return dets
 
-    def _size_ok(self, X: np.ndarray, used: dict[int, int],
-                 dets: dict[int, list[Detection]]) -> float | None:
-        """Worst |log| ratio of seen to expected apparent radius, None if out of range."""
-        lo, hi = self.params.size_ratio_range
-        worst = 0.0
-        for i, j in used.items():
-            r_exp = expected_radius_px(self.models[i], X, self.params.ball_radius)
-            ratio = dets[i][j].radius_px / r_exp if np.isfinite(r_exp) else 0.0
-            if not lo <= ratio <= hi:
-                return None
-            worst = max(worst, abs(np.log(ratio)))
-        return worst
-
-    def _stereo_hypotheses(self, dets: dict[int, list[Detection]]) -> list[_Hypothesis]:
+    def _look_for_merged(self, i: int, frame: Frame, dets: list[Detection]) -> list[Detection]:
+        """Where the track predicts the ball: do whole blobs there stand alone, and if none
+        does, is the ball's look there (`AppearanceMemory.look_near`)? Looked for while the
+        track is held, near the prediction only (a bounded cost: a masked match over a 90 px
+        square is ~1 ms; a ball farther off is found as a blob or not at all)."""
         p = self.params
-        k = p.max_candidates_per_camera
-        rays = {(i, j): sphere_ray(self.models[i], d.center_px, d.radius_px)
-                for i, ds in dets.items() for j, d in enumerate(ds[:k])}
-        cams = sorted(i for i in dets if dets[i])
-        out: list[_Hypothesis] = []
-        seen: set[frozenset] = set()
-        for a, b in itertools.combinations(cams, 2):
-            for ja, jb in itertools.product(range(min(k, len(dets[a]))),
-                                            range(min(k, len(dets[b])))):
-                used = {a: ja, b: jb}
-                est = self._triangulate(used, rays)
-                if est is None:
-                    continue
-                for c in cams:  # add agreeing views from further cameras
-                    if c in used:
-                        continue
-                    uv = self.models[c].project(est.position_world)
-                    best = min(range(min(k, len(dets[c]))),
-                               key=lambda j, c=c, uv=uv: np.linalg.norm(dets[c][j].center_px - uv),
-                               default=None)
-                    if best is not None and np.linalg.norm(dets[c][best].center_px - uv) \
-                            <= 2 * p.reprojection_gate_px:
-                        more = self._triangulate({**used, c: best}, rays)
-                        if more is not None:
-                            used, est = {**used, c: best}, more
-                key = frozenset(used.items())
-                if key in seen or self._size_ok(est.position_world, used, dets) is None:
-                    continue
-                seen.add(key)
-                out.append(_Hypothesis(est, used))
-        return out
+        t = self._time if self._time is not None else frame.timestamp
+        model, X = self.models[i], self.track.filter.position
+        uv, r_exp = model.project(X), expected_radius_px(model, X, p.ball_radius)
+        if not (np.all(np.isfinite(uv)) and np.isfinite(r_exp)):
+            return dets
+        cov_px = project_covariance(model, X, self.track.filter.position_cov)
+        sd = float(np.sqrt(max(np.linalg.eigvalsh(cov_px).max(), 0.0)))
+        near = min(4.0 * sd + r_exp + 4.0, self._gate_px[i][1], 4.0 * r_exp + 12.0)
+        last = self.track.last_measurement_time
+        return self.appearance.look_near(
+            i, t, frame.image, self.profile, dets, uv, X, near, r_exp,
+            last is not None and t - last <= p.hold_s, lambda d: self._whole(d, r_exp))
 
-    def _triangulate(self, used: dict[int, int], rays: dict) -> PointEstimate | None:
-        idx = sorted(used)
-        est = triangulate([self.models[i] for i in idx], [rays[(i, used[i])] for i in idx],
-                          self.params.centre_sigma_px)
-        if est is None or est.reprojection_px > self.params.reprojection_gate_px:
-            return None
-        return dataclasses.replace(est, cameras=tuple(idx))
-
-    def _mono(self, i: int, j: int, d: Detection) -> _Hypothesis:
+    def _mono(self, i: int, j: int, d: Detection) -> Hypothesis:
         p = self.params
         model = self.models[i]
         est = mono_from_size(model, sphere_ray(model, d.center_px, d.radius_px), p.ball_radius,
                              p.centre_sigma_px, p.radius_sigma_px)
-        return _Hypothesis(dataclasses.replace(est, cameras=(i,)), {i: j})
+        return Hypothesis(dataclasses.replace(est, cameras=(i,)), {i: j})
 
-    def _clutter_in(self, h: _Hypothesis, dets: dict[int, list[Detection]]) -> bool:
+    def _clutter_in(self, h: Hypothesis, dets: dict[int, list[Detection]]) -> bool:
         return any(self.clutter.is_clutter(i, dets[i][j]) for i, j in h.used.items())
 
-    def _in_image_gate(self, h: _Hypothesis, dets: dict[int, list[Detection]]) -> bool:
+    def _in_image_gate(self, h: Hypothesis, dets: dict[int, list[Detection]]) -> bool:
         """Every view of the fix lies within that camera's gate around the track's projection."""
         for i, j in h.used.items():
             g = self._gate_px[i]
@@ -309,7 +274,7 @@ class PointerSystem:
         return True
 
     def _choose(self, t: float, dets: dict[int, list[Detection]],
-                ids2d: dict[int, list[int]], n_delivering: int) -> _Hypothesis | None:
+                ids2d: dict[int, list[int]], n_delivering: int) -> Hypothesis | None:
         """Pick this frame's measurement (or none) and feed the 3-D track.
 
         With a track: the stereo candidate nearest in the Mahalanobis sense inside the gate
@@ -322,7 +287,7 @@ class PointerSystem:
         except while the track is followed frame to frame (the ball may pass over one).
         Without a track: stereo, else a confirmed single-view blob that has moved.
         """
-        stereo = self._stereo_hypotheses(dets)
+        stereo = stereo_hypotheses(self.models, self.params, dets)
         k = self.params.max_candidates_per_camera
         gate = self._t3.gate_chi2
         fresh_stereo = [h for h in stereo if not self._clutter_in(h, dets)]
@@ -335,7 +300,7 @@ class PointerSystem:
         since = t - (self.track.last_measurement_time or t)
         followed = since <= self.params.coast_s
 
-        def ok(h: _Hypothesis) -> bool:
+        def ok(h: Hypothesis) -> bool:
             return self._in_image_gate(h, dets) and (followed or not self._clutter_in(h, dets))
 
         gated = [(d, h) for h in stereo
@@ -367,7 +332,7 @@ class PointerSystem:
         return None
 
     def _confirmed_mono(self, dets: dict[int, list[Detection]], ids2d: dict[int, list[int]],
-                        n_delivering: int = 1) -> _Hypothesis | None:
+                        n_delivering: int = 1) -> Hypothesis | None:
         """The roundest blob seen for `confirm_hits` frames in a row that is no remembered
         look-alike; with other cameras delivering (which do not see it), it must also have
         moved: a still red thing seen by one camera is not taken for the pointer."""
@@ -381,11 +346,11 @@ class PointerSystem:
         _, i, j = max(confirmed)
         return self._mono(i, j, dets[i][j])
 
-    def _best_new(self, stereo: list[_Hypothesis],
-                  dets: dict[int, list[Detection]]) -> _Hypothesis:
+    def _best_new(self, stereo: list[Hypothesis],
+                  dets: dict[int, list[Detection]]) -> Hypothesis:
         """Without a track, prefer more views, then views that agree, then the right size."""
-        def cost(h: _Hypothesis) -> tuple[float, float]:
-            size = self._size_ok(h.est.position_world, h.used, dets) or 0.0
+        def cost(h: Hypothesis) -> tuple[float, float]:
+            size = size_ok(self.models, self.params, h.est.position_world, h.used, dets) or 0.0
             return (-len(h.used), h.est.reprojection_px / self.params.centre_sigma_px
                     + 10.0 * size)
         return min(stereo, key=cost)
@@ -434,6 +399,8 @@ class PointerSystem:
                                            self.track.last_mode)
                 if meas.mode == "stereo" and self.track.hits >= p.clutter_learn_hits:
                     self._learn_clutter(t, frames, chosen, dets)
+                if meas.mode == "stereo":
+                    self._learn_looks(t, frames, chosen, dets)
             elif since > p.coast_s:
                 self.dwell.update(t, None)  # a gap longer than coasting ends any dwell
             state = PointerState(
@@ -457,21 +424,43 @@ class PointerSystem:
         self.last_state = state
         return state
 
-    def _clean_views(self, h: _Hypothesis, dets: dict[int, list[Detection]]) -> bool:
+    def _clean_views(self, h: Hypothesis, dets: dict[int, list[Detection]]) -> bool:
         """Every view of the fix is a whole ball: round, filled, and of the size its distance
         implies. A ball partly merged with (or cut by) a thing of its colour still triangulates,
         but a pixel or two off along the epipolar line, which is millimetres in depth."""
         p = self.params
+        ap = self.appearance.params
+        matched = any(dets[i][j].method == "appearance" for i, j in h.used.items())
         for i, j in h.used.items():
             d = dets[i][j]
             r_exp = expected_radius_px(self.models[i], h.est.position_world, p.ball_radius)
-            ratio = d.radius_px / r_exp if np.isfinite(r_exp) and r_exp > 0 else 0.0
-            if d.axis_ratio < p.offer_min_axis_ratio or d.fill < p.offer_min_fill or \
-                    not 1.0 / p.offer_max_size_ratio <= ratio <= p.offer_max_size_ratio:
+            if not self._whole(d, r_exp):
                 return False
+            if d.method == "appearance" and (not d.match >= ap.min_ncc or
+                                             h.est.reprojection_px > ap.offer_max_reprojection_px):
+                return False
+            if matched and d.method == "blob" and not d.ring_fraction <= ap.max_ring:
+                return False  # next to a match, a blob touching its colour is not trusted
         return True
 
-    def _learn_clutter(self, t: float, frames: dict[int, Frame], chosen: _Hypothesis,
+    def _whole(self, d: Detection, r_exp: float) -> bool:
+        """Round, filled and of the size its distance implies (appearance matches are sized by
+        the track, their shape is that of the clean look they were matched to)."""
+        p = self.params
+        ratio = d.radius_px / r_exp if np.isfinite(r_exp) and r_exp > 0 else 0.0
+        return d.axis_ratio >= p.offer_min_axis_ratio and d.fill >= p.offer_min_fill and \
+            1.0 / p.offer_max_size_ratio <= ratio <= p.offer_max_size_ratio
+
+    def _learn_looks(self, t: float, frames: dict[int, Frame], chosen: Hypothesis,
+                     dets: dict[int, list[Detection]]) -> None:
+        """Keep each view's look of the ball from a clean stereo fix (`vision.appearance`)."""
+        X = chosen.est.position_world
+        for i, j in chosen.used.items():
+            r_exp = expected_radius_px(self.models[i], X, self.params.ball_radius)
+            self.appearance.learn(i, t, frames[i].image, dets[i][j], X, r_exp,
+                                  chosen.est.reprojection_px)
+
+    def _learn_clutter(self, t: float, frames: dict[int, Frame], chosen: Hypothesis,
                        dets: dict[int, list[Detection]]) -> None:
         """Remember the other blobs each camera sees next to the well-measured ball; every
         `clutter_scan_every` frames one camera also looks at its whole image for them."""

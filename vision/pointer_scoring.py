@@ -5,6 +5,8 @@ script's holds, reports:
   * error of every offered position (`PointerState.offered_position`: what may be taught):
     RMS, p95, max, and RMS of the stereo ones;
   * measurable frames (every camera sees the whole ball) and how many of them were not measured;
+  * how many offered positions used a view found by its look (`Detection.method ==
+    "appearance"`: the ball merged with a region of its colour there), and their error;
   * false positions: offered while no camera sees the ball, or more than `false_m` off;
   * coasting: longest run flagged coasting, and whether any coasting state offered a position;
   * dwells: found (a taught point within `dwell_match_m` of a hold, while or just after it is
@@ -41,7 +43,7 @@ def score_run(states: Sequence[PointerState], holds: Sequence, *,
               late_s: float = 0.3) -> dict:
     """Figures of one run (metres inside, millimetres in the keys that say so); `holds` are
     `photo_scenes.Hold`s (anything with t0, t1 and point)."""
-    errs, stereo_errs = [], []
+    errs, stereo_errs, matched_errs = [], [], []
     measurable = missed = false = offered_unseen = 0
     coast_run, coast_max, coast_offered = 0.0, 0.0, 0
     last_t: float | None = None
@@ -64,6 +66,9 @@ def score_run(states: Sequence[PointerState], holds: Sequence, *,
                 errs.append(e)
                 if s.mode == "stereo":
                     stereo_errs.append(e)
+                if any(v.pointer is not None and v.pointer.method == "appearance"
+                       for v in s.cameras.values()):
+                    matched_errs.append(e)
                 false += e > false_m
         dt = 0.0 if last_t is None else s.timestamp - last_t
         last_t = s.timestamp
@@ -98,6 +103,9 @@ def score_run(states: Sequence[PointerState], holds: Sequence, *,
         "stereo_rms_mm": 1e3 * _rms(stereo_errs),
         "p95_mm": 1e3 * float(np.percentile(errs, 95)) if errs else float("nan"),
         "max_mm": 1e3 * float(np.max(errs)) if errs else float("nan"),
+        "offered_with_appearance": len(matched_errs),
+        "appearance_rms_mm": 1e3 * _rms(matched_errs),
+        "appearance_max_mm": 1e3 * float(np.max(matched_errs)) if matched_errs else float("nan"),
         "measurable_frames": measurable,
         "missed_measurable": missed,
         "measured_fraction": (measurable - missed) / measurable if measurable else float("nan"),
@@ -128,6 +136,7 @@ def combine(results: Sequence[dict]) -> dict:
         "missed_measurable": missed,
         "measured_fraction": (meas - missed) / meas if meas else float("nan"),
         "false_offered": sum(r["false_offered"] for r in results),
+        "offered_with_appearance": sum(r.get("offered_with_appearance", 0) for r in results),
         "coast_max_s": max(r["coast_max_s"] for r in results),
         "coasting_offered": sum(r["coasting_offered"] for r in results),
         "dwells": sum(r["dwells"] for r in results),
