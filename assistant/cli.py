@@ -136,8 +136,12 @@ def open_session(cell: str | None, folder: Path | None, empty: bool):
 
 def cmd_serve(args: argparse.Namespace) -> int:
     from assistant.cell.samples import SampleError
+    from assistant.kernels import lazy
     from assistant.session.store import SessionFileError
 
+    # Before the session opens: opening one poses the robot and checks its home posture,
+    # which on a first run would otherwise compile those kernels here (~10 s).
+    compiling = lazy.start()
     try:
         session = open_session(args.cell, args.session, args.empty)
     except (SampleError, SessionFileError, ValueError, OSError) as exc:
@@ -145,7 +149,6 @@ def cmd_serve(args: argparse.Namespace) -> int:
         return 2
     for note in session.load_notes:
         print(f"cellteach: {note}", file=sys.stderr)
-    from assistant.kernels import lazy
     from web.app import serve
     from web.gate import AccessTokens, GateConfig, Role, TokenFileError, is_loopback
 
@@ -160,7 +163,7 @@ def cmd_serve(args: argparse.Namespace) -> int:
             session.close()
             print(f"cellteach: {exc}", file=sys.stderr)
             return 2
-    if lazy.start():
+    if compiling:
         print("cellteach: first run after an install: compiling the fast kernels in the "
               "background (a few minutes); everything works meanwhile", file=sys.stderr)
     try:
