@@ -62,3 +62,31 @@ def test_the_required_clearance_comes_before_the_cycle_time(monkeypatch, own_mm,
     got, _ = jm.prefer_joint_moves(None, smooth, [], None, exempt=frozenset(),
                                    clearance=0.01, step=0.01, label="T")
     assert got is (moves if want == "joint" else smooth)
+
+
+def test_move_checks_are_cached_and_bounded():
+    """Each distinct move is checked once; past the budget a new move scores -1 (never
+    chosen) while those checked keep their scores, so the search ends with its best."""
+    from types import SimpleNamespace
+
+    from assistant.planning.joint_moves import _Moves
+
+    calls = []
+
+    class Verifier:
+        def check_motion(self, a, b, exempt):
+            calls.append((a[0], b[0]))
+            return SimpleNamespace(valid=b[0] != 9.0)
+
+        def min_clearance_along(self, qs, max_step):
+            return 0.001 * qs[1][0]
+
+    moves = _Moves(Verifier(), frozenset(), 0.02, budget=3)
+    q = [np.array([float(i), 0.0]) for i in range(12)]
+    assert moves.clearance(q[0], q[5]) == pytest.approx(0.005)
+    assert moves.clearance(q[0], q[5]) == pytest.approx(0.005) and len(calls) == 1
+    assert moves.clearance(q[0], q[9]) == -1.0  # invalid
+    assert moves.clearance(q[1], q[7]) == pytest.approx(0.007)
+    assert moves.checks == 3 and len(calls) == 3
+    assert moves.clearance(q[2], q[8]) == -1.0 and len(calls) == 3  # over budget: unchecked
+    assert moves.chain([q[0], q[5]]) == pytest.approx(0.005)  # checked ones keep scores
