@@ -7,6 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import trimesh
+from contact_bisect import bisect_to_contact
 
 from assistant.collision.bounding_capsule import capsule_around, mesh_capsule
 from assistant.collision.broad_phase import prune_round_pairs
@@ -73,12 +74,6 @@ def test_a_ur5s_mesh_pairs_are_pruned_and_the_checks_stay_fcls():
     fast = checker.in_collision_batch(Q)
     naive = np.array([checker.in_collision_naive(q) for q in Q])
     assert np.array_equal(fast, naive) and 0.05 < fast.mean() < 0.95
-    free, hit = Q[~fast][:30], Q[fast][:30]
-    for _ in range(30):  # bisect towards contact: ~1e-9 rad apart, far above rounding
-        mid = 0.5 * (free + hit)
-        m = np.array([checker.in_collision_naive(q) for q in mid])
-        hit = np.where(m[:, None], mid, hit)
-        free = np.where(m[:, None], free, mid)
-    near = np.concatenate([free, hit])
+    near = bisect_to_contact(checker, Q[~fast][:30], Q[fast][:30])
     assert np.array_equal(checker.in_collision_batch(near),
                           np.array([checker.in_collision_naive(q) for q in near]))

@@ -15,6 +15,7 @@ import sys
 
 import numpy as np
 import pytest
+from contact_bisect import bisect_to_contact
 from numba import njit
 from scipy.spatial.transform import Rotation
 
@@ -248,14 +249,7 @@ def test_pruned_pairs_keep_fcls_answers(crowded, rv2aj):
     naive = np.array([crowded.in_collision_naive(q) for q in Q])
     assert np.array_equal(fast, naive) and 0.05 < fast.mean() < 0.95
     # Postures near contact: bisect between a free and a colliding posture.
-    free, hit = Q[~fast][:40], Q[fast][:40]
-    for _ in range(30):
-        mid = 0.5 * (free + hit)
-        m = np.array([crowded.in_collision_naive(q) for q in mid])
-        hit = np.where(m[:, None], mid, hit)
-        free = np.where(m[:, None], free, mid)
-    near = np.concatenate([free, hit])
-    # 30 bisections leave the pairs ~1e-9 rad apart, far above last-bit differences
+    near = bisect_to_contact(crowded, Q[~fast][:40], Q[fast][:40])
     assert np.array_equal(crowded.in_collision_batch(near),
                           np.array([crowded.in_collision_naive(q) for q in near]))
 

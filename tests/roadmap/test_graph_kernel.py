@@ -87,6 +87,16 @@ def test_neighbourhood_matches_the_numpy_formulation():
     assert squeezed > 0 and exempted > 0
 
 
+def random_positions(rng: np.random.Generator, shape: tuple[int, int, int],
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(cells, offsets, Q) of a world's positions: 3/4 of the cells, 1-3 postures of 5
+    joints each (cell i's: Q[offsets[i]:offsets[i + 1]])."""
+    n_cells = int(np.prod(shape))
+    cells = np.sort(rng.choice(n_cells, size=n_cells * 3 // 4, replace=False))
+    offsets = np.r_[0, np.cumsum(rng.integers(1, 4, len(cells)))]
+    return cells, offsets, rng.uniform(-1.0, 1.0, (offsets[-1], 5))
+
+
 def _all_searchable(g: JointGraph) -> JointGraph:
     """The same graph with the squeeze rule off: every in-grid neighbour."""
     return JointGraph(g.shape, g.node_q, g.node_cell, g.cell_start, g.searchable,
@@ -153,9 +163,7 @@ def test_graph_over_a_base_searches_as_the_selected_graph():
     rng = np.random.default_rng(23)
     shape = (5, 4, 4)
     n_cells = int(np.prod(shape))
-    cells = np.sort(rng.choice(n_cells, size=n_cells * 3 // 4, replace=False))
-    offsets = np.r_[0, np.cumsum(rng.integers(1, 4, len(cells)))]
-    Q = rng.uniform(-1.0, 1.0, (offsets[-1], 5))
+    cells, offsets, Q = random_positions(rng, shape)
     base = GraphBase.of(shape, cells, offsets, Q)
     with pytest.raises(ValueError, match="ascending"):  # node ids must follow the cells
         GraphBase.of(shape, cells[::-1], offsets, Q)

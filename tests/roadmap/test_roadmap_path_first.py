@@ -217,7 +217,7 @@ def test_the_expansion_fallbacks_give_the_kernels_successors():
     """`successor_costs_numpy` and `expand_numpy` (the pop-checking A*'s expansion until
     compiled) give the kernels' nodes in the kernels' order (exact: ids), on graphs with
     extra nodes; costs within 1e-12 (the same five products summed compiled or in numpy)."""
-    from test_graph_kernel import _random_graph
+    from test_graph_kernel import _random_graph, random_positions
 
     from assistant.roadmap.graph import GraphBase, JointGraph
     from assistant.roadmap.graph_kernel import expand, successor_costs
@@ -226,9 +226,7 @@ def test_the_expansion_fallbacks_give_the_kernels_successors():
     rng = np.random.default_rng(3)
     shape = (5, 4, 4)
     n_cells = int(np.prod(shape))
-    cells = np.sort(rng.choice(n_cells, size=n_cells * 3 // 4, replace=False))
-    offsets = np.r_[0, np.cumsum(rng.integers(1, 4, len(cells)))]
-    Q = rng.uniform(-1.0, 1.0, (offsets[-1], 5))
+    cells, offsets, Q = random_positions(rng, shape)
     picks = rng.choice(n_cells, size=3)
     picks[1] = picks[0]  # two extras in one cell
     searchable = rng.random(n_cells) < 0.7
