@@ -324,3 +324,36 @@ def test_each_stage_moves_particles_at_most_its_cap(rv2aj, free_checker, monkeyp
     # compiled vs numpy moves: 1e-12 m, one sweep of a few products per particle (~1e-16
     # relative each); a wrong cap or force would move particles by millimetres
     np.testing.assert_allclose(P1, other, rtol=0, atol=1e-12)
+
+
+def test_a_pending_move_kernel_runs_the_numpy_net(rv2aj, monkeypatch):
+    """On a first run (kernels pending, `kernels.lazy`) the net takes its numpy path, not
+    the move kernel's interpreted Python, and gives the net the numpy path gives: particles
+    within 1e-9 rad (the same arithmetic, some of it in kernels' fallbacks, whose last bits
+    may differ from compiled code)."""
+    import assistant.trajectory.elastic_net as en
+    from assistant.kernels import lazy
+
+    obstacle = box("block", [0.27, 0.0, Z], [0.06, 0.06, 0.06])
+    checker = CollisionChecker(rv2aj, [TABLE, obstacle])
+    s = np.linspace(0.0, 1.0, 14)
+    pts = np.stack([0.27 + 0.15 * np.sin(np.pi * s), -0.15 + 0.30 * s, np.full_like(s, Z)], 1)
+    Q = ik_path(rv2aj, pts)
+    params = ElasticNetParams(stage1_iterations=60, stage2_iterations=20)
+    monkeypatch.setattr(en, "COMPILED_MOVES", False)
+    numpy_net = run_elastic_net(rv2aj, Q, validity=checker, params=params)
+    monkeypatch.setattr(en, "COMPILED_MOVES", True)
+
+    def compiled_path(*args, **kwargs):
+        raise AssertionError("the compiled move path ran while its kernels were pending")
+
+    monkeypatch.setattr(en._Net, "_try_moves_compiled", compiled_path)
+    monkeypatch.setattr(en._Net, "_run_sweeps", compiled_path)
+    lazy.set_pending(True)
+    try:
+        pending = run_elastic_net(rv2aj, Q, validity=checker, params=params)
+    finally:
+        lazy.set_pending(False)
+    np.testing.assert_allclose(pending.particles.joints, numpy_net.particles.joints,
+                               rtol=0, atol=1e-9)
+    assert numpy_net.accepted_moves > 0
