@@ -2,7 +2,8 @@
 
 Owns the neutral program (`program`), the dialects (`melfa`, `krl`, `rapid`, `urscript`,
 one module each behind the `Dialect` protocol), the controller rules (`rules`), arm
-configuration flags (`configuration`), position names each controller accepts (`names`),
+configuration flags (`configuration`), a 7-axis arm's third joint as the external axis RAPID
+and KRL write it (`redundant_axis`), position names each controller accepts (`names`),
 the round-trip proof (`simulate`, `roundtrip`), the predicted cycle time (`cycle_time`, with
 ruckig), downloads (`download`); it samples free-shape Bezier paths with `trajectory.bezier`.
 May import mission, robots, trajectory (geometry only) and transforms; never the planner,

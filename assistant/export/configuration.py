@@ -21,6 +21,8 @@ Geometry (robot-independent, from the link frames; each link frame lies on its j
 
 Joints are mapped to controller axis slots A1..A6 by the digit their name ends with when
 every name has one (the RV-2AJ's J1, J2, J3, J5, J6 -> slots 1, 2, 3, 5, 6), else in order.
+A 7-axis arm's third joint is the external axis (`redundant_axis`: slot 7, RAPID eax_a, KRL
+E1), the others A1..A6; a target's `ArmConfig.redundant` holds that joint's value.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from assistant.export.redundant_axis import SEVEN_AXIS_SLOTS
 from assistant.robots.model import Robot
 
 Array = np.ndarray
@@ -62,8 +65,13 @@ class ArmConfig:
     wrist_negative: bool | None = None
     joint_ranges: tuple[JointRange, ...] = ()
     front_reference: str = WRIST
+    #: (joint, value rad): a 7-axis arm's redundant joint, held at the value the target
+    #: carries (RAPID eax_a, KRL E1); None for arms without one.
+    redundant: tuple[int, float] | None = None
 
     def matches(self, robot: Robot, q: Array, tol: float = 1e-6) -> bool:
+        if self.redundant is not None and abs(q[self.redundant[0]] - self.redundant[1]) > tol:
+            return False
         got = arm_configuration(robot, q, front_reference=self.front_reference)
         for mine, theirs in ((self.front, got.front), (self.elbow_up, got.elbow_up),
                              (self.wrist_negative, got.wrist_negative)):
@@ -73,7 +81,10 @@ class ArmConfig:
 
 
 def axis_slots(robot: Robot) -> list[int]:
-    """Controller axis number (1-based, A1..A6) for each joint of the robot."""
+    """Controller axis number (1-based, A1..A6; 7 for a 7-axis arm's external axis) for
+    each joint of the robot."""
+    if robot.dof == len(SEVEN_AXIS_SLOTS):
+        return list(SEVEN_AXIS_SLOTS)
     digits = []
     for name in robot.joint_names:
         m = re.search(r"(\d+)$", name)
@@ -82,7 +93,8 @@ def axis_slots(robot: Robot) -> list[int]:
             and all(1 <= d <= 6 for d in digits) and digits == sorted(digits)):
         return [int(d) for d in digits]
     if robot.dof > 6:
-        raise ValueError(f"{robot.name}: more than 6 joints cannot be written as A1..A6")
+        raise ValueError(f"{robot.name}: {robot.dof} joints cannot be written as A1..A6 (and "
+                         "one external axis)")
     return list(range(1, robot.dof + 1))
 
 
@@ -106,7 +118,9 @@ def arm_configuration(robot: Robot, q: Array, *, front_reference: str = WRIST) -
     f = R1 @ np.array([1.0, 0.0, 0.0])
     f = f - (f @ u) * u
     f /= max(np.linalg.norm(f), 1e-12)
-    S, E = frames[2][:3, 3], frames[3][:3, 3]
+    # shoulder J2, elbow A3 (a 7-axis arm's fourth joint, behind the redundant third)
+    j3 = joint_for_slot(robot, 3)
+    S, E = frames[2][:3, 3], frames[3 if j3 is None else j3 + 1][:3, 3]
     W = frames[n - 1][:3, 3]
     ref = W
     if front_reference == FLANGE:

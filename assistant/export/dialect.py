@@ -97,12 +97,13 @@ def check_axis_count(dialect: Dialect, robot: Robot) -> None:
         takes.setdefault(tuple(get_dialect(name).axis_counts), []).append(dialect_label(name))
     others = [label for c, labels in takes.items() if n in c for label in labels
               if label != dialect_label(dialect.name)]
+    arm = f"{'an' if str(n)[0] == '8' or n in (11, 18) else 'a'} {n}-axis arm"
     if others:
-        text += f" Choose {_or_list(others)} for a {n}-axis arm."
+        text += f" Choose {_or_list(others)} for {arm}."
     else:
         summary = "; ".join(f"{_and_list(labels)} take{'s' if len(labels) == 1 else ''} "
                             f"{_count_text(c)} axes" for c, labels in takes.items())
-        text += f" No dialect here writes a {n}-axis arm: {summary}."
+        text += f" No dialect here writes {arm}: {summary}."
     raise ExportError(text, dialect=dialect.name)
 
 

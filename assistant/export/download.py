@@ -135,6 +135,11 @@ def _verify(d: Dialect, program: NeutralProgram, files: list[ProgramFile],
                     raise ExportError(f"{d.name}: joints of {pa.name!r} do not read back",
                                       step=a.step)
                 continue
+            held = None if pb.config is None else pb.config.redundant
+            if held is not None and pa.q is not None and \
+                    abs(pa.q[held[0]] - held[1]) > VERIFY_ANGLE:
+                raise ExportError(f"{d.name}: the external axis of {pa.name!r} does not read "
+                                  "back", step=a.step)
             Ta, Tb = target_pose(robot, pa), target_pose(robot, pb)
             dp = float(np.linalg.norm(Ta[:3, 3] - Tb[:3, 3]))
             c = (np.trace(Ta[:3, :3].T @ Tb[:3, :3]) - 1.0) / 2.0

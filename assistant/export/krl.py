@@ -13,6 +13,9 @@ planned joint solution (`configuration.arm_configuration`):
 * S bit 2: A5 < 0 -> 1;
 * T bit n-1: axis An < 0 -> 1 (A1..A6; a 5-axis arm like the RV-2AJ has no A4).
 
+A 7-axis arm (KUKA LBR convention, `redundant_axis`): its third joint is the external axis E1
+of E6AXIS and E6POS (A1, A2, E1, A3, A4, A5, A6 along the chain), the others A1..A6.
+
 LIN and CIRC ignore S and T on the controller (they keep the current branch); PTP uses them,
 as the round-trip simulation does. Names: letters, digits and _, not starting with a digit,
 at most 24 characters, not case-sensitive. Gripper n is output $OUT[gripper_output + n - 1]
@@ -27,6 +30,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from assistant.export import redundant_axis as ra
 from assistant.export.configuration import ArmConfig, JointRange, arm_configuration, axis_slots
 from assistant.export.cycle_time import CycleTime, predict_cycle_time
 from assistant.export.dialect import (
@@ -116,11 +120,11 @@ class KrlDialect:
     name = "krl"
     title = "KUKA KRL"
     file_extensions = (".src", ".dat")
-    #: Main axes A1..A6 only; further axes would be external axes E1..E6, not written.
-    axis_counts = (4, 5, 6)
-    axis_rule = "KRL writes the main axes A1..A6 of 4-, 5- and 6-axis KUKA arms"
-    axes_beyond = ("axes beyond A6 would be external axes E1.., which this exporter does "
-                   "not write")
+    #: Main axes A1..A6; a 7-axis arm's third joint is the external axis E1 (KUKA LBR).
+    axis_counts = (4, 5, 6, 7)
+    axis_rule = ("KRL writes the main axes A1..A6 of 4- to 6-axis KUKA arms and a 7-axis "
+                 "arm's third joint as E1 (KUKA LBR)")
+    axes_beyond = "further axes would be external axes E2.., which this exporter does not write"
 
     @staticmethod
     def position_identifiers(name: str, joint_target: bool = False) -> tuple[str, ...]:
@@ -294,12 +298,12 @@ class KrlDialect:
 
     def _declaration(self, p: Position, ident: str, robot: Robot,
                      program: NeutralProgram) -> str:
-        ext = ",E1 0.0,E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0"
+        if p.q is None:
+            raise ExportError(f"position {p.name!r} has no joint solution")
+        vals, e1 = ra.axis_values(axis_slots(robot), np.degrees(p.q))
+        e1_text = "0.0" if e1 is None else format_fixed(e1, 3, what=ident)
+        ext = f",E1 {e1_text},E2 0.0,E3 0.0,E4 0.0,E5 0.0,E6 0.0"
         if p.joint_target:
-            assert p.q is not None
-            vals = np.zeros(6)
-            for j, s in enumerate(axis_slots(robot)):
-                vals[s - 1] = np.degrees(p.q[j])
             axes = ",".join(f"A{i + 1} {format_fixed(v, 3, what=ident)}"
                             for i, v in enumerate(vals))
             return f"DECL E6AXIS {ident}={{{axes}{ext}}}"
@@ -317,7 +321,7 @@ class KrlDialect:
                                                                       else 0)
         t = 0
         for j, slot in enumerate(axis_slots(robot)):
-            if p.q[j] < 0.0:
+            if p.q[j] < 0.0 and slot != ra.EXTERNAL_SLOT:
                 t |= 1 << (slot - 1)
         return s, t
 
@@ -441,6 +445,7 @@ class KrlDialect:
     def _read_dat(self, text: str, robot: Robot) -> dict[str, Position]:
         out: dict[str, Position] = {}
         slots = axis_slots(robot)
+        ext = ra.external_joint(slots)
         for raw in text.splitlines():
             line = raw.split(";", 1)[0].strip()
             mm = re.fullmatch(r"DECL\s+(E6POS|E6AXIS)\s+(\w+)\s*=\s*\{(.*)\}", line, re.I)
@@ -449,16 +454,21 @@ class KrlDialect:
             vals = {k.upper(): v for k, v in (
                 item.strip().split(None, 1) for item in mm.group(3).split(","))}
             name = mm.group(2).upper()
+            if ext is not None and "E1" not in vals:
+                raise ExportError(f"{name}: the 7-axis arm's external axis E1 is missing")
+            e1 = None if ext is None else (ext, np.radians(parse_number(vals["E1"])))
             if mm.group(1).upper() == "E6AXIS":
-                q = np.radians([parse_number(vals[f"A{s}"]) for s in slots])
+                main = np.radians([parse_number(vals.get(f"A{k}", "0")) for k in range(1, 7)])
+                q = ra.joints_from_axes(slots, main, None if e1 is None else e1[1])
                 out[name] = Position(name, None, q, joint_target=True)
                 continue
             T = _frame("{" + ",".join(f"{k} {vals[k]}" for k in "XYZABC") + "}")
             s, t = int(parse_number(vals["S"])), int(parse_number(vals["T"]))
             ranges = tuple(JointRange(j, -1e9, 0.0) if t >> (slot - 1) & 1
-                           else JointRange(j, 0.0, 1e9) for j, slot in enumerate(slots))
+                           else JointRange(j, 0.0, 1e9) for j, slot in enumerate(slots)
+                           if slot != ra.EXTERNAL_SLOT)
             cfg = ArmConfig(not s & 1, bool(s & 2), bool(s & 4) if 5 in slots else None,
-                            ranges)
+                            ranges, redundant=e1)
             out[name] = Position(name, T, None, cfg)
         return out
 

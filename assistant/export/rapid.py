@@ -12,6 +12,9 @@ confdata from the planned joint solution:
 * cfx = 4 (wrist centre behind axis 1) + 2 (wrist centre behind the lower arm, i.e. elbow
   down) + 1 (axis 5 negative): the ABB table, from `configuration.arm_configuration`.
 
+A 7-axis arm (IRB 14000 YuMi convention, `redundant_axis`): its third joint is the external
+axis eax_a (deg) of jointtargets and robtargets, the others rax_1..rax_6.
+
 RAPID speeds are TCP speeds, also for MoveJ: a joint move at fraction f of the maximum is
 written with f x `joint_move_tcp_speed` (default 1000 mm/s, configurable per robot).
 Identifiers: a letter, then letters, digits and _, at most 32 characters, not case-sensitive.
@@ -63,6 +66,7 @@ from assistant.export.program import (
     SetOutput,
     Wait,
 )
+from assistant.export.redundant_axis import axis_values, external_joint, joints_from_axes
 from assistant.export.rules import (
     DialectRules,
     check_identifier,
@@ -79,6 +83,7 @@ PREDEFINED_SPEEDS = (5, 10, 20, 30, 40, 50, 60, 80, 100, 150, 200, 300, 400, 500
                      1000, 1500, 2000, 2500, 3000, 4000, 5000, 6000, 7000)
 PREDEFINED_ZONES = (0, 1, 5, 10, 15, 20, 30, 40, 50, 60, 80, 100, 150, 200)
 EXTERNAL = "[9E+09,9E+09,9E+09,9E+09,9E+09,9E+09]"
+NO_AXIS = 9e9
 
 _RESERVED = frozenset({
     "ALIAS", "AND", "BACKWARD", "CASE", "CONNECT", "CONST", "DEFAULT", "DIV", "DO", "ELSE",
@@ -126,11 +131,12 @@ class RapidDialect:
     name = "rapid"
     title = "ABB RAPID"
     file_extensions = (".mod",)
-    #: Robot axes rax_1..rax_6; a 7-axis arm's 7th axis is the external axis eax_a.
-    axis_counts = (4, 5, 6)
-    axis_rule = "RAPID writes the robot axes rax_1..rax_6 of 4-, 5- and 6-axis ABB arms"
-    axes_beyond = ("a 7-axis arm (IRB 14000 YuMi) needs its 7th axis as the external axis "
-                   "eax_a, which this exporter does not write")
+    #: Robot axes rax_1..rax_6; a 7-axis arm's third joint is the external axis eax_a.
+    axis_counts = (4, 5, 6, 7)
+    axis_rule = ("RAPID writes the robot axes rax_1..rax_6 of 4- to 6-axis ABB arms and a "
+                 "7-axis arm's third joint as eax_a (IRB 14000 YuMi)")
+    axes_beyond = ("further axes would be external axes eax_b.., which this exporter does not "
+                   "write")
 
     def __post_init__(self) -> None:
         self.rules = rapid_rules(self.max_positions_per_file)
@@ -255,16 +261,17 @@ class RapidDialect:
 
     def _declaration(self, p: Position, ident: str, robot: Robot,
                      program: NeutralProgram) -> str:
+        if p.q is None:
+            raise ExportError(f"position {p.name!r} has no joint solution")
+        vals, eax_a = axis_values(axis_slots(robot), np.degrees(p.q))
+        ext = EXTERNAL if eax_a is None else \
+            f"[{format_fixed(eax_a, 3, what=ident)}{EXTERNAL[6:]}"
         if p.joint_target:
-            assert p.q is not None
-            vals = np.zeros(6)
-            for j, s in enumerate(axis_slots(robot)):
-                vals[s - 1] = np.degrees(p.q[j])
             axes = ",".join(format_fixed(v, 3, what=ident) for v in vals)
-            return f"CONST jointtarget {ident} := [[{axes}],{EXTERNAL}];"
+            return f"CONST jointtarget {ident} := [[{axes}],{ext}];"
         T = pose_in_work(program, position_pose(robot, p))
         conf = ",".join(str(v) for v in self.confdata(robot, p))
-        return f"CONST robtarget {ident} := [{pose_text(T, ident)[1:-1]},[{conf}],{EXTERNAL}];"
+        return f"CONST robtarget {ident} := [{pose_text(T, ident)[1:-1]},[{conf}],{ext}];"
 
     @staticmethod
     def confdata(robot: Robot, p: Position) -> tuple[int, int, int, int]:
@@ -332,11 +339,14 @@ class RapidDialect:
                 if j is not None:
                     ranges.append(JointRange(j, cf * np.pi / 2, (cf + 1) * np.pi / 2))
             has5 = joint_for_slot(robot, 5) is not None
+            eax_a = _eax_a(robot, nums[11], name)
             cfg = ArmConfig(not cfx & 4, not cfx & 2, bool(cfx & 1) if has5 else None,
-                            tuple(ranges))
+                            tuple(ranges), redundant=eax_a)
             decls[name] = Position(name, T, None, cfg)
         elif typ == "jointtarget":
-            q = np.radians([nums[s - 1] for s in axis_slots(robot)])
+            eax_a = _eax_a(robot, nums[6], name)
+            q = joints_from_axes(axis_slots(robot), np.radians(nums[0:6]),
+                                 None if eax_a is None else eax_a[1])
             decls[name] = Position(name, None, q, joint_target=True)
         elif typ == "speeddata":
             speeds[name] = nums[0] / 1000.0
@@ -465,6 +475,14 @@ class _Data:
 
     def declarations(self) -> list[str]:
         return [f"    {v}" for v in list(self.speeds.values()) + list(self.zones.values())]
+
+
+def _eax_a(robot: Robot, deg: float, name: str) -> tuple[int, float] | None:
+    """(joint, value rad) a target's eax_a (deg) holds on a 7-axis arm; None for others."""
+    j = external_joint(axis_slots(robot))
+    if j is not None and deg >= NO_AXIS:
+        raise ExportError(f"{name}: the 7-axis arm's external axis eax_a is 9E9")
+    return None if j is None else (j, float(np.radians(deg)))
 
 
 def _pose(v: list[float]) -> Array:

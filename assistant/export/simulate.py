@@ -7,6 +7,11 @@ interpolators are proprietary; this is the usual stand-in). Cartesian samples ar
 seeded with the previous sample, so a path that leaves the workspace, breaks a joint limit or
 jumps branch (a singularity) is found here and reported with its step.
 
+A 7-axis arm's controller holds its redundant joint (`redundant_axis`: RAPID eax_a, KRL E1)
+at the value the target carries and interpolates it linearly along a Cartesian path; so do
+targets and path samples here (`redundant_axis.solve_pinned`), which makes the posture at
+each target the planned one instead of wherever a seeded IK drifts in the null space.
+
 Blending (CNT, C_DIS, zones) is not simulated: the path runs through every target, which is
 what the planner's primitives describe; blending only cuts corners within the blend radius.
 """
@@ -21,6 +26,7 @@ from scipy.spatial.transform import Rotation, Slerp
 from assistant.export.configuration import ArmConfig
 from assistant.export.errors import ExportError
 from assistant.export.program import Move, MoveKind, NeutralProgram, Position
+from assistant.export.redundant_axis import REDUNDANT_JOINT, solve_pinned
 from assistant.robots.model import IKFailure, Robot
 
 Array = np.ndarray
@@ -109,8 +115,11 @@ def _solve_target(robot: Robot, p: Position, seed: Array | None, step: str,
     if p.q is not None:
         return np.asarray(p.q, dtype=float)
     T = target_pose(robot, p)
-    sols = _ik_all(robot, T, seed, step, p.name)
     cfg: ArmConfig | None = p.config
+    if cfg is not None and cfg.redundant is not None:
+        sols = _pinned_target(robot, T, cfg.redundant, seed, step, p.name)
+    else:
+        sols = _ik_all(robot, T, seed, step, p.name)
     if cfg is not None:
         ok = [s for s in sols if cfg.matches(robot, s, tol=1e-4)]
         if ok:
@@ -142,6 +151,30 @@ def _ik_all(robot: Robot, T: Array, seed: Array | None, step: str, what: str, *,
     return res.solutions
 
 
+def _pinned_target(robot: Robot, T: Array, pin: tuple[int, float], seed: Array | None,
+                   step: str, what: str) -> list[Array]:
+    """Solutions with the redundant joint held, from the seed and from each IK branch."""
+    joint, value = pin
+    res = robot.ik(T, seed)
+    seeds = ([] if seed is None else [seed]) + list(res.solutions)
+    sols = solve_pinned(robot, T, joint, value, seeds)
+    if not sols:
+        raise ExportError(f"{what}: no joint solution with joint {joint + 1} at "
+                          f"{np.degrees(value):.3f} deg reaches this pose", step=step)
+    return sols
+
+
+def _pinned_value(robot: Robot, m: Move) -> float | None:
+    """The redundant joint's value at a Cartesian move's target (None: not a 7-axis arm, or
+    a target that does not say)."""
+    if robot.dof != 7:
+        return None
+    if m.target.q is not None:
+        return float(m.target.q[REDUNDANT_JOINT])
+    cfg = m.target.config
+    return None if cfg is None or cfg.redundant is None else cfg.redundant[1]
+
+
 def _angle(Ra: Array, Rb: Array) -> float:
     c = (np.trace(Ra.T @ Rb) - 1.0) / 2.0
     return float(np.arccos(np.clip(c, -1.0, 1.0)))
@@ -161,9 +194,19 @@ def _simulate_move(robot: Robot, m: Move, q0: Array, max_step: float, n: int | N
     poses = _cartesian_poses(robot, m, T0, max_step, n)
     qs = [q0]
     radii = robot.arm_radii()
+    held = _pinned_value(robot, m)
     for i, T in enumerate(poses[1:], start=1):
-        sols = _ik_all(robot, T, qs[-1], m.step, f"{m.kind.value} path at "
-                       f"{100.0 * i / (len(poses) - 1):.0f}%", on_path=i < len(poses) - 1)
+        where = f"{m.kind.value} path at {100.0 * i / (len(poses) - 1):.0f}%"
+        if held is not None:
+            s = i / (len(poses) - 1)
+            value = (1.0 - s) * q0[REDUNDANT_JOINT] + s * held
+            sols = solve_pinned(robot, T, REDUNDANT_JOINT, value, [qs[-1]])
+            if not sols:
+                raise ExportError(f"{where}: no joint solution with joint "
+                                  f"{REDUNDANT_JOINT + 1} at {np.degrees(value):.3f} deg",
+                                  step=m.step)
+        else:
+            sols = _ik_all(robot, T, qs[-1], m.step, where, on_path=i < len(poses) - 1)
         q = min(sols, key=lambda s: float(np.linalg.norm(s - qs[-1])))
         chord = float(np.linalg.norm(T[:3, 3] - poses[i - 1][:3, 3]))
         sweep = float(np.abs(q - qs[-1]) @ radii)

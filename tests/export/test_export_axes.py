@@ -1,10 +1,11 @@
 """Dialects refuse robots their controller does not run (issue 32 item 5).
 
 URScript runs on 6-axis UR arms; MELFA on 4-, 5- and 6-axis Mitsubishi arms; KRL writes the
-main axes A1..A6 (more would be external axes E1.., not written); RAPID the robot axes
-rax_1..rax_6 (a 7th arm axis would be the external axis eax_a, not written). The refusal is
-an `ExportError` before anything is checked or written, at every way into a program: the
-download (`export_files`), the round-trip proof and each dialect's `write`.
+main axes A1..A6 and a 7-axis arm's third joint as E1 (KUKA LBR); RAPID the robot axes
+rax_1..rax_6 and a 7-axis arm's third joint as eax_a (IRB 14000 YuMi); what they write for a
+7-axis arm is tested in test_export_seven_axes.py. The refusal is an `ExportError` before
+anything is checked or written, at every way into a program: the download (`export_files`),
+the round-trip proof and each dialect's `write`.
 """
 
 from __future__ import annotations
@@ -27,8 +28,10 @@ from assistant.export import (
 from assistant.export.dialect import check_axis_count
 from assistant.robots.urdf_robot import URDFRobot
 
-NO_SEVEN_AXES = ("No dialect here writes a 7-axis arm: MELFA, KRL and RAPID take 4, 5 or 6 "
-                 "axes; URScript takes 6 axes.")
+#: What every dialect takes, as the refusal of an axis count no dialect writes ends.
+TAKES = ("MELFA takes 4, 5 or 6 axes; KRL and RAPID take 4, 5, 6 or 7 axes; URScript takes 6 "
+         "axes.")
+SEVEN_AXES = "Choose KRL or RAPID for a 7-axis arm."
 
 
 def chain_urdf(n: int) -> str:
@@ -64,28 +67,23 @@ def one_joint_move(robot) -> NeutralProgram:
 # ------------------------------------------------------------------ declared axis counts
 def test_each_dialect_declares_the_axis_counts_its_controller_runs():
     assert {n: get_dialect(n).axis_counts for n in DIALECT_NAMES} == {
-        "melfa": (4, 5, 6), "krl": (4, 5, 6), "rapid": (4, 5, 6), "urscript": (6,)}
+        "melfa": (4, 5, 6), "krl": (4, 5, 6, 7), "rapid": (4, 5, 6, 7), "urscript": (6,)}
 
 
-# ------------------------------------------------------------------ 7 axes: refused by all
-@pytest.mark.parametrize("dialect", DIALECT_NAMES)
-def test_a_seven_axis_panda_is_refused_by_every_dialect(panda, dialect):
+# ------------------------------------------------------------------ 7 axes: KRL and RAPID
+@pytest.mark.parametrize("dialect", ["melfa", "urscript"])
+def test_a_seven_axis_panda_is_refused_by_melfa_and_urscript(panda, dialect):
     assert panda.dof == 7
     prog = one_joint_move(panda)
     with pytest.raises(ExportError) as e:
         export_files(prog, dialect, panda)
     assert e.value.dialect == dialect
-    msg = str(e.value)
-    assert "this robot (panda) has 7 axes." in msg and msg.endswith(NO_SEVEN_AXES)
-    expected = {
-        "urscript": "URScript runs on 6-axis UR arms;",
-        "melfa": "MELFA BASIC runs on 4-, 5- and 6-axis Mitsubishi arms",
-        "krl": "Axes beyond A6 would be external axes E1.., which this exporter does not "
-               "write.",
-        "rapid": "its 7th axis as the external axis eax_a, which this exporter does not "
-                 "write.",
+    rule = {
+        "urscript": "URScript runs on 6-axis UR arms",
+        "melfa": "MELFA BASIC runs on 4-, 5- and 6-axis Mitsubishi arms (RH SCARA, 5-axis "
+                 "RV such as the RV-2AJ, 6-axis RV)",
     }[dialect]
-    assert expected in msg
+    assert str(e.value) == f"{rule}; this robot (panda) has 7 axes. {SEVEN_AXES}"
     # The same refusal from the round-trip proof and from the writer itself.
     with pytest.raises(ExportError, match="has 7 axes"):
         round_trip(prog, dialect, panda)
@@ -101,11 +99,40 @@ def test_urscript_refuses_seven_axes_before_checking_the_program(panda, rv2aj, t
     assert str(e.value).startswith("URScript runs on 6-axis UR arms; this robot (panda) has 7")
 
 
-@pytest.mark.parametrize("dialect", DIALECT_NAMES)
+@pytest.mark.parametrize("dialect", ["melfa", "urscript"])
 def test_a_seven_axis_arm_from_a_urdf_string_is_refused(arm, dialect):
     robot = arm(7)
-    with pytest.raises(ExportError, match="this robot \\(arm7\\) has 7 axes"):
+    with pytest.raises(ExportError, match="this robot \\(arm7\\) has 7 axes. Choose KRL or "
+                       "RAPID for a 7-axis arm.$"):
         export_files(one_joint_move(robot), dialect, robot)
+
+
+@pytest.mark.parametrize("dialect", ["krl", "rapid"])
+def test_a_seven_axis_arm_is_accepted_by_krl_and_rapid(arm, panda, dialect):
+    for robot in (panda, arm(7)):
+        check_axis_count(get_dialect(dialect), robot)
+
+
+# ------------------------------------------------------------------ 8 axes: refused by all
+@pytest.mark.parametrize("dialect", DIALECT_NAMES)
+def test_an_eight_axis_arm_is_refused_by_every_dialect(arm, dialect):
+    robot = arm(8)
+    prog = one_joint_move(robot)
+    with pytest.raises(ExportError) as e:
+        export_files(prog, dialect, robot)
+    msg = str(e.value)
+    assert e.value.dialect == dialect
+    assert "this robot (arm8) has 8 axes." in msg
+    assert msg.endswith(f"No dialect here writes an 8-axis arm: {TAKES}")
+    beyond = {"krl": "Further axes would be external axes E2.., which this exporter does not "
+                     "write.",
+              "rapid": "Further axes would be external axes eax_b.., which this exporter "
+                       "does not write."}.get(dialect)
+    assert beyond is None or beyond in msg
+    for run in (lambda: round_trip(prog, dialect, robot),
+                lambda: get_dialect(dialect).write(prog, robot)):
+        with pytest.raises(ExportError, match="has 8 axes"):
+            run()
 
 
 def test_a_three_axis_arm_is_refused_by_every_dialect(arm):
@@ -113,8 +140,7 @@ def test_a_three_axis_arm_is_refused_by_every_dialect(arm):
     for dialect in DIALECT_NAMES:
         with pytest.raises(ExportError) as e:
             export_files(one_joint_move(robot), dialect, robot)
-        assert str(e.value).endswith("No dialect here writes a 3-axis arm: MELFA, KRL and "
-                                     "RAPID take 4, 5 or 6 axes; URScript takes 6 axes.")
+        assert str(e.value).endswith(f"No dialect here writes a 3-axis arm: {TAKES}")
 
 
 # ------------------------------------------------------------------ 5 axes: not URScript
