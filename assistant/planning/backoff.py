@@ -100,3 +100,41 @@ def splice(executed: Array, new_path: Array, radii: Array, tolerance: float = 0.
     if path_travel(radii, back) + path_travel(radii, cont) > path_travel(radii, N) + tolerance:
         return none
     return Splice(back, cont, i, j)
+
+
+def retreat_candidates(executed: Array, i_r: int, radii: Array,
+                       distances: tuple[float, ...] = (0.05, 0.15)) -> list[int]:
+    """Where to re-plan from after an indication, nearest first: the retreat point `i_r`,
+    the executed postures `distances` (m of arm travel) further back, and the drive's
+    beginning. Why: right at the edge of a recorded posture box a 7-axis re-plan may find
+    no verified way that does not graze it; a little further back there is room."""
+    E = np.atleast_2d(np.asarray(executed, dtype=float))
+    out = [int(i_r)]
+    if i_r <= 0:
+        return out
+    steps = np.abs(np.diff(E[:i_r + 1], axis=0)) @ np.asarray(radii, dtype=float)
+    back = np.concatenate([np.cumsum(steps[::-1])[::-1], [0.0]])  # travel from j to i_r
+    for d in distances:
+        far = np.flatnonzero(back >= d)
+        if len(far) and int(far[-1]) not in out:
+            out.append(int(far[-1]))
+    if 0 not in out:
+        out.append(0)
+    return out
+
+
+def leads_on(executed: Array, new_path: Array, radii: Array, cos_limit: float = 0.5) -> bool:
+    """Whether a re-plan from the stopped posture sets off the way the drive was going (its
+    first move within ~60 deg of the drive's last direction, arm-radius weighted): into the
+    contact that stopped it. Such a re-plan is refused - it would meet the same obstacle at
+    once, and the robot would shuttle on the spot until the indication budget ends."""
+    E = np.atleast_2d(np.asarray(executed, dtype=float))
+    N = np.atleast_2d(np.asarray(new_path, dtype=float))
+    w = np.asarray(radii, dtype=float)
+    d = next(((E[-1] - E[k]) * w for k in range(len(E) - 2, -1, -1)
+              if np.abs(E[-1] - E[k]).max() > 1e-9), None)
+    v = next(((N[k] - N[0]) * w for k in range(1, len(N)) if np.abs(N[k] - N[0]).max() > 1e-9),
+             None)
+    if d is None or v is None:
+        return False
+    return float(d @ v) > cos_limit * float(np.linalg.norm(d) * np.linalg.norm(v))

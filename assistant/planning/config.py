@@ -9,6 +9,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from assistant.planning.joint_moves import JointMoveParams
+from assistant.planning.joint_rrt import RRTParams
 from assistant.trajectory.application import ApplicationParams
 from assistant.trajectory.assemble import AssemblyParams
 from assistant.trajectory.elastic_net import ElasticNetParams
@@ -93,6 +94,9 @@ class MissionPlannerConfig:
     #: smoothed path itself comes closer, the joint moves keep at least its clearance.
     transfer_clearance: float = 0.010
     joint_moves: JointMoveParams = field(default_factory=JointMoveParams)
+    #: The joint-space search a 6- or 7-axis transfer falls back to when the roads hold no
+    #: path (`planning.joint_rrt`).
+    joint_rrt: RRTParams = field(default_factory=RRTParams)
 
 
 @dataclass(frozen=True)

@@ -36,7 +36,7 @@ import numpy as np
 
 from assistant.links.link import LinkError, LinkEvent, LinkEventKind, LinkLost, RobotLink
 from assistant.mission.model import Mission
-from assistant.planning.backoff import retreat_index, splice
+from assistant.planning.backoff import leads_on, retreat_candidates, retreat_index, splice
 from assistant.planning.config import ExecutionConfig
 from assistant.planning.mission_planner import MissionPlan, MissionPlanner, TransferResult
 from assistant.planning.pieces import PieceKind, PlanPiece
@@ -376,17 +376,29 @@ class MissionExecutor:
             drive = self._executed(path, ev)
             history = drive if history is None else np.concatenate([history, drive[1:]])
             executed = history
-            # retreat out of the indication's posture box, re-plan from there
+            # retreat out of the indication's posture box, re-plan from there (or from
+            # further back); only then from the stop, and not on into the contact
             blocked = self.planner.world.near_recorded_collision(executed)
-            i_r = retreat_index(executed, blocked)
-            q_from = executed[i_r]
-            tr = self.planner.plan_transfer(q_from, item.piece.q_end, exploring=True,
-                                            label=item.piece.label,
-                                            progress=self._sub_here("re-planning"))
+            tr = None
+            for k, i_try in enumerate(retreat_candidates(
+                    executed, retreat_index(executed, blocked), self.radii)):
+                tr = self.planner.plan_transfer(
+                    executed[i_try], item.piece.q_end, exploring=True, label=item.piece.label,
+                    progress=self._sub_here("re-planning") if k == 0 else None)
+                i_r = i_try
+                if tr.ok:
+                    break
+            assert tr is not None
             if not tr.ok and i_r < len(executed) - 1:  # e.g. no way out backwards: try on
-                i_r, q_from = len(executed) - 1, q_stop
-                tr = self.planner.plan_transfer(q_stop, item.piece.q_end, exploring=True,
+                i_r = len(executed) - 1
+                on = self.planner.plan_transfer(q_stop, item.piece.q_end, exploring=True,
                                                 label=item.piece.label)
+                if on.ok and on.piece is not None and \
+                        leads_on(executed, on.piece.dense(), self.radii):
+                    raise _End(EndReason.NO_PATH, f"{item.piece.label}: no way on after the "
+                               f"collision indication - {tr.report.reason}; the only way on "
+                               "from where the robot stopped leads on into the contact")
+                tr = on
             t1 = time.perf_counter()
             if not tr.ok or tr.piece is None:
                 raise _End(EndReason.NO_PATH, f"{item.piece.label}: no way on after the "

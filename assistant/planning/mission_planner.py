@@ -44,6 +44,7 @@ from assistant.mission.model import Location, Mission
 from assistant.mission.motion import Trajectory
 from assistant.planning.config import MissionPlannerConfig
 from assistant.planning.joint_moves import prefer_joint_moves
+from assistant.planning.joint_rrt import rrt_connect
 from assistant.planning.known_world import KnownValidity, KnownVerifier, WorldAllowed
 from assistant.planning.locations import (
     LocationError,
@@ -156,6 +157,9 @@ class MissionPlanner:
         t0 = time.perf_counter()
         plan = roadmap_plan if roadmap_plan is not None else self.roadmap.plan(
             q_s, q_g, progress.sub(0.0, 0.2) if progress else None)
+        if not plan.ok and plan.failure in (PlanFailure.NO_PATH, PlanFailure.NO_PATH_REGIONS) \
+                and self.world.sampled:
+            plan = self._joint_rrt(q_s, q_g, plan)
         t1 = time.perf_counter()
         if not plan.ok:
             rep = PieceReport(label, "transfer", False, plan.reason, seconds=t1 - t0)
@@ -176,6 +180,13 @@ class MissionPlanner:
             if asm.trajectory is not None and not exploring and \
                     self.config.transfer_joint_moves:
                 asm, notes = self._as_joint_moves(asm, notes, label)
+        if asm.trajectory is None and self.world.sampled and plan.searched != "joint space":
+            # Nothing along the roads verifies (their edge checks sample the recorded
+            # posture boxes more coarsely than the verifier): the joint-space search's path.
+            alt = self._joint_rrt(q_s, q_g, replace(plan, ok=False, reason=asm.report.reason))
+            if alt.ok:
+                plan = alt
+                asm, notes = self._smooth(plan.joint_path, exploring, label, None)
         t2 = time.perf_counter()
         if asm.trajectory is None:
             rep = PieceReport(label, "transfer", False,
@@ -187,6 +198,31 @@ class MissionPlanner:
         rep = PieceReport(label, "transfer", True, "", asm.report, t2 - t0, plan.searched,
                           tuple(notes))
         return TransferResult(True, piece, rep, plan, t1 - t0, t2 - t1)
+
+    def _joint_rrt(self, q_s: Array, q_g: Array, failed: RoadmapPlan) -> RoadmapPlan:
+        """The roads hold no path on a 6- or 7-axis arm: a joint-space RRT-Connect through
+        the known world (`planning.joint_rrt`), or the roads' own failure."""
+        t0 = time.perf_counter()
+        exempt = self.world.recorded_collisions_at(q_s)
+        lim = self.robot.limits
+        w = self.world
+
+        def free(a: Array, b: Array) -> bool:
+            # the boxes exactly first (cheap), then CAD and the boxes as the verifier checks
+            return not w.segment_meets_recorded_collision(a, b, exempt) and \
+                self.verifier.check_motion(a, b, exempt).valid
+
+        res = rrt_connect(q_s, q_g, lim.lower, lim.upper, free, w.weights,
+                          self.config.joint_rrt)
+        timings = dict(failed.timings, joint_rrt=time.perf_counter() - t0)
+        if res.path is None:
+            return replace(failed, reason=f"{failed.reason}; a joint-space search of "
+                           f"{res.samples} samples ({res.checks} motion checks) found none "
+                           "either", timings=timings)
+        cost = float(sum(np.linalg.norm((b - a) * self.world.weights)
+                         for a, b in zip(res.path[:-1], res.path[1:], strict=True)))
+        return RoadmapPlan(True, "", None, res.path, cost, searched="joint space",
+                           timings=timings)
 
     def _as_joint_moves(self, asm: AssemblyResult, notes: list[str], label: str,
                         ) -> tuple[AssemblyResult, list[str]]:

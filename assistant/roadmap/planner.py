@@ -461,8 +461,12 @@ class RoadmapPlanner:
                                PlanFailure.GOAL_IN_OBSTACLE)
         p = float(w.occupancy().reshape(-1)[gc])
         # A leaf a CAD part only partly fills is occupied, yet a taught point on the part's
-        # surface lies in it: for CAD leaves the exact check above has the last word.
-        if p >= w.threshold and w.object_ids().reshape(-1)[gc] <= 0:
+        # surface lies in it: for CAD leaves the exact check above has the last word. So it
+        # has for a leaf an indication marked: those are all the leaves the arm filled when
+        # it was stopped, the contact is in one of them; the recorded posture box below is
+        # that evidence about the goal posture itself.
+        if p >= w.threshold and w.object_ids().reshape(-1)[gc] <= 0 and \
+                not any(gc in rc.cells for rc in w.collisions):
             return RoadmapPlan(False, f"goal inside an obstacle: its cell is occupied "
                                f"(P = {p:.2f})", PlanFailure.GOAL_IN_OBSTACLE)
         if w.near_recorded_collision(q_g[None])[0]:

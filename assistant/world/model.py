@@ -32,6 +32,7 @@ from assistant.world.indications import (
     indicated_cells,
     near_posture,
     nearby_positions,
+    posture_box_half,
 )
 from assistant.world.leaf_store import JointStore
 from assistant.world.octree import LinearOctree, OctreeGrid
@@ -378,6 +379,35 @@ class WorldModel:
             if i not in exclude:
                 out |= near_posture(self.table, Q, rc.q, self.config.indication.joint_steps)
         return out
+
+    def segment_meets_recorded_collision(self, a: Array, b: Array,
+                                         exclude: frozenset[int] = frozenset()) -> bool:
+        """Whether the straight joint move a -> b passes through a recorded collision's
+        posture box (not in `exclude`): exact (slab test), where samples could miss a corner."""
+        if not self.collisions or self.table is None:
+            return False
+        a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+        half = posture_box_half(self.table, self.config.indication.joint_steps)
+        d = b - a
+        for i, rc in enumerate(self.collisions):
+            if i in exclude:
+                continue
+            lo, hi = rc.q - half - a, rc.q + half - a
+            t0, t1 = 0.0, 1.0
+            for j in range(len(d)):
+                if not np.isfinite(half[j]):
+                    continue
+                if abs(d[j]) < 1e-15:
+                    if lo[j] > 0.0 or hi[j] < 0.0:
+                        break
+                    continue
+                u, v = lo[j] / d[j], hi[j] / d[j]
+                t0, t1 = max(t0, min(u, v)), min(t1, max(u, v))
+                if t0 > t1:
+                    break
+            else:
+                return True
+        return False
 
     def recorded_collisions_at(self, q: Array) -> frozenset[int]:
         """Indices of the recorded collisions whose posture box contains q."""
