@@ -34,9 +34,10 @@ class RRTParams:
     #: Longest tree edge, weighted joint distance (arm radii x radians: ~metres of arm travel).
     step: float = 0.12
     #: Samples drawn before giving up (each grows both trees).
-    max_samples: int = 1500
-    #: Motion checks before giving up (the cost: each is an exact continuous check).
-    max_checks: int = 4000
+    max_samples: int = 1000
+    #: Motion checks before giving up (the cost: each is an exact continuous check, ~5-15
+    #: ms on a Panda or UR among boxes: at most ~20 s).
+    max_checks: int = 1500
     #: Share of samples that are the other tree's root (goal bias).
     goal_bias: float = 0.1
     seed: int = 0
@@ -83,11 +84,13 @@ class _Tree:
 
 def rrt_connect(q_start: Array, q_goal: Array, lower: Array, upper: Array,
                 motion_free: Callable[[Array, Array], bool], weights: Array,
-                params: RRTParams | None = None) -> RRTResult:
+                params: RRTParams | None = None,
+                progress: Callable[[float], None] | None = None) -> RRTResult:
     """Joint path q_start -> q_goal whose every edge passed `motion_free`, or None.
 
     `weights` (arm radii per joint, 0 for joints that move nothing) scale the distance;
-    joints of weight 0 are interpolated but do not count towards the step.
+    joints of weight 0 are interpolated but do not count towards the step. `progress` is
+    told the share of the check budget used at every sample (it may raise to cancel).
     """
     p = params or RRTParams()
     rng = np.random.default_rng(p.seed)
@@ -130,6 +133,8 @@ def rrt_connect(q_start: Array, q_goal: Array, lower: Array, upper: Array,
     samples = 0
     while samples < p.max_samples and checks < p.max_checks:
         samples += 1
+        if progress is not None:
+            progress(checks / p.max_checks)
         a, b = trees if samples % 2 else trees[::-1]
         target = b.Q[0] if rng.random() < p.goal_bias else rng.uniform(lo, hi)
         k, _ = steer(a, target)

@@ -29,6 +29,9 @@ from assistant.world.leaf_lookup import leaf_flags
 from assistant.world.model import WorldModel
 
 Array = np.ndarray
+#: Arm travel (m, `WorldModel.weights`) between the postures whose hand leaves are tested:
+#: a quarter of a 62.5 mm leaf.
+HAND_STEP = 0.015
 
 
 class WorldAllowed:
@@ -106,9 +109,12 @@ class KnownValidity:
 class KnownVerifier:
     """Exact continuous check of joint paths against CAD, limits and recorded postures."""
 
-    def __init__(self, checker: CollisionChecker, world: WorldModel):
+    def __init__(self, checker: CollisionChecker, world: WorldModel, *, hand: bool = True):
         self.checker = checker
         self.world = world
+        #: Whether the recorded hand leaves count (transfers). Not for application paths:
+        #: the operator taught them; what they meet, the run itself shows.
+        self.hand = hand
 
     def _box_samples(self, q0: Array, q1: Array) -> Array:
         """Fractions along q0 -> q1 at most half a table grid step apart (no box skipped)."""
@@ -121,20 +127,42 @@ class KnownVerifier:
         return np.arange(n + 1) / n
 
     def check_motion(self, q0: Array, q1: Array, exempt: frozenset[int] = frozenset(),
-                     ) -> MotionCheck:
+                     hand_exempt: Array | None = None) -> MotionCheck:
+        """FCL's continuous check, then the recorded posture boxes (`exempt`: not these),
+        then on sampled stores the recorded hand leaves (`WorldModel.hand_blocked`;
+        `hand_exempt`: leaves not counted, by default those q0's and q1's hand fills)."""
         q0, q1 = np.asarray(q0, dtype=float), np.asarray(q1, dtype=float)
         mc = self.checker.check_motion(q0, q1)
         if not mc.valid or not self.world.collisions:
             return mc
         f = self._box_samples(q0, q1)
         near = self.world.near_recorded_collision(q0 + f[:, None] * (q1 - q0), exempt)
-        if not near.any():
+        if near.any():
+            k = int(np.argmax(near))
+            hit = sorted(self.world.recorded_collisions_at(q0 + f[k] * (q1 - q0)) - exempt)
+            what = ", ".join(f"recorded collision {i + 1}" for i in hit) or \
+                "a recorded collision"
+            report = CollisionReport(True, (Contact("arm posture", what),))
+            return MotionCheck(float(f[k]), len(f) - 1, report)
+        return self._hand_check(q0, q1, mc, hand_exempt)
+
+    def _hand_check(self, q0: Array, q1: Array, mc: MotionCheck,
+                    hand_exempt: Array | None) -> MotionCheck:
+        w = self.world
+        if not w.sampled or not self.hand or not w.collisions:
             return mc
-        k = int(np.argmax(near))
-        hit = sorted(self.world.recorded_collisions_at(q0 + f[k] * (q1 - q0)) - exempt)
-        what = ", ".join(f"recorded collision {i + 1}" for i in hit) or "a recorded collision"
-        report = CollisionReport(True, (Contact("arm posture", what),))
-        return MotionCheck(float(f[k]), len(f) - 1, report)
+        if hand_exempt is None:
+            hand_exempt = w.hand_cells_at(np.stack([q0, q1]))
+        travel = float(np.abs(q1 - q0) @ w.weights)
+        n = max(1, int(np.ceil(travel / HAND_STEP)))
+        f = np.arange(n + 1) / n
+        blocked = w.hand_blocked(q0 + f[:, None] * (q1 - q0), hand_exempt)
+        if not blocked.any():
+            return mc
+        k = int(np.argmax(blocked))
+        report = CollisionReport(True, (Contact("arm's hand",
+                                                "where a recorded collision stopped it"),))
+        return MotionCheck(float(f[k]), n, report)
 
     def check_path(self, path: Sequence[Array], max_step: float | None = None,
                    trusted: Array | None = None) -> tuple[int, MotionCheck] | None:
@@ -161,10 +189,36 @@ class KnownVerifier:
         if near.any():
             i = int(np.concatenate(segs)[int(np.argmax(near))])
             if hit is None or i < hit[0] or (i == hit[0]):
-                mc = self.check_motion(P[i], P[i + 1], exempt)
+                mc = self.check_motion(P[i], P[i + 1], exempt, hand_exempt=None)
                 if not mc.valid:
                     return i, mc
-        return hit
+        return self._hand_hit(P, last, hit)
+
+    def _hand_hit(self, P: Array, last: int, hit: tuple[int, MotionCheck] | None,
+                  ) -> tuple[int, MotionCheck] | None:
+        """The first segment (up to `last`) whose postures put the hand into recorded hand
+        leaves (sampled stores; those the path's first or last posture's hand fills are
+        exempt), if before `hit`."""
+        w = self.world
+        if not w.sampled or not self.hand or len(P) < 2:
+            return hit
+        hand_exempt = w.hand_cells_at(np.stack([P[0], P[-1]]))
+        parts, segs, fracs = [], [], []
+        for i in range(min(last + 1, len(P) - 1)):  # every sample at once: one batch FK
+            n = max(1, int(np.ceil(float(np.abs(P[i + 1] - P[i]) @ w.weights) / HAND_STEP)))
+            f = np.arange(n + 1) / n
+            parts.append(P[i] + f[:, None] * (P[i + 1] - P[i]))
+            segs.append(np.full(n + 1, i))
+            fracs.append(f)
+        blocked = w.hand_blocked(np.concatenate(parts), hand_exempt)
+        if not blocked.any():
+            return hit
+        k = int(np.argmax(blocked))
+        i = int(np.concatenate(segs)[k])
+        report = CollisionReport(True, (Contact("arm's hand",
+                                                "where a recorded collision stopped it"),))
+        mc = MotionCheck(float(np.concatenate(fracs)[k]), len(fracs[i]) - 1, report)
+        return (i, mc) if hit is None or i <= hit[0] else hit
 
     def min_clearance_along(self, path: Sequence[Array], max_step: float = 0.01) -> float:
         return self.checker.min_clearance_along(path, max_step)

@@ -137,6 +137,9 @@ class MissionPlanner:
         self.checker = checker or CollisionChecker(robot, self.obstacles)
         self.config = config or MissionPlannerConfig()
         self.verifier = KnownVerifier(self.checker, world)
+        #: Application paths and the joined trajectory: without the recorded hand leaves
+        #: (each transfer was verified with them).
+        self.app_verifier = KnownVerifier(self.checker, world, hand=False)
         self._allowed: WorldAllowed | None = None
 
     # ------------------------------------------------------------------ transfers
@@ -159,7 +162,7 @@ class MissionPlanner:
             q_s, q_g, progress.sub(0.0, 0.2) if progress else None)
         if not plan.ok and plan.failure in (PlanFailure.NO_PATH, PlanFailure.NO_PATH_REGIONS) \
                 and self.world.sampled:
-            plan = self._joint_rrt(q_s, q_g, plan)
+            plan = self._joint_rrt(q_s, q_g, plan, progress.sub(0.1, 0.2) if progress else None)
         t1 = time.perf_counter()
         if not plan.ok:
             rep = PieceReport(label, "transfer", False, plan.reason, seconds=t1 - t0)
@@ -183,7 +186,8 @@ class MissionPlanner:
         if asm.trajectory is None and self.world.sampled and plan.searched != "joint space":
             # Nothing along the roads verifies (their edge checks sample the recorded
             # posture boxes more coarsely than the verifier): the joint-space search's path.
-            alt = self._joint_rrt(q_s, q_g, replace(plan, ok=False, reason=asm.report.reason))
+            alt = self._joint_rrt(q_s, q_g, replace(plan, ok=False, reason=asm.report.reason),
+                                  progress.sub(0.6, 0.7) if progress else None)
             if alt.ok:
                 plan = alt
                 asm, notes = self._smooth(plan.joint_path, exploring, label, None)
@@ -199,21 +203,26 @@ class MissionPlanner:
                           tuple(notes))
         return TransferResult(True, piece, rep, plan, t1 - t0, t2 - t1)
 
-    def _joint_rrt(self, q_s: Array, q_g: Array, failed: RoadmapPlan) -> RoadmapPlan:
+    def _joint_rrt(self, q_s: Array, q_g: Array, failed: RoadmapPlan,
+                   progress: Progress | None = None) -> RoadmapPlan:
         """The roads hold no path on a 6- or 7-axis arm: a joint-space RRT-Connect through
         the known world (`planning.joint_rrt`), or the roads' own failure."""
         t0 = time.perf_counter()
         exempt = self.world.recorded_collisions_at(q_s)
         lim = self.robot.limits
         w = self.world
+        hand_exempt = w.hand_cells_at(np.stack([q_s, q_g]))
 
         def free(a: Array, b: Array) -> bool:
-            # the boxes exactly first (cheap), then CAD and the boxes as the verifier checks
+            # the boxes exactly first (cheap), then CAD, the boxes as the verifier checks
+            # them and the recorded hand leaves but those at the query's ends
             return not w.segment_meets_recorded_collision(a, b, exempt) and \
-                self.verifier.check_motion(a, b, exempt).valid
+                self.verifier.check_motion(a, b, exempt, hand_exempt).valid
 
+        tell = None if progress is None else \
+            (lambda f: progress.update(f, "searching the joint space"))
         res = rrt_connect(q_s, q_g, lim.lower, lim.upper, free, w.weights,
-                          self.config.joint_rrt)
+                          self.config.joint_rrt, tell)
         timings = dict(failed.timings, joint_rrt=time.perf_counter() - t0)
         if res.path is None:
             return replace(failed, reason=f"{failed.reason}; a joint-space search of "
@@ -367,7 +376,8 @@ class MissionPlanner:
                 p0 = (T_bw @ np.append(p.start, 1.0))[:3]
                 am = application_motions(self.robot, p, q_seed=branch_seed(seed, p0),
                                          T_base_world=T_bw,
-                                         verifier=self.verifier, params=self.config.application)
+                                         verifier=self.app_verifier,
+                                         params=self.config.application)
                 if not am.ok:
                     why = am.failure.describe() if am.failure else "cannot be planned"
                     if rev:  # the forward direction works: just do not offer reversing
@@ -460,7 +470,7 @@ class MissionPlanner:
         # The operator's names as they are: each dialect makes them legal (and says so).
         traj = join_pieces(pieces, mission.start.name if mission.start is not None else "",
                            goal.name if goal is not None else "")
-        checked = verify(self.robot, traj, self.verifier,
+        checked = verify(self.robot, traj, self.app_verifier,
                          clearance_step=self.config.assembly.clearance_step)
         order_names = tuple(mission.paths[i].name + (" (reversed)" if r else "")
                             for i, r in zip(ordering.order, ordering.reversed, strict=True))

@@ -27,6 +27,7 @@ from assistant.robots.model import Robot
 from assistant.world.cell_positions import CellPositions, SelectionConfig
 from assistant.world.chain_levels import ChainValidator
 from assistant.world.fusion import FusionConfig, FusionUpdate, OccupancyFusion, Source
+from assistant.world.hand_cells import HandCells
 from assistant.world.indications import (
     IndicationConfig,
     indicated_cells,
@@ -169,6 +170,9 @@ class WorldModel:
         #: Postures (the taught ones) the sampled store's leaves list their positions
         #: toward (`SampledTable.toward`); ignored by the joint grid.
         self.anchors: Array | None = None
+        self._hand: HandCells | None = None
+        #: recorded collision index -> (that record, the leaves its hand filled)
+        self._hand_cells: dict[int, tuple[RecordedCollision, Array]] = {}
 
     @property
     def built(self) -> bool:
@@ -408,6 +412,44 @@ class WorldModel:
             else:
                 return True
         return False
+
+    # ---------------------------------------------------------------- the hand's leaves
+    def _hand_of(self) -> HandCells:
+        if self._hand is None:
+            self._hand = HandCells(self.robot, self.grid, self.config.indication.first_link)
+        return self._hand
+
+    def recorded_hand_cells(self, i: int) -> Array:
+        """Leaves the hand filled at recorded collision i (`hand_cells`)."""
+        rc = self.collisions[i]
+        got = self._hand_cells.get(i)
+        if got is None or got[0] is not rc:
+            got = (rc, self._hand_of().cells(rc.q[None])[0])
+            self._hand_cells[i] = got
+        return got[1]
+
+    def hand_cells_at(self, Q: Array) -> Array:
+        """The leaves the hand fills at the postures of Q (sampled stores; else none): a
+        query starting or ending there is exempt from these leaves."""
+        if not self.sampled or not self.collisions:
+            return np.zeros(0, dtype=np.int64)
+        return np.unique(np.concatenate(self._hand_of().cells(Q)))
+
+    def hand_blocked(self, Q: Array, exempt_cells: Array | None = None) -> Array:
+        """Bool per row of Q (sampled stores): its hand fills a leaf the hand filled at a
+        recorded collision (`hand_cells`), other than `exempt_cells`. All False on the
+        joint grid."""
+        Q = np.atleast_2d(np.asarray(Q, dtype=float))
+        if not self.sampled or not self.collisions or not len(Q):
+            return np.zeros(len(Q), dtype=bool)
+        mask = np.zeros(self.grid.n_cells, dtype=bool)
+        for i in range(len(self.collisions)):
+            mask[self.recorded_hand_cells(i)] = True
+        if exempt_cells is not None:
+            mask[np.asarray(exempt_cells, dtype=np.int64)] = False
+        if not mask.any():
+            return np.zeros(len(Q), dtype=bool)
+        return self._hand_of().blocked(Q, mask)
 
     def recorded_collisions_at(self, q: Array) -> frozenset[int]:
         """Indices of the recorded collisions whose posture box contains q."""

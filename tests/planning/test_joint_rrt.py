@@ -9,6 +9,7 @@ are the query's, a blocked query returns None within its budgets, equal seeds eq
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from assistant.planning.backoff import leads_on, retreat_candidates
 from assistant.planning.joint_rrt import RRTParams, rrt_connect
@@ -126,3 +127,19 @@ def test_the_segment_box_test_is_exact_where_samples_miss_a_corner():
     assert agree == 400 and 40 < hits < 360  # both answers occur
     assert not WorldModel.segment_meets_recorded_collision(world, [0.0, 0.0, 0.0],
                                                            [0.0, 0.0, 0.0], frozenset({0}))
+
+
+def test_the_progress_callback_sees_the_budget_and_can_cancel():
+    from assistant.progress import Cancelled, Progress
+
+    free, _ = wall_free(None)
+    seen = []
+    res = rrt_connect([-0.5, 0.0], [0.5, 0.0], LO, HI, free, W,
+                      RRTParams(max_samples=50, max_checks=100), seen.append)
+    assert not res.found and len(seen) == res.samples
+    assert seen == sorted(seen) and 0.0 <= seen[0] and seen[-1] < 1.0
+    p = Progress("search")
+    p.cancel()
+    with pytest.raises(Cancelled):
+        rrt_connect([-0.5, 0.0], [0.5, 0.0], LO, HI, free, W, None,
+                    lambda f: p.update(f, "searching"))

@@ -1,0 +1,103 @@
+"""The leaves an arm's hand filled where a collision indication stopped it (6- and 7-axis).
+
+Why: an indication records the stopped posture's box (`indications`: 1.5 grid steps in every
+joint) and marks the leaves the arm filled as occupied, which keeps the TCP's roads away.
+On a 7-axis arm that is not enough for the final, taut plan: it reaches the same place with
+another posture outside every recorded box, and a wrist link that is not the TCP touches the
+same unknown obstacle again (a Panda in a cell with a hidden box: a new contact on link 6 or
+7 in each of four validation runs). The contacts of a transfer are nearly always on the hand
+- the links near the TCP lead the motion. So on sampled stores the verifier also refuses
+postures whose hand (the collision shapes' points within `reach` of the TCP) lies in a leaf
+the hand filled at a recorded collision. A query whose start or goal has its hand in such
+leaves is exempt from that collision's leaves (it must be able to leave and arrive); the
+posture box still applies to it.
+
+Points per shape: capsule and cylinder axes every half leaf with four points on the
+surface around each, box corners and centre, sphere centre and six surface points, mesh
+vertices thinned to at most `mesh_points` (evenly over the vertex list), and the TCP.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from assistant.robots.model import CollisionShape, Robot, ShapeKind
+from assistant.world.octree import OctreeGrid
+
+Array = np.ndarray
+
+
+@dataclass(frozen=True)
+class HandConfig:
+    """Ours: the Panda's flange-to-fingertip is ~0.2 m, a UR's wrist 3 to nozzle ~0.2 m."""
+
+    #: Points of the arm within this distance of the TCP make up the hand (m).
+    reach: float = 0.25
+    #: At most this many vertices of a mesh shape.
+    mesh_points: int = 64
+
+
+def _shape_points(s: CollisionShape, spacing: float, mesh_points: int) -> Array:
+    """Points (shape's link frame) covering the shape at about `spacing`."""
+    if s.kind in (ShapeKind.CAPSULE, ShapeKind.CYLINDER):
+        r, h = float(s.size[0]), float(s.size[1]) / 2.0
+        n = max(2, int(np.ceil(2 * h / spacing)) + 1)
+        z = np.linspace(-h, h, n)
+        ring = [(0.0, 0.0), (r, 0.0), (-r, 0.0), (0.0, r), (0.0, -r)]
+        local = np.array([[x, y, zz] for zz in z for x, y in ring])
+    elif s.kind == ShapeKind.BOX:
+        e = np.asarray(s.size, dtype=float) / 2.0
+        local = np.array([[0.0, 0.0, 0.0]] + [[x, y, z] for x in (-e[0], e[0])
+                                              for y in (-e[1], e[1]) for z in (-e[2], e[2])])
+    elif s.kind == ShapeKind.SPHERE:
+        r = float(s.size[0])
+        local = np.vstack([np.zeros((1, 3)), r * np.eye(3), -r * np.eye(3)])
+    elif s.kind == ShapeKind.MESH and s.mesh is not None:
+        V = np.asarray(s.mesh.vertices, dtype=float).reshape(-1, 3)
+        if len(V) > mesh_points:
+            V = V[np.linspace(0, len(V) - 1, mesh_points).astype(np.int64)]
+        local = V
+    else:
+        local = np.zeros((1, 3))
+    T = s.T_link_shape
+    return local @ T[:3, :3].T + T[:3, 3]
+
+
+class HandCells:
+    """Leaves the hand fills at postures, for one robot and octree grid."""
+
+    def __init__(self, robot: Robot, grid: OctreeGrid, first_link: int,
+                 config: HandConfig | None = None):
+        self.robot, self.grid = robot, grid
+        self.config = config or HandConfig()
+        pts, link = [], []
+        for k in range(first_link, len(robot.links)):
+            for s in robot.links[k].collision:
+                P = _shape_points(s, grid.leaf / 2.0, self.config.mesh_points)
+                pts.append(P)
+                link.append(np.full(len(P), k))
+        self._local = np.concatenate(pts) if pts else np.zeros((0, 3))
+        self._link = np.concatenate(link) if link else np.zeros(0, dtype=np.int64)
+
+    def cells(self, Q: Array) -> list[Array]:
+        """Per row of Q, the flat leaves (unique, inside the grid) its hand fills."""
+        Q = np.atleast_2d(np.asarray(Q, dtype=float))
+        if not len(Q):
+            return []
+        poses = self.robot.batch_link_poses(Q)[:, self._link]  # (N, M, 4, 4)
+        P = np.einsum("nmij,mj->nmi", poses[:, :, :3, :3], self._local) + poses[:, :, :3, 3]
+        tcp = np.asarray(self.robot.batch_fk(Q).positions, dtype=float)  # (N, 3)
+        near = np.linalg.norm(P - tcp[:, None, :], axis=2) <= self.config.reach
+        flat = self.grid.flat_of_points(P.reshape(-1, 3)).reshape(len(Q), -1)
+        tcp_flat = self.grid.flat_of_points(tcp)
+        out = []
+        for i in range(len(Q)):
+            f = np.append(flat[i][near[i]], tcp_flat[i])
+            out.append(np.unique(f[f >= 0]))
+        return out
+
+    def blocked(self, Q: Array, mask: Array) -> Array:
+        """Bool per row of Q: its hand fills a leaf set in `mask` (flat bool over the grid)."""
+        return np.array([bool(mask[c].any()) for c in self.cells(Q)], dtype=bool)
