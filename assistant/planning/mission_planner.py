@@ -160,7 +160,8 @@ class MissionPlanner:
         t0 = time.perf_counter()
         plan = roadmap_plan if roadmap_plan is not None else self.roadmap.plan(
             q_s, q_g, progress.sub(0.0, 0.2) if progress else None)
-        if not plan.ok and plan.failure in (PlanFailure.NO_PATH, PlanFailure.NO_PATH_REGIONS) \
+        if not plan.ok and plan.failure in (PlanFailure.NO_PATH, PlanFailure.NO_PATH_REGIONS,
+                                            PlanFailure.BUDGET) \
                 and self.world.sampled:
             plan = self._joint_rrt(q_s, q_g, plan, progress.sub(0.1, 0.2) if progress else None)
         t1 = time.perf_counter()

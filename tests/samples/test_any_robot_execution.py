@@ -25,6 +25,7 @@ SAMPLES = Path(__file__).resolve().parents[2] / "sample_cells"
 #: sample: hidden obstacle size (mm), axes, dialect.
 CASES = {
     "ur5_cell": ([60, 60, 60], 6, "urscript"),
+    "ur10_cell": ([80, 80, 80], 6, "urscript"),
     "panda_cell": ([60, 60, 60], 7, "rapid"),
 }
 
