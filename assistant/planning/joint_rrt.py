@@ -16,12 +16,18 @@ limit decides the answer), so the same world gives the same path.
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from assistant.planning.known_world import KnownVerifier
 from assistant.planning.shortcut import shortcut_joint_path
+from assistant.progress import Progress
+from assistant.roadmap.planner import RoadmapPlan
+from assistant.robots.model import Robot
+from assistant.world.model import WorldModel
 
 Array = np.ndarray
 
@@ -148,3 +154,34 @@ def rrt_connect(q_start: Array, q_goal: Array, lower: Array, upper: Array,
         short = shortcut_joint_path(path, free)
         return RRTResult(short, samples, checks)
     return RRTResult(None, samples, checks)
+
+
+def joint_space_plan(robot: Robot, world: WorldModel, verifier: KnownVerifier, q_s: Array,
+                     q_g: Array, failed: RoadmapPlan, params: RRTParams,
+                     progress: Progress | None = None) -> RoadmapPlan:
+    """The roads hold no path on a 6- or 7-axis arm: `rrt_connect` through the known world
+    as a roadmap plan ("joint space"), or the roads' own failure with the search's figures.
+    Its motion check: the recorded posture boxes exactly first (cheap), then CAD, the boxes
+    as the verifier samples them and the recorded hand leaves but those at the query's ends.
+    """
+    t0 = time.perf_counter()
+    exempt = world.recorded_collisions_at(q_s)
+    hand_exempt = world.hand_cells_at(np.stack([q_s, q_g]))
+
+    def free(a: Array, b: Array) -> bool:
+        return not world.segment_meets_recorded_collision(a, b, exempt) and \
+            verifier.check_motion(a, b, exempt, hand_exempt).valid
+
+    tell = None if progress is None else \
+        (lambda f: progress.update(f, "searching the joint space"))
+    res = rrt_connect(q_s, q_g, robot.limits.lower, robot.limits.upper, free, world.weights,
+                      params, tell)
+    timings = dict(failed.timings, joint_rrt=time.perf_counter() - t0)
+    if res.path is None:
+        return replace(failed, reason=f"{failed.reason}; a joint-space search of "
+                       f"{res.samples} samples ({res.checks} motion checks) found none "
+                       "either", timings=timings)
+    cost = float(sum(np.linalg.norm((b - a) * world.weights)
+                     for a, b in zip(res.path[:-1], res.path[1:], strict=True)))
+    return RoadmapPlan(True, "", None, res.path, cost, searched="joint space",
+                       timings=timings)

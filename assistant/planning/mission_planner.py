@@ -44,7 +44,7 @@ from assistant.mission.model import Location, Mission
 from assistant.mission.motion import Trajectory
 from assistant.planning.config import MissionPlannerConfig
 from assistant.planning.joint_moves import prefer_joint_moves
-from assistant.planning.joint_rrt import rrt_connect
+from assistant.planning.joint_rrt import joint_space_plan
 from assistant.planning.known_world import KnownValidity, KnownVerifier, WorldAllowed
 from assistant.planning.locations import (
     LocationError,
@@ -206,33 +206,8 @@ class MissionPlanner:
 
     def _joint_rrt(self, q_s: Array, q_g: Array, failed: RoadmapPlan,
                    progress: Progress | None = None) -> RoadmapPlan:
-        """The roads hold no path on a 6- or 7-axis arm: a joint-space RRT-Connect through
-        the known world (`planning.joint_rrt`), or the roads' own failure."""
-        t0 = time.perf_counter()
-        exempt = self.world.recorded_collisions_at(q_s)
-        lim = self.robot.limits
-        w = self.world
-        hand_exempt = w.hand_cells_at(np.stack([q_s, q_g]))
-
-        def free(a: Array, b: Array) -> bool:
-            # the boxes exactly first (cheap), then CAD, the boxes as the verifier checks
-            # them and the recorded hand leaves but those at the query's ends
-            return not w.segment_meets_recorded_collision(a, b, exempt) and \
-                self.verifier.check_motion(a, b, exempt, hand_exempt).valid
-
-        tell = None if progress is None else \
-            (lambda f: progress.update(f, "searching the joint space"))
-        res = rrt_connect(q_s, q_g, lim.lower, lim.upper, free, w.weights,
-                          self.config.joint_rrt, tell)
-        timings = dict(failed.timings, joint_rrt=time.perf_counter() - t0)
-        if res.path is None:
-            return replace(failed, reason=f"{failed.reason}; a joint-space search of "
-                           f"{res.samples} samples ({res.checks} motion checks) found none "
-                           "either", timings=timings)
-        cost = float(sum(np.linalg.norm((b - a) * self.world.weights)
-                         for a, b in zip(res.path[:-1], res.path[1:], strict=True)))
-        return RoadmapPlan(True, "", None, res.path, cost, searched="joint space",
-                           timings=timings)
+        return joint_space_plan(self.robot, self.world, self.verifier, q_s, q_g, failed,
+                                self.config.joint_rrt, progress)
 
     def _as_joint_moves(self, asm: AssemblyResult, notes: list[str], label: str,
                         ) -> tuple[AssemblyResult, list[str]]:
