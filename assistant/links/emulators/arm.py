@@ -213,8 +213,14 @@ class EmulatedArm:
                 self._cond.notify_all()
             if hit is not None and self.on_collision is not None:
                 self.on_collision(hit)
-            if dropped and self.on_drop is not None:
-                self.on_drop()
+            if dropped:
+                # A pulled cable: the peers lose the wire before anything on it could report
+                # the halted arm or the ended program (else a client may read "stopped").
+                if self.on_drop is not None:
+                    self.on_drop()
+                with self._cond:
+                    self._halt("dropped")
+                    self._cond.notify_all()
 
     def _step(self, dt: float) -> CollisionInfo | None:
         budget = dt
@@ -253,7 +259,6 @@ class EmulatedArm:
             self._drop_base = self._moved_total
         if moving and self.faults.should_drop(self._moved_total - self._drop_base):
             self._drop_base = None
-            self._halt("dropped")
             return True
         return False
 

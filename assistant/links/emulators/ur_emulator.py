@@ -131,8 +131,8 @@ class UREmulator:
         return self._dash_srv.getsockname()[1]
 
     def drop_connections(self) -> None:
-        """The cable is pulled: every client socket closes, the program and the arm stop."""
-        self.runner.abort()
+        """The cable is pulled: every client socket closes, then the program and the arm stop
+        (in that order, so no client reads the stopped program before the wire goes)."""
         self.rtde.drop_clients()
         with self._lock:
             conns, self._conns, self._script_conns = list(self._conns), set(), set()
@@ -141,6 +141,7 @@ class UREmulator:
                 c.shutdown(socket.SHUT_RDWR)
             with contextlib.suppress(OSError):
                 c.close()
+        self.runner.abort()
 
     # ------------------------------------------------------------------ state
     def snapshot(self) -> dict:
