@@ -60,8 +60,8 @@ def _offsets(hue: np.ndarray, h0: float) -> np.ndarray:
 
 
 def _profile(name: str, h0: float, off: np.ndarray, sat: np.ndarray, val: np.ndarray,
-             pct: float, hue_margin: float, sat_margin: float, val_margin: float,
-             min_saturation: int) -> ColorProfile:
+             pct: float, hue_margin: float, sat_margin: float, sat_margin_hi: float,
+             val_margin: float, min_saturation: int) -> ColorProfile:
     lo, hi = np.percentile(off, [pct, 100 - pct])
     if hi - lo + 2 * hue_margin >= H_RANGE - 1:
         h_min, h_max = 0, 179
@@ -72,15 +72,25 @@ def _profile(name: str, h0: float, off: np.ndarray, sat: np.ndarray, val: np.nda
     v_lo = np.percentile(val, 1.0)
     return ColorProfile(name=name, h_min=h_min, h_max=h_max,
                         s_min=int(max(min_saturation, np.floor(s_lo - sat_margin))),
-                        s_max=int(min(255, np.ceil(s_hi + sat_margin))),
+                        s_max=int(min(255, np.ceil(s_hi + sat_margin_hi))),
                         v_min=int(max(0, np.floor(v_lo - val_margin))))
 
 
-#: candidate (quantile %, hue, saturation, value margins), most generous first; only the hue
-#: range narrows: the ball's saturation and brightness change with its shading and the light,
-#: so narrowing those would lose the ball when it moves
-_CANDIDATES = [(1.0, 4, 20, 20), (1.0, 2, 20, 20), (2.0, 1, 20, 20), (3.0, 0, 20, 20),
-               (5.0, 0, 20, 20)]
+#: candidate (quantile %, hue, saturation below, saturation above, value margins), most
+#: generous first. First the saturation's upper bound narrows: a lit ball's saturation hardly
+#: changes with exposure (a gain scales every channel) and its shading lowers it (highlights)
+#: rather than raising it, so the ball loses almost nothing, while a deeper-coloured background
+#: of its hue (a red cup's shadow behind a red ball) is cut off its outline (on the coffee
+#: photo: 43 % -> 92 % of frames measured). Then the hue range narrows, which costs the ball
+#: some of its rim. The lower saturation and brightness bounds never narrow: the shaded rim
+#: and the exposure drift live there, and raising them loses the ball when it moves.
+#: how far above the core's saturation (98th percentile) a pixel of the ellipse may still be
+#: the ball's (sensor noise on its dark rim)
+CORE_SATURATION_MARGIN = 10
+
+_CANDIDATES = [(1.0, 4, 20, 20, 20), (1.0, 4, 20, 6, 20), (1.0, 2, 20, 6, 20),
+               (2.0, 1, 20, 6, 20), (3.0, 0, 20, 6, 20), (5.0, 0, 20, 6, 20),
+               (5.0, 0, 20, 3, 20)]
 
 
 def calibrate_ellipse(
@@ -128,6 +138,9 @@ def calibrate_ellipse(
         lo, hi = np.percentile(c_off, [2, 98])
         off = _offsets(hsv[:, 0], h0)
         ball = coloured & (off >= lo - 2) & (off <= hi + 2)
+        # nor more saturated than the core: shading darkens a lit ball without deepening its
+        # colour, so what is more saturated is a deeper-coloured background of that hue
+        ball &= hsv[:, 1] <= np.percentile(hsv[core, 1], 98) + CORE_SATURATION_MARGIN
     else:  # a ring-shaped ball image (huge highlight) or a tiny ellipse: strongest hue peak
         ball = coloured & _dominant_hue_mask(hsv)
         h0 = _circular_mean(hsv[ball, 0], hsv[ball, 1])
@@ -151,8 +164,9 @@ def calibrate_ellipse(
     ball_img[inside] = ball
     tried: list[tuple[ColorProfile, np.ndarray, float, float]] = []
     chosen = None
-    for pct, hm, sm, vm in _CANDIDATES:
-        prof = _profile(name, h0, off, px[:, 1], px[:, 2], pct, hm, sm, vm, min_saturation)
+    for pct, hm, sm, sm_hi, vm in _CANDIDATES:
+        prof = _profile(name, h0, off, px[:, 1], px[:, 2], pct, hm, sm, sm_hi, vm,
+                        min_saturation)
         mask = prof.mask(hsv_img)  # raw: speckle is what the detector's closing bridges
         cover = float((mask[ball_img] > 0).mean())
         bg = float((mask[ring] > 0).mean()) if ring.any() else 0.0

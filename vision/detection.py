@@ -148,8 +148,7 @@ class BlobDetector:
                 retry.append(cv2.morphologyEx(mask, cv2.MORPH_OPEN, kernel))
             for alt in retry:
                 more = self._blobs(alt, hsv, raw, x0, y0, r_lo, r_hi, False)
-                found += [d for d in more if all(np.linalg.norm(d.center_px - e.center_px)
-                                                 > max(2.0, 0.5 * e.radius_px) for e in found)]
+                found = _merge_rounder(found, more)
                 if found:
                     break
         found.sort(key=lambda d: -d.score)
@@ -279,3 +278,19 @@ def threshold_centroid(image_bgr: np.ndarray, profile: ColorProfile,
     if m["m00"] < min_pixels:
         return None
     return np.array([m["m10"] / m["m00"], m["m01"] / m["m00"]])
+
+
+def _merge_rounder(found: list[Detection], more: list[Detection]) -> list[Detection]:
+    """`found` plus the blobs of `more` found nowhere near them; where one of `more` is the
+    same blob as one found (centres within half its radius) and rounder, it takes its place:
+    opening cut off the specks or the edge of a same-coloured patch that had bent the
+    outline, and with them the pixel or so they had pulled the centre."""
+    out = list(found)
+    for d in more:
+        near = [k for k, e in enumerate(out)
+                if np.linalg.norm(d.center_px - e.center_px) <= max(2.0, 0.5 * e.radius_px)]
+        if not near:
+            out.append(d)
+        elif len(near) == 1 and d.score > out[near[0]].score:
+            out[near[0]] = d
+    return out

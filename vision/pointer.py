@@ -384,9 +384,12 @@ class PointerSystem:
             meas = chosen.est if chosen is not None else None
             # teach only from fixes of teaching accuracy: with several cameras, stereo ones (a
             # single view's depth, from the ball's size, is good to a few per cent only)
+            # a new track must show it moves (a still look-alike never does); the pointer's
+            # track picked up again after a gap needs less (`reacquired_travel`)
+            travel = p.reacquired_travel if self.track.was_confirmed else p.new_track_travel
             offered = meas is not None and self.track.hits >= p.offer_after_hits and \
                 (meas.mode == "stereo" or len(self.sources) == 1) and \
-                (self.track.confirmed or self.track.travel >= p.new_track_travel) and \
+                (self.track.confirmed or self.track.travel >= travel) and \
                 self._clean_views(chosen, dets)
             self.track.confirmed |= offered
             if offered:

@@ -5,6 +5,9 @@ script's holds, reports:
   * error of every offered position (`PointerState.offered_position`: what may be taught):
     RMS, p95, max, and RMS of the stereo ones;
   * measurable frames (every camera sees the whole ball) and how many of them were not measured;
+    of those missed, how many came before the ball first moved `still_start_m` from where it
+    was first seen (a new track is offered only once it moves, `PointerParams.new_track_travel`:
+    a still look-alike never does), and the measured share without them;
   * how many offered positions used a view found by its look (`Detection.method ==
     "appearance"`: the ball merged with a region of its colour there), and their error;
   * false positions: offered while no camera sees the ball, or more than `false_m` off;
@@ -27,6 +30,10 @@ def _rms(x: Sequence[float]) -> float:
     return float(np.sqrt(np.mean(a**2))) if a.size else float("nan")
 
 
+def _share(frames: int, missed: int) -> float:
+    return (frames - missed) / frames if frames else float("nan")
+
+
 def _whole_in_view(frame) -> bool:
     """The ball is drawn and wholly inside the image (a ball cut by the image edge has no
     measurable centre, so such frames do not count as measurable)."""
@@ -40,13 +47,15 @@ def _whole_in_view(frame) -> bool:
 
 def score_run(states: Sequence[PointerState], holds: Sequence, *,
               false_m: float = 0.010, dwell_match_m: float = 0.005,
-              late_s: float = 0.3) -> dict:
+              late_s: float = 0.3, still_start_m: float = 0.015) -> dict:
     """Figures of one run (metres inside, millimetres in the keys that say so); `holds` are
     `photo_scenes.Hold`s (anything with t0, t1 and point)."""
     errs, stereo_errs, matched_errs = [], [], []
     measurable = missed = false = offered_unseen = 0
     coast_run, coast_max, coast_offered = 0.0, 0.0, 0
     last_t: float | None = None
+    first_seen: np.ndarray | None = None
+    missed_still = 0
     for s in states:
         views = [v.frame.truth for v in s.cameras.values() if v.frame is not None]
         whole = [_whole_in_view(v.frame) for v in s.cameras.values() if v.frame is not None]
@@ -57,6 +66,10 @@ def score_run(states: Sequence[PointerState], holds: Sequence, *,
         if seen_all and len(views) == len(s.cameras):
             measurable += 1
             missed += p is None
+            if first_seen is None:
+                first_seen = truth
+            if p is None and np.linalg.norm(truth - first_seen) < still_start_m:
+                missed_still += 1
         if p is not None:
             if not seen_any or truth is None:
                 offered_unseen += 1
@@ -109,6 +122,9 @@ def score_run(states: Sequence[PointerState], holds: Sequence, *,
         "measurable_frames": measurable,
         "missed_measurable": missed,
         "measured_fraction": (measurable - missed) / measurable if measurable else float("nan"),
+        "missed_before_first_move": missed_still,
+        "measured_fraction_after_first_move": _share(measurable - missed_still, missed
+                                                     - missed_still),
         "false_offered": false,
         "offered_while_unseen": offered_unseen,
         "coast_max_s": coast_max,
@@ -127,6 +143,7 @@ def combine(results: Sequence[dict]) -> dict:
                          if k) / max(sum(n), 1))
     meas = sum(r["measurable_frames"] for r in results)
     missed = sum(r["missed_measurable"] for r in results)
+    still = sum(r["missed_before_first_move"] for r in results)
     return {
         "runs": len(results),
         "rms_mm": float(pooled),
@@ -135,6 +152,8 @@ def combine(results: Sequence[dict]) -> dict:
         "measurable_frames": meas,
         "missed_measurable": missed,
         "measured_fraction": (meas - missed) / meas if meas else float("nan"),
+        "missed_before_first_move": still,
+        "measured_fraction_after_first_move": _share(meas - still, missed - still),
         "false_offered": sum(r["false_offered"] for r in results),
         "offered_with_appearance": sum(r.get("offered_with_appearance", 0) for r in results),
         "coast_max_s": max(r["coast_max_s"] for r in results),

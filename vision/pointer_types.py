@@ -35,6 +35,10 @@ class PointerParams:
     offer_after_hits: int = 2  # a new or re-acquired track is offered after this many fixes
     new_track_travel: float = 0.015  # metres a new track must move before it is offered: a
     # hand brings the pointer in, a still look-alike pair never moves
+    reacquired_travel: float = 0.005  # the same for the pointer's track picked up again in
+    # reach after a gap (an occlusion): it had been offered, remembered look-alikes are refused
+    # and the fix is in the hand's reach, so a move of 10x a still fix's noise (~0.5 mm) shows
+    # it is the hand
     offer_min_axis_ratio: float = 0.82  # a fix is taught only from whole, round views: a
     offer_min_fill: float = 0.76  # ball partly merged with a red thing has a biased centre
     offer_max_size_ratio: float = 1.17  # (and looks too big or small for its distance)

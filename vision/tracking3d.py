@@ -44,6 +44,7 @@ class Track3D:
         self.last_measured_position: np.ndarray | None = None
         self.hits = 0  # measurements in a row since the track (re)started
         self.confirmed = False  # set by the owner once the track has been offered
+        self.was_confirmed = False  # offered before it was picked up again elsewhere
         self.start_position: np.ndarray | None = None
         self.travel = 0.0  # farthest a measurement has been from where the track started
 
@@ -56,6 +57,7 @@ class Track3D:
         self.last_measured_position = None
         self.hits = 0
         self.confirmed = False
+        self.was_confirmed = False
         self.time = None
         self.last_measurement_time = None
         self.last_mode = "lost"
@@ -106,6 +108,7 @@ class Track3D:
         self.last_measured_position = np.asarray(est.position_world, float).copy()
         self.hits = 1
         self.confirmed = False
+        self.was_confirmed = False
         self.start_position = self.last_measured_position.copy()
         self.travel = 0.0
 
@@ -125,6 +128,8 @@ class Track3D:
             jump = np.inf if self.last_measured_position is None else float(
                 np.linalg.norm(est.position_world - self.last_measured_position))
             if jump > p.same_place:  # somewhere else: it must show it moves, like a new track
+                # (or the owner recognises it: `was_confirmed` says it had been offered)
+                self.was_confirmed |= self.confirmed
                 self.confirmed = False
                 self.start_position = np.asarray(est.position_world, float).copy()
                 self.travel = 0.0

@@ -109,3 +109,38 @@ def test_invalid_profiles_are_refused(kw):
     args.update(kw)
     with pytest.raises(ValueError):
         ColorProfile(**args)
+
+
+def _ball_over_deeper_red(stereo_rig, centre, seed=0):
+    """The ball in front of a deeper red than its own, as the red cup on the coffee
+    photograph: a hue five steps off (as measured there), more saturated, grainy."""
+    rng = np.random.default_rng(seed)
+    m = stereo_rig[0]
+    hsv = np.empty((m.height, m.width, 3), np.uint8)
+    hsv[..., 0] = np.clip(rng.normal(5.0, 1.0, (m.height, m.width)), 0, 179).round()
+    hsv[..., 1] = np.clip(rng.normal(248.0, 3.0, (m.height, m.width)), 0, 255).round()
+    hsv[..., 2] = np.clip(rng.normal(150.0, 12.0, (m.height, m.width)), 0, 255).round()
+    scene = PointerScene(centre, sensor=SensorSpec(exposure_s=0.0))
+    cam = SyntheticCamera(m, scene, rng)
+    cam.background = cv2.cvtColor(hsv, cv2.COLOR_HSV2BGR).astype(np.float32)
+    return cam.read(1.0)
+
+
+def test_a_more_saturated_background_is_cut_off_by_the_saturation_bound(stereo_rig, centre):
+    """Hue alone cannot separate the ball from a deeper red right behind it; the upper
+    saturation bound can (a gain scales every channel: the ball's saturation stays put), and
+    then the detector measures the ball whole instead of with the grain stuck to it."""
+    from vision.color_calibration import calibrate_ellipse
+    from vision.detection import BlobDetector
+
+    f = _ball_over_deeper_red(stereo_rig, centre)
+    r, c = f.truth.ball_radius_px, f.truth.ball_px
+    cal = calibrate_ellipse(f.image, c, (1.3 * r, 1.3 * r))
+    assert cal.separable and cal.background_fraction <= 0.03, cal.message  # 53-86 % without
+    hsv = cv2.cvtColor(f.image, cv2.COLOR_BGR2HSV)
+    yy, xx = np.mgrid[: f.image.shape[0], : f.image.shape[1]]
+    ball = np.hypot(xx - c[0], yy - c[1]) < r - 1
+    assert cal.profile.s_max < np.percentile(hsv[..., 1][~ball], 5)  # ball ~ 216, wall 248
+    dets = BlobDetector(cal.profile).detect(f.image, None, (0.6 * r, 1.6 * r + 1))
+    assert dets and np.linalg.norm(dets[0].center_px - c) < 0.5
+    assert dets[0].axis_ratio >= 0.9 and dets[0].fill >= 0.8
