@@ -13,7 +13,8 @@ Never imports viser; the web layer shows what the tracker produces. Modules, by 
 - `pointer`: `PointerSystem`, the facade the Session uses (`pointer_types`: its params and
   states: `offered_position` is the only position to teach from); `scripted`: `simulate_dwell`
 - `appearance` (`AppearanceMemory`): finds a ball merged with a same-coloured region by its
-  last clean look (marked `Detection.method == "appearance"`); `pointer_hypotheses`: the
+  last clean look (marked `Detection.method == "appearance"`), else by its outline (`outline`,
+  `method == "outline"`); `pointer_hypotheses`: the
   candidate stereo fixes of a frame, for `PointerSystem` to choose from
 - `photo_scenes` (sequences over real photographs; needs scikit-image, tests and benchmarks
   only) and `pointer_scoring` (a run's figures against ground truth)

@@ -22,13 +22,14 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import cv2
 import numpy as np
 
 from vision.color import ColorProfile
 from vision.detection import Detection
+from vision.outline import OutlineParams, find_outline
 
 
 @dataclass(frozen=True)
@@ -52,6 +53,7 @@ class AppearanceParams:
     # highlight moves over the ball as the view onto it turns (~0.3 px at 10 cm here)
     offer_max_reprojection_px: float = 1.0  # a stereo fix using a match is offered only if
     # its views agree this well (whole blobs: the pointer's `reprojection_gate_px`)
+    outline: OutlineParams = field(default_factory=OutlineParams)  # without a usable look
 
 
 @dataclass
@@ -107,16 +109,22 @@ class AppearanceMemory:
                   is_whole: Callable[[Detection], bool]) -> list[Detection]:
         """Camera i's detections, with the whole blobs within `half` px of the prediction
         given their `ring_fraction`; and, while the track is `followed` and none of them
-        stands alone, the ball's look searched for there: a match replaces the blobs it
-        overlaps and goes first."""
+        stands alone, the ball's look searched for there (or, without a usable look, its
+        outline): a match replaces the blobs it overlaps and goes first."""
         dets = [dataclasses.replace(d, ring_fraction=ring_fraction(
                     image, profile, d.center_px, d.radius_px))
                 if d.method == "blob" and np.linalg.norm(d.center_px - predicted_px) <= half
                 and is_whole(d) else d for d in dets]
-        if not followed or not self.has_template(i, t) or \
-                any(d.ring_fraction <= self.params.learn_max_ring for d in dets):
+        if not followed or any(d.ring_fraction <= self.params.learn_max_ring for d in dets):
             return dets
-        found = self.find(i, t, image, profile, predicted_px, half, r_exp, predicted_world)
+        found = self.find(i, t, image, profile, predicted_px, half, r_exp, predicted_world) \
+            if self.has_template(i, t) else None
+        whole_near = any(d.method == "blob" and np.isfinite(d.ring_fraction) for d in dets)
+        if found is None and not whole_near:
+            # no usable look and no whole blob there: the ball's outline (`vision.outline`)
+            found, why = find_outline(image, profile, predicted_px, half, r_exp,
+                                      self.params.outline)
+            self.last_refusal = why
         if found is None:
             return dets
         rest = [d for d in dets if np.linalg.norm(d.center_px - found.center_px)

@@ -31,11 +31,13 @@ from vision.sources import SyntheticCamera
 from vision.trajectories import lissajous, waypoints
 
 #: photographs the pipeline's parameters were tuned on (the issue's orange suit and red flag,
-#: a red cup on a red saucer, an orange cat)
-TUNED_PHOTOS = ("astronaut", "coffee", "chelsea")
-#: photographs never looked at while tuning: a red motorcycle in a cluttered garage, a night
-#: launch pad with orange lights
-HELD_OUT_PHOTOS = ("motorcycle_left", "rocket")
+#: a red cup on a red saucer, an orange cat, a red motorcycle in front of a red box - held out
+#: until its failures were looked into for the outline finder)
+TUNED_PHOTOS = ("astronaut", "coffee", "chelsea", "motorcycle_left")
+#: photographs never looked at while tuning: a night launch pad with orange lights, the
+#: motorcycle's other stereo view (same garage, another viewpoint: a weaker hold-out), the
+#: Hubble deep field (red and orange galaxies on black)
+HELD_OUT_PHOTOS = ("rocket", "motorcycle_right", "hubble_deep_field")
 #: a photograph that is mostly the ball's colour (a retina): calibration must say so
 NON_SEPARABLE_PHOTO = "retina"
 

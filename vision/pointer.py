@@ -433,15 +433,16 @@ class PointerSystem:
         but a pixel or two off along the epipolar line, which is millimetres in depth."""
         p = self.params
         ap = self.appearance.params
-        matched = any(dets[i][j].method == "appearance" for i, j in h.used.items())
+        matched = any(dets[i][j].method != "blob" for i, j in h.used.items())
         for i, j in h.used.items():
             d = dets[i][j]
             r_exp = expected_radius_px(self.models[i], h.est.position_world, p.ball_radius)
             if not self._whole(d, r_exp):
                 return False
-            if d.method == "appearance" and (not d.match >= ap.min_ncc or
-                                             h.est.reprojection_px > ap.offer_max_reprojection_px):
+            if d.method == "appearance" and not d.match >= ap.min_ncc:
                 return False
+            if d.method != "blob" and h.est.reprojection_px > ap.offer_max_reprojection_px:
+                return False  # a look match or an outline: its views must agree closely
             if matched and d.method == "blob" and not d.ring_fraction <= ap.max_ring:
                 return False  # next to a match, a blob touching its colour is not trusted
         return True

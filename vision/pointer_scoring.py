@@ -9,7 +9,8 @@ script's holds, reports:
     was first seen (a new track is offered only once it moves, `PointerParams.new_track_travel`:
     a still look-alike never does), and the measured share without them;
   * how many offered positions used a view found by its look (`Detection.method ==
-    "appearance"`: the ball merged with a region of its colour there), and their error;
+    "appearance"`: the ball merged with a region of its colour there) or by its outline
+    (`"outline"`), and their error;
   * false positions: offered while no camera sees the ball, or more than `false_m` off;
   * coasting: longest run flagged coasting, and whether any coasting state offered a position;
   * dwells: found (a taught point within `dwell_match_m` of a hold, while or just after it is
@@ -50,7 +51,7 @@ def score_run(states: Sequence[PointerState], holds: Sequence, *,
               late_s: float = 0.3, still_start_m: float = 0.015) -> dict:
     """Figures of one run (metres inside, millimetres in the keys that say so); `holds` are
     `photo_scenes.Hold`s (anything with t0, t1 and point)."""
-    errs, stereo_errs, matched_errs = [], [], []
+    errs, stereo_errs, matched_errs, outline_errs = [], [], [], []
     measurable = missed = false = offered_unseen = 0
     coast_run, coast_max, coast_offered = 0.0, 0.0, 0
     last_t: float | None = None
@@ -79,9 +80,12 @@ def score_run(states: Sequence[PointerState], holds: Sequence, *,
                 errs.append(e)
                 if s.mode == "stereo":
                     stereo_errs.append(e)
-                if any(v.pointer is not None and v.pointer.method == "appearance"
-                       for v in s.cameras.values()):
+                methods = {v.pointer.method for v in s.cameras.values()
+                           if v.pointer is not None}
+                if "appearance" in methods:
                     matched_errs.append(e)
+                if "outline" in methods:
+                    outline_errs.append(e)
                 false += e > false_m
         dt = 0.0 if last_t is None else s.timestamp - last_t
         last_t = s.timestamp
@@ -119,6 +123,8 @@ def score_run(states: Sequence[PointerState], holds: Sequence, *,
         "offered_with_appearance": len(matched_errs),
         "appearance_rms_mm": 1e3 * _rms(matched_errs),
         "appearance_max_mm": 1e3 * float(np.max(matched_errs)) if matched_errs else float("nan"),
+        "offered_with_outline": len(outline_errs),
+        "outline_max_mm": 1e3 * float(np.max(outline_errs)) if outline_errs else float("nan"),
         "measurable_frames": measurable,
         "missed_measurable": missed,
         "measured_fraction": (measurable - missed) / measurable if measurable else float("nan"),

@@ -119,14 +119,18 @@ class Track3D:
         `keep_disagreement`: a weaker (single-view) fix updates the track without clearing the
         count of stereo fixes persistently elsewhere, so those can still take over."""
         assert self.filter is not None
+        p = self.params
         gap = t - (self.last_measurement_time if self.last_measurement_time is not None else t)
-        if gap > self.params.reseed_after_s:
-            p = self.params
+        jump = np.inf if self.last_measured_position is None else float(
+            np.linalg.norm(est.position_world - self.last_measured_position))
+        # picked up again and not yet confirmed there: what it was picked up at may have been
+        # something else (a look-alike while the ball was hidden); a jump from there is a new
+        # start, not a velocity
+        unsure = self.was_confirmed and not self.confirmed and jump > p.same_place
+        if gap > p.reseed_after_s or unsure:
             self.filter = ConstantVelocityFilter(3, est.position_world, est.covariance,
                                                  p.initial_velocity_std, p.accel_std)
             self.hits = 1  # picked up again after a gap: to be confirmed like a new track
-            jump = np.inf if self.last_measured_position is None else float(
-                np.linalg.norm(est.position_world - self.last_measured_position))
             if jump > p.same_place:  # somewhere else: it must show it moves, like a new track
                 # (or the owner recognises it: `was_confirmed` says it had been offered)
                 self.was_confirmed |= self.confirmed
