@@ -365,3 +365,26 @@ def test_search_masks_are_the_set_operations_on_the_grids():
         got, got_free = search_masks(lab, -1, s_lab, g_lab, free, offers, cad, n, sc, gc, r)
         assert np.array_equal(got, want) and np.array_equal(got_free, want_free)
         assert want.any() and not want.all()
+
+
+def test_a_goal_in_a_leaf_an_indication_marked_is_judged_by_its_posture_box(rv2aj):
+    """An indication marks every leaf the arm filled when it was stopped; the contact is in
+    one of them, so a goal whose TCP lies in such a leaf is refused only if its posture is in
+    the recorded posture box (as a CAD leaf is judged by the exact check). Another posture
+    with its TCP in the same leaf, outside that box, is a valid goal."""
+    planner = make_planner(rv2aj)
+    q_hit = np.array(planner.plan(Q_START, Q_GOAL).joint_path)[5]
+    planner.add_collision(q_hit)
+    w = planner.world
+    gc, sc = w.tcp_cell(q_hit), w.tcp_cell(Q_START)
+    assert w.occupied().reshape(-1)[gc] and w.object_ids().reshape(-1)[gc] <= 0
+    assert any(gc in rc.cells for rc in w.collisions)
+    rng = np.random.default_rng(7)
+    candidates = q_hit + rng.uniform(-0.6, 0.6, (4000, len(q_hit)))
+    away = ~w.near_recorded_collision(candidates)
+    q_other = next(q for q in candidates[away] if w.tcp_cell(q) == gc
+                   and rv2aj.limits.contains(q) and planner.checker.is_valid(q))
+    assert planner._check_terminals(Q_START, q_other, sc, gc) is None
+    refused = planner._check_terminals(Q_START, q_hit, sc, gc)
+    assert refused is not None and refused.failure == PlanFailure.GOAL_IN_OBSTACLE
+    assert "recorded collision" in refused.reason
