@@ -73,7 +73,9 @@ def matrix_to_rpy(R: Array) -> tuple[float, float, float]:
     """Inverse of `rpy_to_matrix`; at the singularity (|b| = 90 deg) c is set to 0."""
     sb = -R[2, 0]
     sb = float(np.clip(sb, -1.0, 1.0))
-    b = float(np.arcsin(sb))
+    # atan2 of sin and cos, not arcsin: near |b| = 90 deg arcsin turns the last bit of sb
+    # into ~1e-8 rad, atan2 keeps the error at the inputs' rounding
+    b = float(np.arctan2(sb, np.hypot(R[0, 0], R[1, 0])))
     if abs(sb) > 1.0 - 1e-12:
         a = float(np.arctan2(-R[0, 1], R[1, 1]))
         return a, b, 0.0
@@ -135,8 +137,21 @@ def rotation_vector(R: Array) -> Array:
 
 
 def rotation_angle(R: Array) -> float:
-    """Angle of the rotation R in [0, pi]."""
-    return float(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0)))
+    """Angle of the rotation R in [0, pi]: atan2(sin, cos), with 2 sin the norm of R's skew
+    part and 2 cos its trace - 1. arccos of the trace alone turns one rounding of a small
+    angle's trace into ~1e-8 rad (sqrt(2 eps)); this keeps it at the inputs' rounding."""
+    R = np.asarray(R, dtype=float)
+    s = np.hypot(np.hypot(R[2, 1] - R[1, 2], R[0, 2] - R[2, 0]), R[1, 0] - R[0, 1])
+    return float(np.arctan2(s, R[0, 0] + R[1, 1] + R[2, 2] - 1.0))
+
+
+def angle_between(a: Array, b: Array) -> float:
+    """Angle in [0, pi] between two vectors (any lengths, not zero): atan2(|a x b|, a . b),
+    well conditioned everywhere, where arccos of the normalised dot product loses half the
+    digits near 0 and pi (one rounding of the dot becomes ~1.5e-8 rad)."""
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    return float(np.arctan2(np.linalg.norm(np.cross(a, b)), float(a @ b)))
 
 
 def wrap_angle(a: Array | float) -> Array | float:

@@ -22,6 +22,7 @@ from assistant.export.program import (
 )
 from assistant.export.simulate import Simulation, simulate
 from assistant.robots.model import Robot
+from assistant.transforms import rotation_angle
 
 #: A joint solution must put the TCP this close to its Cartesian target (m, rad).
 POSE_TOLERANCE = 1e-5
@@ -95,8 +96,7 @@ def check_position(p: Position, robot: Robot, step: str) -> None:
                           step=step)
     got = robot.fk(q)
     off = float(np.linalg.norm(got[:3, 3] - T[:3, 3]))
-    c = (np.trace(got[:3, :3].T @ T[:3, :3]) - 1.0) / 2.0
-    turn = float(np.arccos(np.clip(c, -1.0, 1.0)))
+    turn = rotation_angle(got[:3, :3].T @ T[:3, :3])
     if off > POSE_TOLERANCE or turn > ANGLE_TOLERANCE:
         res = robot.ik(T)
         why = f" ({res.message})" if not res.ok else ""

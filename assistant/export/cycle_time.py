@@ -52,6 +52,7 @@ from assistant.export.program import (
 )
 from assistant.export.simulate import Simulation, simulate
 from assistant.robots.model import Robot
+from assistant.transforms import angle_between
 
 Array = np.ndarray
 
@@ -339,7 +340,7 @@ def _turn(tcp_a: Array, tcp_b: Array) -> float:
     na, nb = float(np.linalg.norm(da)), float(np.linalg.norm(db))
     if na < 1e-12 or nb < 1e-12:
         return math.pi
-    return float(np.arccos(np.clip(da @ db / (na * nb), -1.0, 1.0)))
+    return angle_between(da, db)
 
 
 def _ruckig(p0: Array, p1: Array, v: Array, a: Array, j: Array, *, v0: float = 0.0,

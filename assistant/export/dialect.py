@@ -25,7 +25,7 @@ from assistant.export.rules import DialectRules
 if TYPE_CHECKING:  # the prediction imports the simulation, which imports this module
     from assistant.export.cycle_time import CycleTime
 from assistant.robots.model import Robot
-from assistant.transforms import inv_T
+from assistant.transforms import angle_between, inv_T
 
 Array = np.ndarray
 
@@ -320,7 +320,7 @@ def _corner_blend(a: Array | None, b: Array | None, c: Array | None) -> float:
     lu, lv = float(np.linalg.norm(u)), float(np.linalg.norm(v))
     if lu < 1e-9 or lv < 1e-9:
         return 0.0
-    turn = float(np.arccos(np.clip(u @ v / (lu * lv), -1.0, 1.0)))
+    turn = angle_between(u, v)
     r = 0.25 * min(lu, lv)
     if turn > 1e-9:
         r = min(r, CORNER_DEVIATION / np.tan(turn / 4.0))

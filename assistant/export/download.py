@@ -26,6 +26,7 @@ from assistant.export.program import NeutralProgram
 from assistant.export.registry import get_dialect
 from assistant.export.simulate import target_pose
 from assistant.robots.model import Robot
+from assistant.transforms import rotation_angle
 
 #: Read-back positions must agree with the plan within the coarsest number format we write.
 VERIFY_POSITION = 1e-5  # m (MELFA: 0.005 mm rounding)
@@ -142,8 +143,7 @@ def _verify(d: Dialect, program: NeutralProgram, files: list[ProgramFile],
                                   "back", step=a.step)
             Ta, Tb = target_pose(robot, pa), target_pose(robot, pb)
             dp = float(np.linalg.norm(Ta[:3, 3] - Tb[:3, 3]))
-            c = (np.trace(Ta[:3, :3].T @ Tb[:3, :3]) - 1.0) / 2.0
-            da = float(np.arccos(np.clip(c, -1.0, 1.0)))
+            da = rotation_angle(Ta[:3, :3].T @ Tb[:3, :3])
             if dp > VERIFY_POSITION or da > VERIFY_ANGLE:
                 raise ExportError(f"{d.name}: {pa.name!r} reads back {dp * 1000:.4f} mm, "
                                   f"{np.degrees(da):.4f} deg off", step=a.step)

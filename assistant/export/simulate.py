@@ -28,6 +28,7 @@ from assistant.export.errors import ExportError
 from assistant.export.program import Move, MoveKind, NeutralProgram, Position
 from assistant.export.redundant_axis import REDUNDANT_JOINT, solve_pinned
 from assistant.robots.model import IKFailure, Robot
+from assistant.transforms import rotation_angle
 
 Array = np.ndarray
 
@@ -176,8 +177,7 @@ def _pinned_value(robot: Robot, m: Move) -> float | None:
 
 
 def _angle(Ra: Array, Rb: Array) -> float:
-    c = (np.trace(Ra.T @ Rb) - 1.0) / 2.0
-    return float(np.arccos(np.clip(c, -1.0, 1.0)))
+    return rotation_angle(Ra.T @ Rb)
 
 
 # ---------------------------------------------------------------------------- moves

@@ -40,7 +40,7 @@ from assistant.robots.rv2aj_pose_batch import (
 )
 from assistant.robots.rv2aj_position_ik import planar_position_ik
 from assistant.robots.urdf_writer import urdf_from_chain
-from assistant.transforms import axis_angle, inv_T, rot_y, rot_z, rotation_angle
+from assistant.transforms import angle_between, axis_angle, inv_T, rot_y, rot_z, rotation_angle
 
 Array = np.ndarray
 
@@ -288,7 +288,7 @@ class RV2AJ(Robot):
                 a_proj = np.array([0.0, 0.0, -1.0])
             a_proj /= np.linalg.norm(a_proj)
             axis = np.cross(a, a_proj)
-            ang = float(np.arcsin(np.clip(np.linalg.norm(axis), -1.0, 1.0)))
+            ang = angle_between(a, a_proj)
             R_fix = axis_angle(axis, ang)
             Rf_new = R_fix @ Tf[:3, :3]
             T_new = np.eye(4)

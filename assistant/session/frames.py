@@ -13,6 +13,7 @@ from assistant.mission.model import (
 )
 from assistant.mission.motion import ToolAction
 from assistant.session.types import SessionError
+from assistant.transforms import angle_between
 
 Array = np.ndarray
 
@@ -56,8 +57,7 @@ def frame_from_three_points(name: str, origin: Array, x_point: Array,
                                f"{MIN_CALIBRATION_SPAN * 1000:.0f} mm of the origin; measure "
                                "points further apart")
     x = ex / np.linalg.norm(ex)
-    cos_a = float(np.clip(x @ ey / np.linalg.norm(ey), -1.0, 1.0))
-    ang = np.degrees(np.arccos(cos_a))
+    ang = np.degrees(angle_between(x, ey))
     lo, hi = CALIBRATION_ANGLES_DEG
     if not lo <= ang <= hi:
         raise SessionError(f"frame {name}: the three points are almost on one line "
@@ -69,7 +69,7 @@ def frame_from_three_points(name: str, origin: Array, x_point: Array,
     T = np.eye(4)
     T[:3, :3] = np.column_stack([x, y, z])
     T[:3, 3] = o
-    tilt = float(np.arccos(np.clip(z[2], -1.0, 1.0)))
+    tilt = angle_between(z, np.array([0.0, 0.0, 1.0]))
     return FrameCalibration(name, T, np.array([o, px, pxy]), tilt, float(ey @ y))
 
 

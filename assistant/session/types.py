@@ -17,6 +17,7 @@ from assistant.mission.model import (
 )
 from assistant.robots.catalog import RobotSpec, robot_data_dirs
 from assistant.robots.model import UnreachableError
+from assistant.transforms import rotation_angle
 
 Array = np.ndarray
 
@@ -162,7 +163,7 @@ def _check_identifier(name: str, what: str) -> None:
 
 
 def _angle(Ra: Array, Rb: Array) -> float:
-    return float(np.arccos(np.clip((np.trace(Ra.T @ Rb) - 1) / 2, -1.0, 1.0)))
+    return rotation_angle(Ra.T @ Rb)
 
 
 def _tool_frame_along(approach: Array) -> Array:

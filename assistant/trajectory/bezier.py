@@ -20,6 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from assistant.transforms import angle_between
+
 Array = np.ndarray
 
 #: Samples per chord used to measure the achieved deviation.
@@ -198,8 +200,7 @@ class BezierChain:
                 if n_in < 1e-15 or n_out < 1e-15:
                     out.append(j)
                     continue
-                c = float(d_in @ d_out) / (n_in * n_out)
-                if np.arccos(np.clip(c, -1.0, 1.0)) > tol:
+                if angle_between(d_in, d_out) > tol:
                     out.append(j)
             elif float(np.linalg.norm(d_in - d_out)) > tol * max(n_in, n_out, 1e-12):
                 out.append(j)
