@@ -2,7 +2,7 @@
 
 numba's `@` goes through BLAS, slow at 3 x 3 and warning on slices, so the kernels write
 their small products out; these are the ones more than one kernel needs
-(`rv2aj_pose_batch`, `trajectory.follow_kernel`, `trajectory.net_kernel`).
+(`rv2aj_pose_batch`, `trajectory.net_kernel`).
 
 Serves (the user-felt figure): the RV-2AJ's IK and the net's moves: 0.8 s in Python in the
 thesis run.
@@ -17,38 +17,21 @@ from assistant.kernels.lazy import kernel
 Array = np.ndarray
 
 
-@kernel(cache=True)
-def mm3(A: Array, B: Array) -> Array:
-    """A (3, 3) @ B (3, k) as plain loops."""
-    out = np.zeros((3, B.shape[1]))
-    for r in range(3):
-        for c in range(B.shape[1]):
-            out[r, c] = A[r, 0] * B[0, c] + A[r, 1] * B[1, c] + A[r, 2] * B[2, c]
-    return out
-
-
 @kernel(cache=True, inline="always")
 def mm3_into(A: Array, B: Array, out: Array) -> None:
-    """`mm3` into out (3, k): the same products and sums, no new array."""
+    """A (3, 3) @ B (3, k) into out (3, k) as plain loops."""
     for r in range(3):
         for c in range(B.shape[1]):
             out[r, c] = A[r, 0] * B[0, c] + A[r, 1] * B[1, c] + A[r, 2] * B[2, c]
-
-
-@kernel(cache=True)
-def axis_angle3(axis: Array, norm: float, angle: float) -> Array:
-    """`transforms.axis_angle_batch` of one axis (not necessarily unit) given its norm:
-    I + sin(angle) K + (1 - cos(angle)) K^2; the identity for a zero axis."""
-    out = np.empty((3, 3))
-    axis_angle3_into(axis, norm, angle, np.empty((3, 3)), np.empty((3, 3)), out)
-    return out
 
 
 @kernel(cache=True, inline="always")
 def axis_angle3_into(axis: Array, norm: float, angle: float, K: Array, KK: Array,
                      out: Array) -> None:
-    """`axis_angle3` into out (3, 3), K and KK scratch (3, 3): the same operations element
-    for element (I + sin K, then + (1 - cos) K K with `mm3`'s sums), no new arrays."""
+    """`transforms.axis_angle_batch` of one axis (not necessarily unit) given its norm,
+    I + sin(angle) K + (1 - cos(angle)) K^2 (the identity for a zero axis), into out (3, 3),
+    K and KK scratch (3, 3): the same operations element
+    for element (I + sin K, then + (1 - cos) K K with `mm3_into`'s sums), no new arrays."""
     if norm < 1e-15:
         for r in range(3):
             for c in range(3):

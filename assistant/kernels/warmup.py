@@ -2,12 +2,10 @@
 
 The kernels (`broad_phase`, `segment_box`, `dh`, `rv2aj_fk_batch`, `rv2aj_position_ik`,
 `rv2aj_pose_batch`, `kernel_helpers`, `motion_rows`, `trajectory.fit_kernels`,
-`trajectory.fit_search`, `trajectory.net_forces`, `trajectory.net_kernel`,
-`trajectory.net_sweep`, `trajectory.net_stage`, `trajectory.follow_kernel`,
+`trajectory.net_forces`, `trajectory.net_kernel`, `trajectory.joint_steps`,
 `roadmap.brushfire`, `roadmap.voronoi_update`, `roadmap.graph_kernel`,
-`roadmap.astar_kernel`, `roadmap.grid_ops`, `roadmap.search_masks`, `world.leaf_lookup`,
-`shape_poses`,
-`trajectory.densify_kernel`) compile on their first call and cache the result on disk;
+`roadmap.astar_kernel`, `roadmap.search_masks`, `world.leaf_lookup`, `shape_poses`)
+compile on their first call and cache the result on disk;
 only the first run after an install pays, ~2 minutes of one core for all of them. The CLI
 runs these steps in a background process (`lazy.start`, `compile`) while the kernels run
 their fallbacks; the tests call `warm_up` before anything else, so no compile happens
@@ -43,8 +41,6 @@ from assistant.collision.segment_box import segment_box_distance_one
 from assistant.collision.shape_poses import shape_poses
 from assistant.roadmap.astar_kernel import search
 from assistant.roadmap.brushfire import brushfire_region
-from assistant.roadmap.edge_samples import edge_samples, first_invalid
-from assistant.roadmap.free_joints import ramp_free_joints
 from assistant.roadmap.graph_kernel import (
     base_nodes,
     expand,
@@ -56,14 +52,12 @@ from assistant.roadmap.graph_kernel import (
     successors_into,
     weighted_distances,
 )
-from assistant.roadmap.grid_ops import connected26
 from assistant.roadmap.search_masks import search_masks
 from assistant.roadmap.voronoi_update import terminal_round, update_rounds
 from assistant.robots.dh import _chain_frames_kernel
 from assistant.robots.rv2aj_fk_batch import tcp_poses
 from assistant.robots.rv2aj_pose_batch import _candidates
 from assistant.robots.rv2aj_position_ik import planar_position_ik
-from assistant.trajectory.densify_kernel import densify_rows, resample_rows
 from assistant.trajectory.fit_kernels import (
     arc_distances,
     circle_through_kernel,
@@ -71,29 +65,22 @@ from assistant.trajectory.fit_kernels import (
     fit_line,
     line_distances,
 )
-from assistant.trajectory.fit_search import fit_rows
-from assistant.trajectory.follow_kernel import primitive_pose_rows, slerp_kernel, walk_nearest
 from assistant.trajectory.joint_steps import joint_steps
 from assistant.trajectory.net_forces import propose_moves
 from assistant.trajectory.net_kernel import apply_moves, check_moves
-from assistant.trajectory.net_stage import run_sweeps
-from assistant.trajectory.net_sweep import halve_retries, repin, sweep_moves
 from assistant.world.leaf_lookup import leaf_flags, leaf_indices
 
 #: Every compiled entry point (the test checks `warm_up` compiles each of them).
 KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
-           _segment_segment_distance, _chain_frames_kernel, tcp_poses,
-           planar_position_ik, fit_line, fit_arc, line_distances, arc_distances,
-           circle_through_kernel, propose_moves, brushfire_region, leaf_flags,
-           pruned_clearance, walk_nearest, neighbour_cells, neighbour_nodes,
-           certify_samples, check_moves, apply_moves, _candidates, slerp_kernel, update_rounds,
-           motion_marks, rows_inside, rows_before_first_bad, valid_before_first_bad,
-           sweep_moves, halve_retries, repin, expand, weighted_distances,
-           connected26, successor_costs, successors_into, neighbour_cells_into, search,
-           fit_rows, run_sweeps, select_nodes, shape_poses, terminal_round, densify_rows,
-           resample_rows, base_nodes, edge_samples, first_invalid, path_samples,
-           ramp_free_joints, joint_steps, margin_rows, search_masks, leaf_indices,
-           primitive_pose_rows)
+           _segment_segment_distance, _chain_frames_kernel, tcp_poses, planar_position_ik,
+           fit_line, fit_arc, line_distances, arc_distances, circle_through_kernel, propose_moves,
+           brushfire_region, leaf_flags, pruned_clearance, neighbour_cells,
+           neighbour_nodes, certify_samples, check_moves, apply_moves, _candidates,
+           update_rounds, motion_marks, rows_inside, rows_before_first_bad,
+           valid_before_first_bad, expand, weighted_distances, successor_costs,
+           successors_into, neighbour_cells_into, search, select_nodes, shape_poses,
+           terminal_round, base_nodes, path_samples, joint_steps, margin_rows,
+           search_masks, leaf_indices)
 
 
 def warm_up(*, reverse: bool = False) -> float:
@@ -189,7 +176,6 @@ def _roads(c: _Context) -> None:
     source[0, 3, 0] = 3  # a query's terminal: the incremental update
     update_voronoi(vmap, source)
     terminal_labels(vmap, np.array([21, 42]), np.array([4, 5]))  # a query's start and goal
-    connected26(source > 0, 0, 63)
 
 
 def _search(c: _Context) -> None:
@@ -206,11 +192,8 @@ def _search(c: _Context) -> None:
     graph.distance(graph.node_q[0], graph.node_q)  # the A*'s repair of a rejected edge
     lazy_astar(graph, 0, 7, _AllFree())  # its expansion kernel
     lazy_path_search(graph, 0, 7, _AllFree())  # the compiled search
-    # the roadmap's batched edge check (`planner._EdgeCheck`): samples, first invalid ones
-    Q, edge, F = edge_samples(q, q + 0.3, checker.motion_samples_between(q, q + 0.3))
-    first_invalid(checker.is_valid_samples(Q, first_only=True), edge, F, 1)
-    # a found path's free joints (J6 here) ramped start to goal (`planner`)
-    ramp_free_joints(np.vstack([q, q + 0.1, q + 0.3]), np.arange(5) == 4, np.ones(5))
+    # the roadmap's batched edge check (`planner._EdgeCheck`): its samples' validity
+    checker.is_valid_samples(np.vstack([q, q + 0.3]), first_only=True)
     # a query's searchable cells (`planner`): labels, free / offering / CAD leaves
     source = _roads_source()
     source[0, 3, 0] = 3
@@ -251,10 +234,10 @@ def _net(c: _Context) -> None:
 
 
 def _fit(c: _Context) -> None:
+    from assistant.trajectory.fit_growth import fit_primitives
     from assistant.trajectory.primitives import (
         ArcPrimitive,
         FitParams,
-        fit_primitives,
         primitive_poses,
     )
 

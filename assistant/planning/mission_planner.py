@@ -72,8 +72,8 @@ from assistant.trajectory.assemble import (
     verify,
 )
 from assistant.trajectory.elastic_net import ElasticNetParams, run_elastic_net
+from assistant.trajectory.fit_growth import fit_primitives
 from assistant.trajectory.ordering import Endpoint, Ordering, PathEnds, order_paths
-from assistant.trajectory.primitives import fit_primitives
 from assistant.transforms import inv_T
 from assistant.world.model import WorldModel
 

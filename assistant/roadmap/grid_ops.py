@@ -2,9 +2,6 @@
 
 Shared by the brushfire (`voronoi`) and the source labelling (`sources`). Cells outside the
 array count as absent: they contribute the reduction's neutral value.
-
-Serves (the user-felt figure): the start/goal connectivity test when the roads hold no path:
-under 0.1 s in Python; a candidate to drop.
 """
 
 from __future__ import annotations
@@ -13,8 +10,6 @@ import itertools
 
 import numpy as np
 from scipy import ndimage
-
-from assistant.kernels.lazy import kernel
 
 Array = np.ndarray
 
@@ -76,33 +71,13 @@ def components26(mask: Array) -> tuple[Array, int]:
     return lab.astype(np.int32), int(n)
 
 
-@kernel(cache=True)
 def connected26(mask: Array, a: int, b: int) -> bool:
     """Whether flat cells a and b of the 3-D mask (both True) are in one component
-    (26-connectivity): a search from a that stops when it reaches b. A query needs only
-    this answer, and labelling every component of the grid costs ~0.3 ms of each."""
-    nx, ny, nz = mask.shape
-    flat = mask.reshape(-1)
-    seen = np.zeros(flat.shape[0], dtype=np.bool_)
-    stack = np.empty(flat.shape[0], dtype=np.int64)
-    stack[0] = a
-    seen[a] = True
-    n = 1
-    while n > 0:
-        n -= 1
-        c = stack[n]
-        if c == b:
-            return True
-        i, j, k = c // (ny * nz), (c // nz) % ny, c % nz
-        for x in range(max(i - 1, 0), min(i + 2, nx)):
-            for y in range(max(j - 1, 0), min(j + 2, ny)):
-                for z in range(max(k - 1, 0), min(k + 2, nz)):
-                    d = (x * ny + y) * nz + z
-                    if flat[d] and not seen[d]:
-                        seen[d] = True
-                        stack[n] = d
-                        n += 1
-    return False
+    (26-connectivity): the labels of `components26` (~0.3 ms on the 32^3 grid, asked only
+    when the roads hold no path)."""
+    lab, _ = components26(mask)
+    flat = lab.reshape(-1)
+    return bool(flat[a] != 0 and flat[a] == flat[b])
 
 
 def bbox(mask: Array, margin: int = 0) -> tuple[slice, slice, slice] | None:

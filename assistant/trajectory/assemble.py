@@ -34,6 +34,7 @@ from assistant.trajectory.elastic_net import (
     ElasticNetResult,
     run_elastic_net,
 )
+from assistant.trajectory.fit_growth import fit_primitives
 from assistant.trajectory.joint_steps import joint_steps
 from assistant.trajectory.particles import Particles
 from assistant.trajectory.primitives import (
@@ -41,7 +42,6 @@ from assistant.trajectory.primitives import (
     Primitive,
     PrimitiveFit,
     PrimitiveKind,
-    fit_primitives,
     primitive_poses,
 )
 

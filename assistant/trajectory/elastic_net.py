@@ -73,6 +73,7 @@ from assistant.collision.validity import ValidityChecker
 from assistant.kernels.lazy import is_pending
 from assistant.progress import Progress
 from assistant.robots.model import Robot
+from assistant.trajectory.net_forces import propose_moves
 from assistant.trajectory.net_kernel import (
     ACCEPTED,
     ASK_FCL,
@@ -80,8 +81,6 @@ from assistant.trajectory.net_kernel import (
     apply_moves,
     check_moves,
 )
-from assistant.trajectory.net_stage import RAN, STOPS, run_sweeps
-from assistant.trajectory.net_sweep import halve_retries, repin, sweep_moves
 from assistant.trajectory.particles import (
     Particles,
     polyline_length,
@@ -249,10 +248,10 @@ def relax(
 def turn_angles(P: Array) -> Array:
     """Turn angle at each interior point of a polyline (N - 2,), radians in [0, pi]."""
     a = np.diff(P, axis=0)
-    n = row_norms(a)
-    u = a / np.maximum(n, 1e-15)[:, None]
-    c = np.einsum("ij,ij->i", u[:-1], u[1:])
-    return np.arccos(np.clip(c, -1.0, 1.0))
+    # atan2(|a x b|, a . b): well conditioned at every angle (arccos of the normalised dot
+    # product turns its last bit into ~1e-8 rad near straight)
+    cross = row_norms(np.cross(a[:-1], a[1:]))
+    return np.arctan2(cross, np.einsum("ij,ij->i", a[:-1], a[1:]))
 
 
 class _Net:
@@ -290,13 +289,6 @@ class _Net:
         self._kernel = (_kernel_model(robot, allowed, validity)
                         if self._certify and COMPILED_MOVES and not is_pending(check_moves)
                         else None)
-        p = params
-        self._forces = np.array([p.c_error, p.c_equidistance, p.c_rotation, p.c_shrink,
-                                 p.c_line_shrink, p.stage1_shrink, p.r_max, p.r_min,
-                                 p.max_move], dtype=float)  # [8]: per stage (`_cap`)
-        self._stops = np.array([p.epsilon, p.settle, p.taut_length], dtype=float)
-        self._ik_par = np.array([p.ik.nullspace_gain, p.ik.max_joint_jump,
-                                 p.ik.tolerance * 10.0], dtype=float)
 
     # ---------------------------------------------------------------- stages
     def run_stage(self, stage: int, budget: int, progress: Progress | None, done: int,
@@ -304,7 +296,6 @@ class _Net:
         if len(self.P) < 3:
             return StageReport(0, StopReason.NOTHING_TO_DO, 0.0)
         p = self.p
-        self._forces[8] = self._cap(stage)
         taut = stage == 1 and p.taut_length > 0.0
         lengths = np.empty(budget + 1)  # the TCP length before the stage and after each sweep
         n_len = 0
@@ -316,16 +307,6 @@ class _Net:
         while it <= budget:
             if progress is not None and it % per == 1:
                 progress.update((done + it) / total, f"elastic net stage {stage}, iteration {it}")
-            if self._kernel is not None and COMPILED_SWEEPS and not is_pending(run_sweeps):
-                # the sweeps up to the next report in one call (`net_stage`)
-                last = min(budget, it + per - 1 - (it - 1) % per)
-                code, it, n_len, self.E = self._run_sweeps(stage, it, last, lengths, n_len,
-                                                           taut)
-                if code < RAN:
-                    return StageReport(it, StopReason(STOPS[code]), float(self.E))
-                if code == RAN:
-                    continue
-                # NEEDS_FCL: sweep `it` runs here, FCL deciding its doubtful moves
             E = self.E
             lam = p.c_error * E / (1.0 + p.c_error * E) if np.isfinite(E) else 1.0
             self.E, accepted, proposed = self.iterate(stage, lam)
@@ -349,46 +330,29 @@ class _Net:
         p = self.p
         return p.stage1_max_move if stage == 1 and p.stage1_max_move is not None else p.max_move
 
-    def _run_sweeps(self, stage: int, first: int, last: int, lengths: Array, n_len: int,
-                    taut: bool) -> tuple[int, int, int, float]:
-        """`net_stage.run_sweeps` on this net's arrays; adds its move counts."""
-        km, p = self._kernel, self.p
-        grid = km.grid if km.grid is not None else _NO_GRID
-        counts = np.zeros(3, dtype=np.int64)
-        out = run_sweeps(
-            self.P, self.Q, self._pinned, self._ref_Q, self._ref_margin, self._gap, counts,
-            lengths, n_len, float(self.E), first, last, taut, stage, self._forces,
-            self._stops, p.taut_window, *grid, km.grid is not None, p.check_edge_midpoints,
-            km.robot, km.checker, km.recorded_q, km.recorded_half, self._ik_par, p.min_gap)
-        self.accepted += int(counts[0])
-        self.rejected += int(counts[1])
-        self.certified_moves += int(counts[2])
-        return out
-
     def iterate(self, stage: int, lam: float) -> tuple[float, int, int]:
         """One sweep: (E, accepted, proposed moves).
 
         Forces are evaluated one colour class at a time on the tentative positions
         (Gauss-Seidel, compiled: `net_forces.propose_moves`); the moves are then checked
         together in one batch (one `allowed`, one IK, one validity call per sweep) and the
-        rejected ones retried at half length, except those pinned (see below). The
-        bookkeeping between the tests is compiled too (`net_sweep`).
+        rejected ones retried at half length, except those pinned (see below).
         """
         p = self.p
-        idx, D, trial, pin = sweep_moves(self.P, self._pinned, stage, lam, p.c_equidistance,
-                                         p.c_rotation, p.c_shrink, p.c_line_shrink,
-                                         p.stage1_shrink, p.r_max, p.r_min,
-                                         self._cap(stage))
+        idx, D, trial = propose_moves(self.P, stage, lam, p.c_equidistance, p.c_rotation,
+                                      p.c_shrink, p.c_line_shrink, p.stage1_shrink, p.r_max,
+                                      p.r_min, self._cap(stage))
+        idx, D, pin = _live_moves(idx, D, trial, self.P, self._pinned)
         if not len(idx):
             return 0.0, 0, 0
         # A particle refused at both lengths last sweep is pinned against a constraint (the
         # octree, the arm's gap): it proposed the half move straight away and is not
         # retried - a retry call for it almost never bought a move (module docstring).
         ok = self.try_moves(idx, D, trial)
-        retry = halve_retries(ok, pin, idx, D, trial, self.P)
+        retry = _halve_retries(ok, pin, idx, D, trial, self.P)
         ok2 = (self.try_moves(idx[retry], D[retry], trial) if len(retry)
                else np.zeros(0, dtype=bool))
-        self.rejected += repin(ok, pin, retry, ok2, idx, self._pinned)
+        self.rejected += _repin(ok, pin, retry, ok2, idx, self._pinned)
         accepted = int(ok.sum())
         self.accepted += accepted
         E = float(row_norms(D[ok]).sum()) / max(1, len(self.P) - 2)
@@ -487,15 +451,44 @@ class _Net:
 #: Use the compiled move test (`net_kernel`) where robot, validity and `allowed` provide
 #: its pieces; False forces the numpy path (the tests compare the two).
 COMPILED_MOVES = True
-#: With the compiled move test, run the sweeps between progress reports in one compiled call
-#: (`net_stage`); False runs them one by one through `_Net.iterate` (the tests compare).
-COMPILED_SWEEPS = True
-#: Sweeps between two progress reports (each also a cancel check and, compiled, one call of
-#: `net_stage.run_sweeps`). A sweep is ~35 us on a transfer's ~25 particles, so 16 sweeps
-#: are ~0.6 ms: still instant for a cancel, while every report and call costs ~15 us of
-#: Python and numba dispatch (at 4 sweeps a report, ~0.1 ms a query). The particles do
-#: not depend on it (the compiled sweeps carry the net's whole state between calls).
+#: Sweeps between two progress reports (each also a cancel check): a sweep is well under a
+#: millisecond on a transfer's ~25 particles, so a cancel is still instant. The particles do
+#: not depend on it.
 SWEEPS_PER_REPORT = 16
+
+
+def _live_moves(idx: Array, D: Array, trial: Array, P: Array, pinned: Array,
+                ) -> tuple[Array, Array, Array]:
+    """The proposed moves of non-zero length: (particles, moves, pinned flag per move); a
+    pinned particle's move is halved straight away, its tentative position with it."""
+    live = (D * D).sum(axis=1) > 0.0  # NaN and underflow count as no move
+    idx, D = idx[live], D[live]
+    pin = pinned[idx]
+    D[pin] *= 0.5
+    trial[idx[pin]] = P[idx[pin]] + D[pin]
+    return idx, D, pin
+
+
+def _halve_retries(ok: Array, pin: Array, idx: Array, D: Array, trial: Array, P: Array,
+                   ) -> Array:
+    """Rows refused at full length and not pinned: their moves (and tentative positions)
+    halved for a second test; returns those rows."""
+    rows = np.flatnonzero(~ok & ~pin)
+    D[rows] *= 0.5
+    trial[idx[rows]] = P[idx[rows]] + D[rows]
+    return rows
+
+
+def _repin(ok: Array, pin: Array, retry: Array, ok2: Array, idx: Array, pinned: Array,
+           ) -> int:
+    """Merge the retries' answers into ok and pin (in place) the particles refused at
+    both lengths, or at half length when pinned; returns how many were refused."""
+    refused = ~ok & pin
+    ok[retry[ok2]] = True
+    refused[retry[~ok2]] = True
+    pinned[:] = False
+    pinned[idx[refused]] = True
+    return int(refused.sum())
 
 _NO_GRID = (np.zeros(3), 1.0, 0, np.zeros(0, dtype=bool))
 

@@ -14,7 +14,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from assistant.robots.model import Robot
-from assistant.trajectory.densify_kernel import densify_rows, resample_rows
 
 Array = np.ndarray
 
@@ -69,15 +68,6 @@ def densify_joint_path(robot: Robot, joint_path: Sequence[Array] | Array, max_tc
     Q = np.atleast_2d(np.asarray(joint_path, dtype=float))
     if len(Q) < 2:
         raise ValueError("a joint path needs at least two configurations")
-    consts = getattr(robot, "tcp_kernel_constants", None)  # the RV-2AJ's compiled FK
-    if consts is not None and np.isfinite(Q).all():
-        return densify_rows(np.ascontiguousarray(Q), float(max_tcp_step), _PASSES, *consts)
-    return _densify_numpy(robot, Q, max_tcp_step)
-
-
-def _densify_numpy(robot: Robot, Q: Array, max_tcp_step: float) -> tuple[Array, Array]:
-    """`densify_joint_path` for any robot (`densify_kernel.densify_rows` gives the same
-    rows to the bit for the RV-2AJ)."""
     P = robot.batch_fk(Q).positions
     for _ in range(_PASSES):
         chord = np.linalg.norm(np.diff(P, axis=0), axis=1)
@@ -88,7 +78,10 @@ def _densify_numpy(robot: Robot, Q: Array, max_tcp_step: float) -> tuple[Array, 
         seg = np.repeat(np.arange(len(parts)), parts)
         j = np.arange(1, len(seg) + 1) - np.repeat(np.cumsum(parts) - parts, parts)
         f = (j / parts[seg])[:, None]
-        Q = np.concatenate([Q[:1], Q[seg] + f * (Q[seg + 1] - Q[seg])])
+        new = Q[seg] + f * (Q[seg + 1] - Q[seg])
+        ends = j == parts[seg]  # each segment's end is the given row, not a + 1 (b - a)
+        new[ends] = Q[seg + 1][ends]
+        Q = np.concatenate([Q[:1], new])
         P = robot.batch_fk(Q).positions
     return Q, np.array(P, dtype=float)
 
@@ -103,16 +96,6 @@ def resample_joint_path(robot: Robot, joint_path: Sequence[Array] | Array, spaci
     if spacing <= 0.0:
         raise ValueError("spacing must be positive")
     Q, P = densify_joint_path(robot, joint_path, spacing / 8.0)
-    consts = getattr(robot, "tcp_kernel_constants", None)  # as `densify_joint_path`
-    if consts is not None and np.isfinite(Q).all():
-        joints, points = resample_rows(Q, P, float(spacing), *consts)
-        return Particles(points, joints)
-    return _resample_numpy(robot, Q, P, spacing)
-
-
-def _resample_numpy(robot: Robot, Q: Array, P: Array, spacing: float) -> Particles:
-    """`resample_joint_path` for any robot, on the densified path (Q, P)
-    (`densify_kernel.resample_rows` gives the same particles to the bit for the RV-2AJ)."""
     seg = np.linalg.norm(np.diff(P, axis=0), axis=1)
     s = np.concatenate([[0.0], np.cumsum(seg)])
     total = float(s[-1])

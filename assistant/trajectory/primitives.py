@@ -14,8 +14,8 @@ grows node by node while *every* node it covers stays within the tolerance:
 The thesis grows angle corridors (for lines: the directions through the start that touch all
 node spheres; for arcs: a shrinking normal-vector corridor and a feasible radius interval);
 we fit the candidate directly and test its true maximum deviation, which is the same
-question answered exactly (compiled: the fits in `fit_kernels`, the growth and look-ahead
-around them in `fit_search`). At each start
+question answered exactly (the fits compiled in `fit_kernels`, the growth and look-ahead
+around them in `fit_growth`). At each start
 both types are grown; the thesis keeps the one that covers the most nodes. We add a one-step
 look-ahead: for each type, its last few possible end nodes are tried and the choice is the
 one that lets the *next* primitive reach farthest (then the most nodes, then a line before
@@ -37,13 +37,12 @@ from enum import Enum
 
 import numpy as np
 
+from assistant.trajectory.cartesian_follow import poses_from, slerp_rotations
 from assistant.trajectory.fit_kernels import (
     arc_distances,
     circle_through_kernel,
     line_distances,
 )
-from assistant.trajectory.fit_search import LINE, fit_rows
-from assistant.trajectory.follow_kernel import primitive_pose_rows
 
 Array = np.ndarray
 
@@ -192,24 +191,6 @@ class PrimitiveFit:
         return float(sum(p.length for p in self.primitives))
 
 
-def fit_primitives(nodes: Array, params: FitParams | None = None) -> PrimitiveFit:
-    """Lines and arcs through ordered nodes (N, 3) within `params.tolerance`.
-
-    The growth, look-ahead and junction refinement (module docstring) run compiled
-    (`fit_search.fit_rows`); here its rows become primitives and the last one is snapped
-    onto the last node.
-    """
-    params = params or FitParams()
-    nodes = np.ascontiguousarray(nodes, dtype=np.float64)
-    n = len(nodes)
-    if n < 2:
-        raise ValueError("primitive fitting needs at least two nodes")
-    par = np.array([params.tolerance, params.r_min, params.r_max, params.max_sweep,
-                    params.tangent_slack], dtype=np.float64)
-    rows, breaks = fit_rows(nodes, par, int(params.lookahead))
-    return finished_fit([_from_row(r) for r in rows], nodes, int(breaks))
-
-
 def finished_fit(prims: list[Primitive], nodes: Array, breaks: int) -> PrimitiveFit:
     """The fit of these primitives (the last one snapped onto the last node): each node's
     deviation and the tangency error at each joint that must be tangent."""
@@ -233,15 +214,6 @@ def finished_fit(prims: list[Primitive], nodes: Array, breaks: int) -> Primitive
     return PrimitiveFit(prims, dev, tangency, breaks)
 
 
-def _from_row(r: Array) -> Primitive:
-    """A `fit_search` row as a primitive (its layout: `fit_search` module docstring)."""
-    first, last = int(r[18]), int(r[19])
-    if r[0] == LINE:
-        return LinePrimitive(r[1:4].copy(), r[4:7].copy(), first, last)
-    return ArcPrimitive(r[1:4].copy(), r[7:10].copy(), r[4:7].copy(), r[10:13].copy(),
-                        float(r[13]), r[14:17].copy(), float(r[17]), first, last)
-
-
 def sample_primitive(prim: Primitive, max_step: float) -> tuple[Array, Array]:
     """Fractions u (0..1, always with 0 and 1; arcs also with 0.5, the via) and TCP points,
     at most `max_step` apart along the primitive."""
@@ -261,17 +233,10 @@ def _sample_count(prim: Primitive, max_step: float) -> int:
 def primitive_poses(prim: Primitive, max_step: float, R0: Array, R1: Array,
                     ) -> tuple[Array, Array]:
     """(u, T_base_tool (M, 4, 4)): `sample_primitive`'s fractions and points with the tool
-    turning from R0 to R1 (`slerp_rotations`), as `poses_from` stacks them - what a LINEAR or
-    CIRCULAR move's IK walk is given, in one compiled pass (`follow_kernel`) instead of
-    ~25 us of numpy calls per move; the same numbers to the bit."""
-    n = _sample_count(prim, max_step)
-    if prim.kind == PrimitiveKind.ARC:
-        return primitive_pose_rows(True, _vec(prim.start), _vec(prim.end), _vec(prim.centre),
-                                   _vec(prim.normal), float(prim.sweep), n, _mat(R0),
-                                   _mat(R1))
-    start = _vec(prim.start)  # a line: no centre, normal or sweep
-    return primitive_pose_rows(False, start, _vec(prim.end), start, start, 0.0, n, _mat(R0),
-                               _mat(R1))
+    turning from R0 to R1 (`slerp_rotations`) - what a LINEAR or CIRCULAR move's IK walk is
+    given."""
+    u, points = sample_primitive(prim, max_step)
+    return u, poses_from(points, slerp_rotations(R0, R1, u))
 
 
 def circle_through(a: Array, b: Array, c: Array) -> tuple[Array, float, Array]:
@@ -327,11 +292,6 @@ def _unit(v: Array) -> Array:
 def _vec(v: Array) -> Array:
     """A contiguous float64 3-vector, as the kernels are compiled for."""
     return np.ascontiguousarray(v, dtype=np.float64)
-
-
-def _mat(R: Array) -> Array:
-    """A contiguous float64 matrix, as the kernels are compiled for."""
-    return np.ascontiguousarray(R, dtype=np.float64)
 
 
 def _rows(points: Array) -> Array:

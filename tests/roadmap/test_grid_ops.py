@@ -38,20 +38,18 @@ def test_dilate_of_nothing_and_radius_zero():
     assert np.array_equal(out, mask) and out is not mask
 
 
-def test_connected_pairs_are_those_of_the_component_labels():
-    """`connected26` (a search between two cells) answers as `components26`' labels."""
-    rng = np.random.default_rng(5)
-    answers = set()
-    for _ in range(30):
-        shape = tuple(int(v) for v in rng.integers(1, 12, 3))
-        mask = rng.random(shape) < rng.uniform(0.15, 0.6)
-        lab, _ = components26(mask)
-        cells = np.flatnonzero(mask)
-        if len(cells) < 2:
-            continue
-        for _ in range(20):
-            a, b = (int(c) for c in rng.choice(cells, 2))
-            same = bool(lab.reshape(-1)[a] == lab.reshape(-1)[b])
-            assert connected26(mask, a, b) == same
-            answers.add(same)
-    assert answers == {True, False}
+def test_connected_cells_are_joined_through_faces_edges_or_corners():
+    """`connected26`: two cells joined by a chain that touches only at corners are one
+    region (26-connectivity, the arm's TCP can pass diagonally); a one-cell gap parts
+    them; a cell outside the mask is connected to nothing."""
+    mask = np.zeros((6, 6, 6), dtype=bool)
+    for k in range(5):  # a staircase through corners only
+        mask[k, k, k] = True
+    flat = np.ravel_multi_index
+    a, b = flat((0, 0, 0), mask.shape), flat((4, 4, 4), mask.shape)
+    assert connected26(mask, a, b)
+    mask[2, 2, 2] = False  # a gap
+    assert not connected26(mask, a, b)
+    assert not connected26(mask, flat((2, 2, 2), mask.shape), a)
+    lab, n = components26(mask)
+    assert n == 2 and lab[0, 0, 0] != lab[4, 4, 4]

@@ -64,10 +64,10 @@ def test_thesis_query_gives_a_collision_free_joint_path(planner, rv2aj):
 
 
 def test_batched_edge_check_answers_as_one_check_per_edge(planner, rv2aj):
-    """The search's batched edge check (`_EdgeCheck.first_invalid_fractions`, compiled
-    samples) against the checker's own motion check edge by edge: free edges, edges into
-    the parts (the first invalid fraction), an edge of one step, one batch of a single
-    edge; and its samples are the numpy form's to the bit."""
+    """The search's batched edge check (`_EdgeCheck.first_invalid_fractions`) against the
+    checker's own motion check edge by edge: free edges, edges into the parts (the first
+    invalid fraction), an edge of one step, one batch of a single edge; and its samples
+    are laid out edge after edge, k / n of the way."""
     from assistant.roadmap.edge_samples import edge_samples
 
     rng = np.random.default_rng(11)
@@ -81,7 +81,7 @@ def test_batched_edge_check_answers_as_one_check_per_edge(planner, rv2aj):
     got = edge.first_invalid_fractions(Q0, Q1)
     want = [planner.checker.first_invalid_fraction(a, b) for a, b in zip(Q0, Q1, strict=True)]
     # The same edges invalid (None: free), at the same sample k of n: its fraction k / n
-    # from the compiled samples or from Python, within a few ULPs of a number in [0, 1].
+    # from the batch's samples or the checker's, within a few ULPs of a number in [0, 1].
     assert [f is None for f in got] == [f is None for f in want]
     assert [f for f in got if f is not None] == pytest.approx(
         [f for f in want if f is not None], rel=0, abs=1e-15)
@@ -91,15 +91,13 @@ def test_batched_edge_check_answers_as_one_check_per_edge(planner, rv2aj):
     assert one[0] is None or one[0] == pytest.approx(want[3], rel=0, abs=1e-15)
     ns = planner.checker.motion_samples_between(Q0, Q1)
     Q, at, F = edge_samples(Q0, Q1, ns)
-    counts = ns + 1  # the numpy form the kernel replaced
-    ref_edge = np.repeat(np.arange(len(ns)), counts)
-    first = np.cumsum(counts) - counts
-    ref_F = (np.arange(len(ref_edge)) - first[ref_edge]) / ns[ref_edge]
-    ref_Q = Q0[ref_edge] + ref_F[:, None] * (Q1 - Q0)[ref_edge]
-    assert np.array_equal(at, ref_edge)  # edge indices: integers
-    # 1e-15: k / n (one division); 1e-14 rad: a + f (b - a) on joints of a few rad, where
-    # FMA may contract the product - a few ULPs either way
+    ref_edge = [i for i, n in enumerate(ns) for _ in range(n + 1)]
+    ref_F = [k / n for n in ns for k in range(n + 1)]
+    assert at.tolist() == ref_edge  # edge indices: integers
+    # 1e-15: k / n (one division); 1e-14 rad: a + f (b - a) on joints of a few rad - a
+    # few ULPs either way
     np.testing.assert_allclose(F, ref_F, rtol=0, atol=1e-15)
+    ref_Q = [Q0[i] + f * (Q1[i] - Q0[i]) for i, f in zip(ref_edge, ref_F, strict=True)]
     np.testing.assert_allclose(Q, ref_Q, rtol=0, atol=1e-14)
 
 
@@ -129,18 +127,21 @@ def test_j6_is_interpolated_between_start_and_goal(planner):
     assert planner.checker.check_path(plan.joint_path) is None
 
 
-def test_compiled_free_joint_ramp_is_the_numpy_one():
-    """`free_joints.ramp_free_joints` against the numpy form it replaced, to the bit: random
-    paths and weights, one or two free joints, a path whose other joints stand still (even
-    fractions)."""
+def test_free_joint_ramp_follows_the_weighted_length_of_the_others():
+    """`free_joints.ramp_free_joints` against its definition, row by row: random paths and
+    weights, one or two free joints, a path whose other joints stand still (even
+    fractions); the other joints are left as they are."""
     from assistant.roadmap.free_joints import ramp_free_joints
 
     def reference(P, free, weights):
         P = P.copy()
-        seg = np.linalg.norm(np.diff(P[:, ~free] * weights[~free], axis=0), axis=1)
-        s = np.concatenate(([0.0], np.cumsum(seg)))
-        s = s / s[-1] if s[-1] > 0 else np.linspace(0.0, 1.0, len(P))
-        P[:, free] = P[0, free] + s[:, None] * (P[-1, free] - P[0, free])
+        s = [0.0]
+        for a, b in zip(P[:-1], P[1:], strict=True):
+            s.append(s[-1] + sum((w * (y - x)) ** 2 for x, y, w, f
+                                 in zip(a, b, weights, free, strict=True) if not f) ** 0.5)
+        for i in range(len(P)):
+            u = s[i] / s[-1] if s[-1] > 0 else i / (len(P) - 1)
+            P[i, free] = P[0, free] + u * (P[-1, free] - P[0, free])
         return P
 
     rng = np.random.default_rng(8)
@@ -154,9 +155,10 @@ def test_compiled_free_joint_ramp_is_the_numpy_one():
                 got = path.copy()
                 ramp_free_joints(got, free, weights)
                 # 1e-12 rad: joint ramps from a weighted length (a few products and a
-                # division per row), compiled vs numpy
+                # division per row), summed in another order
                 np.testing.assert_allclose(got, reference(path, free, weights), rtol=0,
                                            atol=1e-12)
+                assert np.array_equal(got[:, ~free], path[:, ~free])
 
 
 def test_goal_inside_an_obstacle_and_unreachable_goal_are_refused(planner, rv2aj):

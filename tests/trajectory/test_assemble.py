@@ -18,8 +18,9 @@ from assistant.trajectory.assemble import (
     verify,
 )
 from assistant.trajectory.elastic_net import ElasticNetParams
+from assistant.trajectory.fit_growth import fit_primitives
 from assistant.trajectory.particles import Particles
-from assistant.trajectory.primitives import FitParams, fit_primitives
+from assistant.trajectory.primitives import FitParams
 from assistant.transforms import axis_angle
 
 Z = 0.20

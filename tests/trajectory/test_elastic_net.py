@@ -15,8 +15,9 @@ from assistant.trajectory.elastic_net import (
     run_elastic_net,
     turn_angles,
 )
+from assistant.trajectory.fit_growth import fit_primitives
 from assistant.trajectory.particles import Particles
-from assistant.trajectory.primitives import FitParams, PrimitiveKind, fit_primitives
+from assistant.trajectory.primitives import FitParams, PrimitiveKind
 
 Z = 0.25  # working height of these tests (m), well inside the RV-2AJ's reach
 
@@ -348,7 +349,6 @@ def test_a_pending_move_kernel_runs_the_numpy_net(rv2aj, monkeypatch):
         raise AssertionError("the compiled move path ran while its kernels were pending")
 
     monkeypatch.setattr(en._Net, "_try_moves_compiled", compiled_path)
-    monkeypatch.setattr(en._Net, "_run_sweeps", compiled_path)
     lazy.set_pending(True)
     try:
         pending = run_elastic_net(rv2aj, Q, validity=checker, params=params)

@@ -35,18 +35,25 @@ def test_densified_path_has_short_chords_and_keeps_the_configurations(rv2aj, coa
         assert np.min(np.linalg.norm(Q - q, axis=1)) < 1e-12
 
 
-@pytest.mark.parametrize("offset", [False, True])
-def test_compiled_densify_gives_the_numpy_rows_to_the_bit(offset, monkeypatch):
-    """The RV-2AJ's compiled subdivision (`densify_kernel`) against the numpy form on
-    random joint paths: done in one pass or several, or still long when the passes run
-    out (one pass allowed); a tool with and without an offset from the flange axis."""
-    import assistant.trajectory.particles as particles
+def _offset_robot(offset: bool):
     from assistant.robots.model import Tool
     from assistant.robots.rv2aj import RV2AJ, RV2AJConfig
 
     T = np.eye(4)
     T[:3, 3] = [0.03, 0.0, 0.08]
-    robot = RV2AJ(RV2AJConfig(tool=Tool("offset", T) if offset else Tool.straight(0.1)))
+    return RV2AJ(RV2AJConfig(tool=Tool("offset", T) if offset else Tool.straight(0.1)))
+
+
+@pytest.mark.parametrize("offset", [False, True])
+def test_densify_keeps_the_rows_and_shortens_every_chord_within_its_passes(offset,
+                                                                           monkeypatch):
+    """Random joint paths, done in one pass or several, or still long when the passes run
+    out (one pass allowed); a tool with and without an offset from the flange axis: every
+    input row is kept in order, the points are the rows' FK, and with every pass allowed
+    no chord is longer than the step."""
+    import assistant.trajectory.particles as particles
+
+    robot = _offset_robot(offset)
     rng = np.random.default_rng(3)
     lo, hi = robot.limits.lower, robot.limits.upper
     ends = set()
@@ -56,65 +63,50 @@ def test_compiled_densify_gives_the_numpy_rows_to_the_bit(offset, monkeypatch):
             for step in (0.001, 0.005, 0.05):
                 Q = rng.uniform(lo, hi, (n, 5))
                 got_q, got_p = densify_joint_path(robot, Q, step)
-                ref_q, ref_p = particles._densify_numpy(robot, Q, step)
-                # Row counts: chords compared with the step on random paths (no ties at
-                # the last bit); 1e-12 (rad, m): interpolated joints and their FK (a chain
-                # of 5 products, ~1e-16 relative each), compiled vs numpy
-                assert got_q.shape == ref_q.shape and got_p.shape == ref_p.shape
-                np.testing.assert_allclose(got_q, ref_q, rtol=0, atol=1e-12)
-                np.testing.assert_allclose(got_p, ref_p, rtol=0, atol=1e-12)
+                rows = [int(np.flatnonzero((got_q == q).all(axis=1))[0]) for q in Q]
+                assert rows == sorted(rows) and rows[0] == 0 and rows[-1] == len(got_q) - 1
+                # 1e-12 m: the same FK, batched or row by row (~1e-16 relative per product)
+                np.testing.assert_allclose(got_p, robot.batch_fk(got_q).positions, rtol=0,
+                                           atol=1e-12)
                 long = np.linalg.norm(np.diff(got_p, axis=0), axis=1).max() > step
                 ends.add((passes, long))
     assert {(1, True), (6, False)} <= ends
 
 
 @pytest.mark.parametrize("offset", [False, True])
-def test_compiled_resampling_gives_the_numpy_particles_to_the_bit(offset):
-    """The RV-2AJ's compiled resampling (`densify_kernel.resample_rows`) against the numpy
-    form on densified random joint paths: spacings that give one particle gap or many,
-    lengths exactly half-way between two counts (Python's round takes the even one), a
-    path with repeated rows (zero-length segments); and through `resample_joint_path`."""
+def test_resampled_particles_are_even_along_the_path_and_keep_its_ends(offset):
+    """Densified random joint paths, spacings that give one particle gap or many, lengths
+    half-way between two counts, a path with repeated rows (zero-length segments): the
+    first and last rows are kept exactly, the points are the joints' FK, and no gap is
+    longer than the path's length shared evenly (plus the chord's sag)."""
     import assistant.trajectory.particles as particles
-    from assistant.robots.model import Tool
-    from assistant.robots.rv2aj import RV2AJ, RV2AJConfig
-    from assistant.trajectory.densify_kernel import resample_rows
 
-    T = np.eye(4)
-    T[:3, 3] = [0.03, 0.0, 0.08]
-    robot = RV2AJ(RV2AJConfig(tool=Tool("offset", T) if offset else Tool.straight(0.1)))
+    robot = _offset_robot(offset)
     rng = np.random.default_rng(5)
     lo, hi = robot.limits.lower, robot.limits.upper
     paths = [rng.uniform(lo, hi, (n, 5)) for n in (2, 3, 5, 9) for _ in range(3)]
     paths.append(np.repeat(paths[2], 2, axis=0))
-    ties, gaps = set(), set()
+    gaps = set()
     for Q0 in paths:
-        Q, P = particles.densify_joint_path(robot, Q0, 0.002)
-        # the length as the resampling sums it (in order)
-        total = float(np.cumsum(np.linalg.norm(np.diff(P, axis=0), axis=1))[-1])
-        for spacing in (0.005, 0.02, 0.3, 10.0, total / 2.5, total / 3.5):
-            ref = particles._resample_numpy(robot, Q, P, spacing)
-            joints, points = resample_rows(Q, P, spacing, *robot.tcp_kernel_constants)
-            x = total / spacing
-            if len(joints) != len(ref.joints):
-                # The particle count rounds length / spacing; at a half-way length the
-                # compiled sum of the chords may differ from numpy's by an ULP and round
-                # the other way - the only case in which the counts may differ (by one).
-                assert abs(x % 1.0 - 0.5) < 1e-9 and abs(len(joints) - len(ref.joints)) == 1
-            else:
-                # 1e-12 (rad, m): positions along the chords and their FK, ~1e-16 each
-                np.testing.assert_allclose(joints, ref.joints, rtol=0, atol=1e-12)
-                np.testing.assert_allclose(points, ref.points, rtol=0, atol=1e-12)
-            gaps.add(len(joints) - 1)
-            if x % 1.0 == 0.5:
-                ties.add(int(x) % 2)
-        got = particles.resample_joint_path(robot, Q0, 0.02)
-        ref = particles._resample_numpy(robot, *particles.densify_joint_path(robot, Q0, 0.0025),
-                                        0.02)
-        assert got.joints.shape == ref.joints.shape  # 0.02 m: no half-way lengths here
-        np.testing.assert_allclose(got.joints, ref.joints, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(got.points, ref.points, rtol=0, atol=1e-12)
+        _, P = particles.densify_joint_path(robot, Q0, 0.002)
+        length = float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum())
+        for spacing in (0.005, 0.02, 0.3, 10.0, length / 2.5, length / 3.5):
+            got = particles.resample_joint_path(robot, Q0, spacing)
+            # the length as the resampling measures it (densified to spacing / 8)
+            _, P = particles.densify_joint_path(robot, Q0, spacing / 8.0)
+            total = float(np.linalg.norm(np.diff(P, axis=0), axis=1).sum())
+            assert np.array_equal(got.joints[0], Q0[0]) and np.array_equal(got.joints[-1],
+                                                                           Q0[-1])
+            np.testing.assert_allclose(got.points, robot.batch_fk(got.joints).positions,
+                                       rtol=0, atol=1e-12)  # the same FK, see above
+            n_gap = len(got) - 1
+            assert n_gap == max(1, round(total / spacing)) or abs(
+                (total / spacing) % 1.0 - 0.5) < 1e-9  # a half-way length may round either way
+            # each gap spans at most total / n of the densified polyline; inside a chord
+            # (<= spacing / 8) the joint interpolation sags off it by far less than 5 %
+            assert got.spacing().max() <= 1.05 * total / n_gap + 1e-9
+            gaps.add(n_gap)
     assert 1 in gaps and max(gaps) > 50
-    assert ties == {0, 1}  # half-way lengths over an even and over an odd count
 
 
 def test_small_moves_are_solved_next_to_the_seeds(rv2aj, coarse_path, rng):

@@ -5,12 +5,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from assistant.trajectory.fit_growth import fit_primitives
 from assistant.trajectory.primitives import (
     ArcPrimitive,
     FitParams,
     LinePrimitive,
     PrimitiveKind,
-    fit_primitives,
     sample_primitive,
 )
 from assistant.transforms import rot_x, rot_z
