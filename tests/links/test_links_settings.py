@@ -89,8 +89,8 @@ def test_emulators_run_as_scripts(rv2aj, module, args, sigint_ignored):
         link.close()
     finally:
         proc.send_signal(signal.SIGINT)
-        try:
-            proc.wait(timeout=5.0)
+        try:  # a loaded machine may take seconds to run the emulator's shutdown
+            proc.wait(timeout=60.0)
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait(timeout=5.0)

@@ -40,6 +40,9 @@ def test_a_run_at_the_chosen_pace_ends_with_the_goal_and_the_learnt_obstacle(
     while session.link_settings.time_scale != 20.0 and time.monotonic() < deadline:
         ui.page.wait_for_timeout(100)
     assert session.link_settings.time_scale == 20.0
+    # the plan's own announcement may still be up (its notification closes on a timer that
+    # a hovering pointer pauses): only a second one would be wrong
+    announced = ui.page.get_by_text("The mission is planned").count()
     ui.click("Execute on the robot")
     # The page's robot halts at the hidden O3 until the operator presses Collision! (Space).
     # The step heading says the robot stopped (not "is moving"); no notification repeats it.
@@ -60,7 +63,7 @@ def test_a_run_at_the_chosen_pace_ends_with_the_goal_and_the_learnt_obstacle(
     learnt = session.learnt_cells()
     assert learnt is not None and len(learnt.centres) == world.learnt_drawn
     # One message per outcome: the run's final plan is not announced as "planned" again.
-    assert ui.page.get_by_text("The mission is planned").count() == 0
+    assert ui.page.get_by_text("The mission is planned").count() <= announced
 
 
 def test_the_simulation_speed_is_checked_and_kept_where_the_robot_stands(tmp_path):
