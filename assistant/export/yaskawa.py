@@ -194,7 +194,7 @@ class YaskawaDialect:
                     ) -> tuple[list[ProgramFile], tuple[str, ...]]:
         """The job files and what the operator should know (split, blends, postures)."""
         check_axis_count(self, robot)
-        blended = any(m.blend_radius > 0.0 for m in program.moves())
+        blended = any(m.blend_radius > 0.0 for m in lower_splines(program).moves())
         program = self.lower(program)
         name = check_identifier(program.name.upper(), self.rules, what="job name",
                                 program=True)
