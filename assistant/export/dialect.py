@@ -20,14 +20,16 @@ import numpy as np
 
 from assistant.export.errors import ExportError
 from assistant.export.program import (
+    Gripper,
     Instruction,
     Move,
     MoveKind,
     NeutralProgram,
     Position,
+    SetOutput,
     Wait,
 )
-from assistant.export.rules import DialectRules
+from assistant.export.rules import DialectRules, check_identifier
 
 if TYPE_CHECKING:  # the prediction imports the simulation, which imports this module
     from assistant.export.cycle_time import CycleTime
@@ -167,6 +169,38 @@ def step_line(lead: str, step: str, max_line: int) -> str:
 def parse_step_comment(text: str) -> str | None:
     text = text.strip()
     return text[len(STEP_PREFIX):].strip() if text.startswith(STEP_PREFIX) else None
+
+
+# ------------------------------------------------------------------------------ checks
+def check_output_channels(program: NeutralProgram, gripper_output: int,
+                          ref: Callable[[int], str], first: int = 1) -> None:
+    """Outputs numbered from `first`; gripper n drives output `gripper_output + n - 1`, which
+    no plain output may also set (`ref(n)` names output n as the controller writes it)."""
+    hands = {i.hand for i in program.instructions if isinstance(i, Gripper)}
+    grippers = {gripper_output + h - 1 for h in hands}
+    for i in program.instructions:
+        if isinstance(i, SetOutput | Gripper):
+            ch = i.channel if isinstance(i, SetOutput) else gripper_output + i.hand - 1
+            if ch < first:
+                raise ExportError(f"{ref(ch)}: this controller's outputs are numbered from "
+                                  f"{first}", step=i.step)
+            if isinstance(i, SetOutput) and ch in grippers:
+                raise ExportError(f"output {ref(ch)} is the gripper's output on this "
+                                  "controller", step=i.step)
+
+
+def check_position_names(program: NeutralProgram, rules: DialectRules) -> None:
+    """Every position name legal as it is (`names.legal_for` renames before writing) and no
+    two differing only in case (a name comment is read back without case)."""
+    seen: dict[str, str] = {}
+    for m in program.moves():
+        for p in m.positions():
+            check_identifier(p.name, rules, what="position", step=m.step)
+            key = p.name.upper()
+            if seen.setdefault(key, p.name) != p.name:
+                raise ExportError(f"positions {seen[key]!r} and {p.name!r} differ only in "
+                                  f"case ({rules.dialect} names)", step=m.step,
+                                  dialect=rules.dialect)
 
 
 # ------------------------------------------------------------------------------ frames

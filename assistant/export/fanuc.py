@@ -61,6 +61,8 @@ from assistant.export.dialect import (
     ProgramFile,
     ascii_text,
     check_axis_count,
+    check_output_channels,
+    check_position_names,
     flatten,
     lower_splines,
     parse_step_comment,
@@ -170,8 +172,8 @@ class FanucDialect:
         program = self.lower(program)
         name = check_identifier(program.name.upper(), self.rules, what="program name",
                                 program=True)
-        self._check_names(program)
-        self._check_outputs(program)
+        check_position_names(program, self.rules)
+        check_output_channels(program, self.gripper_output, lambda n: f"DO[{n}]")
         cycle = cycle_time or predict_cycle_time(program, robot)
         forms, ambiguous = self._forms(program, robot)
         notes: list[str] = []
@@ -199,30 +201,6 @@ class FanucDialect:
         for f in files:
             check_lines(f.text, self.rules, f.name)
         return files, tuple(notes)
-
-    def _check_names(self, program: NeutralProgram) -> None:
-        seen: dict[str, str] = {}
-        for m in program.moves():
-            for p in m.positions():
-                check_identifier(p.name, self.rules, what="position", step=m.step)
-                key = p.name.upper()
-                if seen.setdefault(key, p.name) != p.name:
-                    raise ExportError(f"positions {seen[key]!r} and {p.name!r} differ only in "
-                                      "case (FANUC TP position comments)", step=m.step,
-                                      dialect=self.rules.dialect)
-
-    def _check_outputs(self, program: NeutralProgram) -> None:
-        hands = {i.hand for i in program.instructions if isinstance(i, Gripper)}
-        grippers = {self.gripper_output + h - 1 for h in hands}
-        for i in program.instructions:
-            if isinstance(i, SetOutput | Gripper):
-                ch = i.channel if isinstance(i, SetOutput) else self.gripper_output + i.hand - 1
-                if ch < 1:
-                    raise ExportError(f"DO[{ch}]: FANUC digital outputs are numbered from 1",
-                                      step=i.step)
-                if isinstance(i, SetOutput) and ch in grippers:
-                    raise ExportError(f"output DO[{ch}] is the gripper's output on this "
-                                      "controller", step=i.step)
 
     def _forms(self, program: NeutralProgram, robot: Robot
                ) -> tuple[dict[str, str], dict[str, list[int]]]:
