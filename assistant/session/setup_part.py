@@ -112,7 +112,11 @@ class SetupActions:
             self._q_sim = np.asarray(ev.q, dtype=float)
             self.bus.emit(RobotMoved(self._q_sim.copy()))
         if ev.message.startswith("halted, touching"):
+            self.halted = True
+            self.halts_this_run += 1
             self.bus.emit(RobotHalted(ev.message.split(":", 1)[-1].strip()))
+        if ev.kind == LinkEventKind.COLLISION_INDICATED:
+            self.halted = False
         if ev.kind == LinkEventKind.COLLISION_INDICATED and ev.q is not None:
             # The executor/explorer feeds the world model; the session keeps the posture so a
             # reloaded session knows it too.
