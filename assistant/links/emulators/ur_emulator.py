@@ -80,7 +80,7 @@ class UREmulator:
                  tick_s: float = 0.004, start_q: Array | None = None,
                  faults: Faults | None = None, unlock_delay_s: float = 5.0,
                  version: tuple[int, int, int, int] = (5, 11, 1, 108318),
-                 local_mode: bool | None = None,
+                 local_mode: bool | None = None, realtime_port: int = 0,
                  calibration: up.KinematicsInfo | None | bool = True,
                  serial: str = "20235500001"):
         self.model_name, _, _ = uk.identify(robot)
@@ -119,6 +119,7 @@ class UREmulator:
                                version=version)
         self._primary_srv = socket.create_server((host, primary_port))
         self._script_srv = socket.create_server((host, script_port))
+        self._realtime_srv = socket.create_server((host, realtime_port))
         self._dash_srv = socket.create_server((host, dashboard_port))
         self._conns: set[socket.socket] = set()
         self._script_conns: set[socket.socket] = set()  # 30002: robot state only
@@ -132,6 +133,7 @@ class UREmulator:
         self.rtde.start()
         for srv, fn in ((self._primary_srv, self._serve_primary),
                         (self._script_srv, self._serve_script),
+                        (self._realtime_srv, self._serve_realtime),
                         (self._dash_srv, self._serve_dashboard)):
             srv.settimeout(0.05)
             th = threading.Thread(target=self._accept, args=(srv, fn), daemon=True,
@@ -151,7 +153,7 @@ class UREmulator:
         self.drop_connections()
         for th in self._threads:
             th.join(timeout=2.0)
-        for srv in (self._primary_srv, self._script_srv, self._dash_srv):
+        for srv in (self._primary_srv, self._script_srv, self._realtime_srv, self._dash_srv):
             srv.close()
 
     def __enter__(self) -> UREmulator:
@@ -171,6 +173,10 @@ class UREmulator:
     @property
     def primary_port(self) -> int:
         return self._primary_srv.getsockname()[1]
+
+    @property
+    def realtime_port(self) -> int:
+        return self._realtime_srv.getsockname()[1]
 
     def set_remote_control(self, on: bool) -> None:
         """The pendant's Local / Remote toggle; leaving Remote drops 30001-30003 clients."""
@@ -346,7 +352,12 @@ class UREmulator:
     def _serve_primary(self, sock: socket.socket) -> None:
         self._serve_script(sock, primary=True)
 
-    def _serve_script(self, sock: socket.socket, primary: bool = False) -> None:
+    def _serve_realtime(self, sock: socket.socket) -> None:
+        """30003 takes URScript too (its 500 Hz state stream is not emulated)."""
+        self._serve_script(sock, realtime=True)
+
+    def _serve_script(self, sock: socket.socket, primary: bool = False,
+                      realtime: bool = False) -> None:
         with self._lock:
             if not self.remote_control:
                 return  # Local control: the connection is dropped at once
@@ -354,7 +365,8 @@ class UREmulator:
         if primary:
             sock.sendall(up.version_message("URControl", major, minor, bugfix, build))
         with self._lock:
-            (self._primary_conns if primary else self._script_conns).add(sock)
+            if not realtime:
+                (self._primary_conns if primary else self._script_conns).add(sock)
         buf = ""
         for chunk in self._lines(sock):
             if chunk is None:
