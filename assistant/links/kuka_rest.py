@@ -39,6 +39,7 @@ from assistant.links.kuka_protocol import BridgeReply
 from assistant.links.link import LinkError, LinkEvent, LinkEventKind, LinkLost, RobotLink
 from assistant.links.operator_button import OperatorButton
 from assistant.links.timing import time_parametrize, validate_path
+from assistant.links.wirelog import NULL, WireLog
 from assistant.robots.model import Robot
 
 Array = np.ndarray
@@ -66,8 +67,10 @@ class KukaRestLink(OperatorButton, RobotLink):
         timeout_s: float = 2.0,
         decimation_tol_m: float = 0.002,
         set_tcp_on_connect: bool = True,
+        wire: WireLog = NULL,
     ):
         super().__init__()
+        self.wire = wire
         if timeout_s <= 0 or decimation_tol_m <= 0:
             raise ValueError("timeout_s and decimation_tol_m must be positive")
         self.robot = robot
@@ -97,12 +100,15 @@ class KukaRestLink(OperatorButton, RobotLink):
         req = urllib.request.Request(self._url(endpoint, params), data=body, method="POST",
                                      headers={"Content-Type": content_type,
                                               "Connection": "close"})
+        self.wire.sent("http", f"POST {req.full_url}" + (f" ({len(body)} bytes)" if body else ""))
         with self._lock:
             try:
                 with urllib.request.urlopen(req, timeout=timeout) as resp:
                     raw = resp.read()
+                    self.wire.received("http", raw[:500])
             except urllib.error.HTTPError as exc:
                 text = exc.read().decode("utf-8", errors="replace")[:200]
+                self.wire.received("http", f"HTTP {exc.code} {text}")
                 raise LinkError(f"bridge answered /{endpoint} with HTTP {exc.code}: "
                                 f"{text!r}") from None
             except TimeoutError:

@@ -19,8 +19,8 @@ from assistant.links.link import RobotLink
 from assistant.links.wirelog import NULL, WireLog
 from assistant.robots.model import Robot
 
-LinkKind = Literal["simulated", "melfa", "kuka_rest", "ur", "abb"]
-KINDS: tuple[str, ...] = ("simulated", "melfa", "kuka_rest", "ur", "abb")
+LinkKind = Literal["simulated", "melfa", "kuka_rest", "ur", "abb", "omnicore"]
+KINDS: tuple[str, ...] = ("simulated", "melfa", "kuka_rest", "ur", "abb", "omnicore")
 
 
 class LinkSettingsError(ValueError):
@@ -53,7 +53,8 @@ class LinkSettings:
     ur_rtde_port: int = 30004
     ur_dashboard_port: int = 29999
     ur_rtde_hz: float = 500.0
-    #: ABB (Robot Web Services on `port`, 80 on an IRC5): the login - the controller's
+    #: ABB (Robot Web Services on `port`: 80 on an IRC5, "abb"; 443 on an OmniCore,
+    #: "omnicore", RWS 2.0 over HTTPS): the login - the controller's
     #: default user unless the cell has its own - and the RAPID motion task.
     rws_user: str = "Default User"
     rws_password: str = "robotics"
@@ -134,14 +135,15 @@ def make_link(settings: LinkSettings, robot: Robot,
                          connect_timeout_s=settings.connect_timeout_s,
                          timeout_s=settings.timeout_s, stream_cycle_s=settings.stream_cycle_s,
                          stream_window=settings.stream_window,
-                         event_period_s=settings.event_period_s)
-    if settings.kind == "abb":
+                         event_period_s=settings.event_period_s, wire=wire)
+    if settings.kind in ("abb", "omnicore"):
         from assistant.links.abb_rws import AbbRwsLink
 
         return AbbRwsLink(robot, host=settings.host, port=settings.port,
                           username=settings.rws_user, password=settings.rws_password,
                           task=settings.rws_task, timeout_s=settings.timeout_s,
-                          decimation_tol_m=settings.decimation_tol_m)
+                          decimation_tol_m=settings.decimation_tol_m,
+                          rws_version=2 if settings.kind == "omnicore" else 1, wire=wire)
     if settings.kind == "ur":
         from assistant.links.ur import URLink
 
