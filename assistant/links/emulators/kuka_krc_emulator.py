@@ -157,7 +157,8 @@ class KrcMachine:
         if fn == "krl_fopen":
             name, mode = str(args[0]), str(args[1])
             try:
-                f = open(self.channel / Path(name).name, mode[:1] if mode[:1] in "rwa" else "r",
+                f = open(self.channel / Path(name).name,  # noqa: SIM115 (KRL holds it)
+                         mode[:1] if mode[:1] in "rwa" else "r",
                          encoding="ascii", errors="replace")
             except OSError:
                 return "#CMD_ABORT"

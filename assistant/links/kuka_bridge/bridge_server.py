@@ -9,8 +9,9 @@ uploadfile; query parameters x y z (mm) a b c (deg) s t, aux_x ... for circ, vel
 reply ``{"statuscode": 1, "position": [x, y, z, a, b, c], "axes": [a1, ..., a6]}`` (the
 axes, in degrees, are ours: 002 reports the pose only). One command at a time (a
 lock, 002 Listing 4.1): it is written as one line to ``cellbridge_cmd.txt`` (atomically:
-a temporary file renamed over it) with a new command id, and the server waits for
-``cellbridge_res.txt`` to carry that id (002 Listings 4.4-4.6); the KRL program
+a temporary file renamed over it) with a new command id, the server waits for
+``cellbridge_res.txt`` to carry that id (002 Listings 4.4-4.6) and then removes the command
+file, so a robot program restarted after a halt never runs a command twice; the KRL program
 ``cellbridge.src`` runs on the robot and executes it. Unlike 002 the wait has a deadline
 (`--timeout`, statuscode -5 with what to check), so a stopped robot program never hangs a
 client, and the files are never held open.
@@ -75,7 +76,23 @@ class Bridge:
                             + [f"{v:.6f}" for v in vals[:6]] + [str(s), str(t)]
                             + [f"{v:.6f}" for v in vals[6:]] + [f"{vel:.3f}"]) + "\n"
             self._write(line)
-            return self._wait(cid, self.timeout_s if timeout_s is None else timeout_s)
+            try:
+                return self._wait(cid, self.timeout_s if timeout_s is None else timeout_s)
+            finally:
+                self._remove()  # answered or given up: a restarted program must not run it
+
+    def _remove(self) -> None:
+        deadline = time.monotonic() + 5.0
+        while True:
+            try:
+                os.remove(self._path(CMD_FILE))
+                return
+            except FileNotFoundError:
+                return
+            except PermissionError:  # the robot program has it open this instant
+                if time.monotonic() > deadline:
+                    return
+                time.sleep(self.poll_s)
 
     def _write(self, line: str) -> None:
         tmp = self._path(CMD_FILE + ".tmp")
@@ -121,7 +138,7 @@ class Bridge:
                     "message": f"{filename!r} is not a .src or .dat file"}
         store[f"{stem.upper()}.{ext.lower()}"] = data.decode("utf-8", errors="replace")
         if ext.lower() == "dat":
-            return {"statuscode": 1, "position": [], "program": stem}
+            return {**self.command(METHODS["getpos"], {}), "program": stem}
         try:
             motions = parse_motions(store[f"{stem.upper()}.src"],
                                     parse_points(store.get(f"{stem.upper()}.dat", "")))
