@@ -211,6 +211,9 @@ class AbbRwsLink(OperatorButton, RobotLink):
         self._connected = False
         return LinkLost(f"ABB controller at {self.base_url} lost: {why}")
 
+    def get_states(self, resource: str) -> list[dict]:
+        return rp.states(self.request("GET", resource), resource.split("?")[0])
+
     def get_state(self, resource: str, type_: str) -> dict:
         return rp.state(self.request("GET", resource), resource.split("?")[0], type_)
 

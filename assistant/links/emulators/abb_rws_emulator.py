@@ -323,7 +323,7 @@ class AbbRwsEmulator:
             return [{"_type": "rap-task-li", "_title": TASK, "name": TASK, "type": "norm",
                      "taskstate": "link", "excstate": "started" if c.running else "ready",
                      "active": "On", "motiontask": "TRUE"}]
-        if res == "rapid/modules":
+        if res in ("rapid/modules", f"rapid/tasks/{TASK}/modules"):
             if q.get("task", TASK) != TASK:
                 raise RwsError(400, rp.RC_BAD_REQUEST, f"no task {q.get('task')}")
             with c.lock:
