@@ -173,6 +173,13 @@ class Toolbar:
         m = s.machine
         mode = m.mode.value
         run = s.run_state()
+        # The keys first: a page that reads "the robot is moving" already has Space armed.
+        moving = mode == "moving"
+        if self.key_collision.disabled != (not moving):
+            self.key_collision.disabled = not moving
+        stop_ok = mode in ("moving", "busy")
+        if self.key_stop.disabled != (not stop_ok):
+            self.key_stop.disabled = not stop_ok
         self.heading.content = step_heading(m.state, mode, run)
         transitions = s.transitions()
         by_event = {t.event: t for t in transitions}
@@ -201,12 +208,6 @@ class Toolbar:
             t = by_event.get(event)
             _set(cmd, disabled=t is None or not t.allowed)
         _set(self.goto, disabled=not idle, hint=wait or "Jump to the step chosen above")
-        moving = mode == "moving"
-        if self.key_collision.disabled != (not moving):
-            self.key_collision.disabled = not moving
-        stop_ok = mode in ("moving", "busy")
-        if self.key_stop.disabled != (not stop_ok):
-            self.key_stop.disabled = not stop_ok
         if idle:
             self.progress.visible = False
             self.progress_text.visible = False
