@@ -40,6 +40,8 @@ class PlanningActions:
     def _run_busy(self, task: str, fn: Callable[[Progress], Any],
                   steps: tuple[str, ...] | None = None, *, moving: bool = False) -> Future:
         """Run long work on the worker: the machine is busy (or moving) until it ends."""
+        if moving:
+            self.hold.check_start()  # only the present holder of motion authority
         with self._lock:
             if steps is not None:
                 self.machine.require(steps, task)

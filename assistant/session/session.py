@@ -41,6 +41,7 @@ from assistant.session.events import (
 from assistant.session.export_part import ExportActions
 from assistant.session.history import History
 from assistant.session.layout_part import LayoutActions
+from assistant.session.motion_hold import MotionHold
 from assistant.session.motion_part import MotionActions
 from assistant.session.persistence_part import Persistence
 from assistant.session.planning_part import PlanningActions
@@ -85,6 +86,9 @@ class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActi
         self.plan_report: dict[str, Any] | None = None
         self.program: Any = None
         self.recorded_collisions: list[Array] = []
+        #: The enabling switch: who may move the robot (enforced once pages serve this).
+        self.hold = MotionHold()
+        self.hold.on_lost(self._holder_gone)
         self._lock = threading.RLock()
         self._link: RobotLink | None = None
         self._q_sim: Array | None = None  # joints of the robot when no link is connected
