@@ -17,6 +17,7 @@ import msgspec
 import pytest
 
 from web.gate import AccessTokens, GateConfig
+from web.gate.login import LOGIN_PATH
 
 VISER_PROTOCOL = "viser-v" + __import__("viser").__version__
 #: What viser's client sends first: a camera (viser counts a client as connected after it).
@@ -74,6 +75,16 @@ def client(*, cookie: str | None = None, source: str | None = None,
     if cookie is not None:
         s.cookie_jar.update_cookies({"cellteach_access": cookie})
     return s
+
+
+async def sign_in(c: aiohttp.ClientSession, url: str, code: str, next_path: str = "/",
+                  **headers: str) -> aiohttp.ClientResponse:
+    """Send the sign-in form as a browser does (not following the redirect); the response
+    (already read: status, headers) - its cookie stays in `c`'s jar."""
+    async with c.post(url + LOGIN_PATH, data={"code": code, "next": next_path},
+                      allow_redirects=False, headers=headers) as r:
+        await r.read()
+        return r
 
 
 async def wait_for(pred: Callable[[], bool], timeout: float = 20.0) -> bool:

@@ -19,6 +19,7 @@ from gate_helpers import (  # noqa: F401
     gated_fixture,
     local_url,
     run,
+    sign_in,
     uuid_of,
     wait_for,
 )
@@ -42,8 +43,7 @@ class Page:
         url = local_url(self.app)
         before = set(self.app.server.get_clients())
         self.http = client()
-        async with self.http.get(f"{url}/?token={self.token}") as r:
-            assert r.status == 200
+        assert (await sign_in(self.http, url, self.token)).status == 303
         self.ws = await self.http.ws_connect(url, protocols=[VISER_PROTOCOL])
         self._drain = asyncio.ensure_future(self._read())
         await self.ws.send_bytes(encode(CAMERA))  # a camera passes for every role
