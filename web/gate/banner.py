@@ -13,9 +13,9 @@ import html
 from web.gate.tokens import Role
 
 BANNER_ID = "cellteach-gate-banner"
-VIEW_ONLY = "View only: this link shows the cell live; nothing on this page changes or moves " \
+VIEW_ONLY = "View only: this page shows the cell live; nothing on it changes or moves " \
     "anything."
-UNENCRYPTED = "Not encrypted: anyone on this network can read this page and its access link. " \
+UNENCRYPTED = "Not encrypted: anyone on this network can read this page and its access code. " \
     "Restart cellteach with --certfile and --keyfile to serve HTTPS."
 
 
