@@ -74,24 +74,41 @@ def test_a_wrong_certificate_is_one_message_and_exit_2(tmp_path):
     assert "cert.pem" in err and "PEM certificate" in err
 
 
+def _refused_in_process(tmp: Path, capsys, monkeypatch, *extra: str) -> str:
+    """`cellteach serve` in this process (no interpreter to start): it must refuse before it
+    serves anything - serving fails the test at once instead of running forever."""
+    import web.app
+    from assistant import cli
+
+    def served(*a: object, **kw: object) -> None:
+        raise AssertionError("cellteach served: the bad input was not refused")
+
+    monkeypatch.setattr(web.app, "serve", served)
+    code = cli.main(["serve", "--empty", "--session", str(tmp / "session"), "--port", "0",
+                     "--host", "0.0.0.0", *extra])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    return err
+
+
 @pytest.mark.parametrize("which", ["--certfile", "--keyfile"])
-def test_a_missing_certificate_or_key_is_named(tmp_path, which):
+def test_a_missing_certificate_or_key_is_named(tmp_path, capsys, monkeypatch, which):
     from gate_helpers import self_signed_cert
 
     cert, _ = self_signed_cert(tmp_path)
     missing = tmp_path / "nowhere.pem"
     args = ["--certfile", str(missing)] if which == "--certfile" else \
         ["--certfile", str(cert), "--keyfile", str(missing)]
-    err = _serve_fails(tmp_path, *args)
+    err = _refused_in_process(tmp_path, capsys, monkeypatch, *args)
     what = "certificate (--certfile)" if which == "--certfile" else "private key (--keyfile)"
     assert f"cellteach: cannot read the {what} {missing}: no such file" in err
     assert "None" not in err
 
 
-def test_an_unsafe_token_file_is_refused_with_what_to_do(tmp_path):
+def test_an_unsafe_token_file_is_refused_with_what_to_do(tmp_path, capsys, monkeypatch):
     tokens = tmp_path / "tokens"
     tokens.write_text("operator-code-of-some-length\nviewer-code-of-some-length\n")
     tokens.chmod(0o666)
-    err = _serve_fails(tmp_path, "--token-file", str(tokens))
+    err = _refused_in_process(tmp_path, capsys, monkeypatch, "--token-file", str(tokens))
     assert "can be read and changed by other users (mode 0666)" in err
     assert f"chmod 600 {tokens}" in err and "operator-code-of-some-length" not in err

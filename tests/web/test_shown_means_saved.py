@@ -2,7 +2,8 @@
 
 In process: while an action is saving, a redraw the page asks for waits - the page cannot
 show the new location until it is on disk (the redraw runs under the session lock the action
-holds until its save is done).
+holds until its save is done); a save the disk refuses puts "Not saved" on the page until a
+save works.
 
 End to end (`ci_extra`, ~30 s a kill on a busy machine: software-rendered pages): `cellteach
 serve` is killed (SIGKILL) at random moments while the operator teaches location after
@@ -100,6 +101,30 @@ def test_the_page_waits_for_an_action_s_save_before_it_shows_it(tmp_path, monkey
         assert app.wait_idle(30) and "| PX |" in table.content  # shown once saved
     finally:
         release.set()
+        app.stop()
+
+
+def test_the_page_says_not_saved_until_a_save_works(tmp_path):
+    from web import serve
+
+    s = Session.from_sample("thesis_rv2aj", tmp_path / "s", with_mission=False)
+    s.goto("teach.locations")
+    app = serve(s, port=0)
+    heading = app.toolbar.heading
+    blocker = s.folder / "session.json"
+    try:
+        blocker.unlink()
+        blocker.mkdir()  # the rename onto it fails, as on a full or read-only disk
+        (blocker / "x").write_text("x")
+        s.teach("PX", pose_from_mm_deg([250, 0, 200, 0, 0, 180]))
+        assert app.wait_idle(30)
+        assert "**Not saved:**" in heading.content and str(s.folder) not in heading.content
+        (blocker / "x").unlink()
+        blocker.rmdir()
+        s.teach("PY", pose_from_mm_deg([250, 50, 200, 0, 0, 180]))
+        assert app.wait_idle(30) and "Not saved" not in heading.content
+        assert {"PX", "PY"} <= _saved_names(s.folder)
+    finally:
         app.stop()
 
 
