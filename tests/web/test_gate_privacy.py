@@ -10,6 +10,7 @@ from gate_helpers import Page, click, encode, gated_fixture, run, uuid_of, wait_
 from assistant.session import Session
 from assistant.session.link_secrets import MASK
 from web.gate import AccessTokens
+from web.panels.setup import LINK_LABELS
 
 PASSWORD = "Rws-pa55word-typed-on-one-page"
 OP1, OP2 = "127.0.0.3", "127.0.0.4"  # two operators' computers
@@ -40,7 +41,7 @@ def test_viewers_get_what_watching_needs_and_refusals_stay_with_their_page(gated
             app.access.authority.request(op2.client_id)  # op2 asks for it (op1's page says)
             assert await wait_for(lambda: op1.saw(f"operator 2 ({OP2}) asks for it"))
             # op1 picks the ABB link, types a password on its page and stores it.
-            await op1.send(_update(uuid_of(setup.link_kind), "ABB IRC5 (Robot Web Services)"))
+            await op1.send(_update(uuid_of(setup.link_kind), LINK_LABELS["abb"]))
             field = setup.rws_password.of(op1.client)
             assert field is not None and setup.rws_password.of(viewer.client) is None
             await op1.send(_update(uuid_of(field), PASSWORD))
