@@ -24,11 +24,13 @@ from assistant.session.events import (
     Notice,
     PlanReady,
     ProgramReady,
+    SaveStateChanged,
     StateChanged,
 )
 from web.actions import Actions
 from web.gate import Access, GateConfig
 from web.notify import Notifier
+from web.pages import Pages
 from web.panels.base import Panel
 from web.panels.cad import CadPanel
 from web.panels.cameras import CamerasPanel
@@ -66,6 +68,7 @@ class App:
     #: The gate in front of the page (None on loopback: open, as before).
     access: Access | None = None
     notifier: Notifier = field(init=False)
+    pages: Pages = field(init=False)
     actions: Actions = field(init=False)
     pump: EventPump = field(init=False)
     scene_layers: SceneLayers = field(init=False)
@@ -83,10 +86,12 @@ class App:
                                         brand_color=(40, 110, 200))
         # viser's widest preset is ~350 px: the tables and the program preview need room.
         self.server.gui.main_panel.set_width(PANEL_WIDTH_PX)
-        self.notifier = Notifier(self.server)
+        self.pages = Pages(self)
+        self.notifier = Notifier(self.server, audience=self.pages.role, redact=self.redact)
         self._shown_state = self._session.machine.state
         self.actions = Actions(self)
-        self.pump = EventPump(self._dispatch, on_queue=self._on_emit)
+        self.pump = EventPump(self._dispatch, on_queue=self._on_emit,
+                              settled=lambda: self._session.settled())
         self.scene_layers = SceneLayers(self)
         self.toolbar = Toolbar(self)
         self.panels = {p.title: p for p in (
@@ -115,6 +120,16 @@ class App:
             self.pump.attach(new.bus)
         self.refresh()
 
+    def redact(self, text: str) -> str:
+        """Text every page sees, without the session folder's path (a viewer's page gets what
+        watching needs, not where the files are)."""
+        folder = self._session.folder
+        if folder is not None:
+            for form in sorted({str(folder), str(folder.expanduser().resolve())}, key=len,
+                               reverse=True):
+                text = text.replace(form, "the session folder")
+        return text
+
     # ------------------------------------------------------------------ redraw
     def refresh(self) -> None:
         """Redraw everything from the session (queued on the UI thread)."""
@@ -135,6 +150,8 @@ class App:
 
     def _dispatch(self, ev: Event) -> None:
         """Apply one event on the UI thread: scene first, then panels, then the toolbar."""
+        if isinstance(ev, SaveStateChanged):
+            self.toolbar.saved(ev.saved, ev.reason)
         self.scene_layers.on_event(ev)
         if isinstance(ev, StateChanged) and ev.mode == "moving":
             self.notifier.clear_done()  # a run starts: "planned" and the like are history

@@ -4,8 +4,10 @@ the one holder of motion authority. No domain logic.
 On loopback (the default) the page is open as before and nothing here runs. On any other
 address (or with `--token-file` / `--certfile`) viser listens on 127.0.0.1 only and `Front`
 (aiohttp) listens on the exposed address: every HTTP path and the websocket need an access
-token (a link `?token=...` once, then an HttpOnly cookie), failed tokens are rate-limited per
-address, request bodies and uploads are bounded, TLS is served with `--certfile/--keyfile`.
+code (typed once into the sign-in form, never in an address, then an HttpOnly cookie:
+`login.py`), failed codes are rate-limited per address, connections are capped per address and
+in all and timed out (`connections.py`), request bodies and uploads are bounded, TLS is served
+with `--certfile/--keyfile`.
 
 Two tokens, two roles: the *operator* link drives the page, the *viewer* link watches it. A
 viewer's websocket messages that would change anything (GUI edits and clicks, commands,
@@ -23,7 +25,7 @@ available to every operator.
 
     app = web.serve(session, gate=GateConfig(host="0.0.0.0", port=8080,
                                              tokens=AccessTokens.new()))
-    print(app.access.link(Role.OPERATOR), app.access.link(Role.VIEWER))
+    print(app.url, app.access.code(Role.OPERATOR), app.access.code(Role.VIEWER))
 
 Imports: aiohttp, viser, the standard library and `web` helpers below it; never `assistant`,
 `workflow` or `vision` (it knows nothing of robots beyond "this control moves it").

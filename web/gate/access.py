@@ -56,8 +56,9 @@ class Access:
     def url(self) -> str:
         return self.front.url
 
-    def link(self, role: Role) -> str:
-        return self.front.link(role)
+    def code(self, role: Role) -> str:
+        """The access code of `role` (entered on the sign-in page; print it, never log it)."""
+        return self.front.code(role)
 
     # ------------------------------------------------------------------ clients
     def attach(self, app: App) -> None:
