@@ -92,8 +92,7 @@ class CadImport:
             if p.margin_m > 0.0:
                 lines.append(
                     f"the part lies at most {p.margin_m * 1000:.2f} mm outside its proxy "
-                    "(one-sided Hausdorff, bounded over every triangle; "
-                    f"{p.outside_at_vertices_m * 1000:.2f} mm at a vertex): the collision "
+                    "(one-sided Hausdorff, bounded over every triangle): the collision "
                     f"checks keep a {p.margin_m * 1000:.2f} mm margin around the proxy")
             else:
                 lines.append("the part lies inside its proxy (the hull holds every vertex)")

@@ -13,12 +13,15 @@ a triangle of the part it is largest at a corner. So a triangle of the part whos
 corners all lie within d of one proxy triangle (or inside/within d of one convex piece) lies
 within d of the proxy everywhere. For each corner the nearest proxy triangles are found
 through a KD-tree of points spread over the proxy (any triangle gives a valid bound, the
-nearest the tightest) and measured exactly; a triangle whose corners share none of their
-candidates is bounded by its corners' distances plus its own size (distance is 1-Lipschitz)
-or, where that is larger than the rest, by measuring its corners to all their candidates.
+nearest the tightest) and measured exactly. A triangle whose corners share no candidate is
+bounded by the best of: its corners' distances plus its size (distance is 1-Lipschitz), its
+three corners against each corner's nearest proxy triangle, and - where that is still above
+the largest bound of the others - splitting it in four, again and again, each piece bounded
+against the triangle's candidates (a piece straddling two proxy triangles lies close to one
+of them everywhere the smaller it is).
 
-The corners' own largest distance (`OutsideBound.at_vertices_m`) is a lower estimate of H;
-the bound exceeds it only where the proxy bends within a triangle of the part.
+`OutsideBound.at_vertices_m` is the largest corner distance found; the bound exceeds it only
+where the proxy bends within a triangle of the part.
 """
 
 from __future__ import annotations
@@ -49,7 +52,9 @@ class OutsideBound:
     """The part's surface lies within `distance_m` of the proxy, everywhere."""
 
     distance_m: float
-    #: The largest distance found at a corner of the part (a lower estimate of the bound).
+    #: The largest distance found at a corner of the part (to its nearest candidate: at most
+    #: the bound, and only above the true corner distance where a candidate was not the
+    #: nearest proxy triangle).
     at_vertices_m: float
     triangles: int
     #: Triangles bounded by measuring all their corners' candidates.
@@ -242,7 +247,10 @@ def outside_bound(vertices: Array, faces: Array, parts: tuple[trimesh.Trimesh, .
         floor = max(floor, float(bound[batch].max()))
         todo = todo[bound[todo] > floor]
     progress.update(1.0, "proxy measured")
-    return OutsideBound(float(bound.max()), at_vertices, len(f), refined)
+    result = float(bound.max())
+    # the corners' figure is itself an upper estimate (nearest candidate, not nearest
+    # triangle): never report it above the bound
+    return OutsideBound(result, min(at_vertices, result), len(f), refined)
 
 
 def _nearest_candidate(cand: Array, dist: Array) -> Array:
