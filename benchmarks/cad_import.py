@@ -186,8 +186,9 @@ def measure_peer_here(path: Path) -> dict:
         out["cpu_seconds"] = time.process_time() - c0
         out["peak_rss_mb"] = _peak_rss_mb()
         bound = outside_bound(mesh.vertices, mesh.faces, (proxy,), convex=False)
+        # the peer keeps the file's numbers: millimetres for the parts generated here
         out.update(ok=True, faces=len(mesh.faces), proxy_faces=len(proxy.faces),
-                   outside_mm=bound.distance_m * 1000.0, margin_mm=0.0)
+                   outside_mm=bound.distance_m, margin_mm=0.0)
     except MemoryError:
         out.update(ok=False, error=f"out of memory (limit {PEER_MEMORY_LIMIT / 2**30:.0f} GiB)",
                    seconds=time.perf_counter() - t0, peak_rss_mb=_peak_rss_mb())

@@ -211,7 +211,8 @@ def _import(data: bytes, filename: str, options: ImportOptions,
     progress.update(0.15, "repairing the mesh")
     mesh = raw.mesh
     raw.mesh = None  # one copy of a big mesh at a time
-    mesh, rep = repair(mesh, filename, copy=False, scale=decision.scale_to_m)
+    mesh, rep = repair(mesh, filename, copy=False, scale=decision.scale_to_m,
+                       progress=progress.sub(0.15, 0.33, "repairing the mesh"))
     warnings = list(raw.warnings) + rep.warnings
     w = size_warning(float(mesh.extents.max()), decision)
     if w:

@@ -15,14 +15,15 @@ import trimesh
 from assistant.cell.cad import mesh_ops as ops
 from assistant.cell.cad.errors import CadImportError
 from assistant.cell.cad.precheck import too_many
+from assistant.progress import Progress
 
 #: Faces with less area than this (m^2, i.e. 1e-6 mm^2) are degenerate slivers.
 DEGENERATE_AREA_M2 = 1e-12
 #: A mesh with more triangles than this is refused, before parsing where its file says how
-#: many it holds (`precheck`). Import time and memory grow with the triangle count
-#: (benchmarks/cad_import.py on two shared cores: 2 M triangles in ~20 s and < 2 GB, the
-#: collision proxy's margin bounded over every triangle); 10 M would take minutes and
-#: several GB for a part that collision, display and teaching need far coarser.
+#: many it holds (`precheck`). Time and memory grow with the count (benchmarks/cad_import.py,
+#: grooved fixture, 2 shared cores: 2 M triangles ~13 s of CPU and 1.4 GB peak, 4 M ~24 s
+#: and 2.2 GB); 10 M would take ~6 GB (trimesh alone took 5.5 GB to load and decimate it)
+#: for a part that collision, display and teaching need far coarser.
 MAX_FACES = 4_000_000
 
 
@@ -71,8 +72,8 @@ def used_vertices(faces: np.ndarray, n_vertices: int) -> np.ndarray:
     return used
 
 
-def repair(mesh: trimesh.Trimesh, filename: str, *, copy: bool = True, scale: float = 1.0
-           ) -> tuple[trimesh.Trimesh, RepairReport]:
+def repair(mesh: trimesh.Trimesh, filename: str, *, copy: bool = True, scale: float = 1.0,
+           progress: Progress | None = None) -> tuple[trimesh.Trimesh, RepairReport]:
     """A cleaned mesh (merged vertices, no degenerate/duplicate faces, consistent outward
     normals, small holes filled) and what was changed, its vertices first multiplied by
     `scale` (to metres: the repair's tolerances are in metres). Refuses zero-area meshes.
@@ -80,6 +81,7 @@ def repair(mesh: trimesh.Trimesh, filename: str, *, copy: bool = True, scale: fl
     Runs on plain arrays (`mesh_ops`): a few seconds for millions of triangles. `copy=False`
     lets a caller that no longer needs `mesh` save a copy of its arrays (big files)."""
     rep = RepairReport()
+    step = (progress or Progress()).update  # between steps: reports, and stops on Cancel
     dtype_copy = np.array if copy else np.asarray
     v = dtype_copy(mesh.vertices.view(np.ndarray), dtype=np.float64)
     f = dtype_copy(mesh.faces.view(np.ndarray), dtype=np.int64)
@@ -87,11 +89,13 @@ def repair(mesh: trimesh.Trimesh, filename: str, *, copy: bool = True, scale: fl
         v = v * scale
 
     n_v = int(used_vertices(f, len(v)).sum())
+    step(0.05, "merging vertices")
     v, f = ops.merge_vertices(v, f)
     if len(v) < n_v:
         # Normal for STL and tessellated CAD (every face has its own corners): not a repair.
         rep.notes.append(f"merged {n_v - len(v)} coincident vertices")
 
+    step(0.3, "degenerate and duplicate faces")
     bad = ops.degenerate_faces(v, f, DEGENERATE_AREA_M2)
     if bad.any():
         f = f[~bad]
@@ -106,6 +110,7 @@ def repair(mesh: trimesh.Trimesh, filename: str, *, copy: bool = True, scale: fl
     v, f = ops.compact(v, f)
 
     faces_before = f.copy()
+    step(0.5, "winding")
     edges = ops.EdgeTable.of(f, len(v))
     fi, fj, same = ops.face_adjacency(f, edges)
     n_pieces, labels = ops.face_components(len(f), fi, fj)
@@ -115,6 +120,7 @@ def repair(mesh: trimesh.Trimesh, filename: str, *, copy: bool = True, scale: fl
         edges = ops.EdgeTable.of(f, len(v))  # a turned face's edges change places
         fi, fj, same = ops.face_adjacency(f, edges)
     if not edges.watertight:
+        step(0.75, "small holes")
         added = _fill_small_holes(v, f, edges, labels, n_pieces)
         if len(added):
             f = np.vstack([f, added])
@@ -122,6 +128,7 @@ def repair(mesh: trimesh.Trimesh, filename: str, *, copy: bool = True, scale: fl
             edges = ops.EdgeTable.of(f, len(v))
             fi, fj, same = ops.face_adjacency(f, edges)
             n_pieces, labels = ops.face_components(len(f), fi, fj)
+    step(0.85, "outward normals")
     # Outward: every closed, consistently wound piece with a negative volume is turned.
     closed = ops.closed_pieces(f, edges, fi, same, labels, n_pieces)
     volume = ops.piece_volumes(v, f, labels, n_pieces)
