@@ -172,3 +172,24 @@ def test_the_summary_names_the_full_part_and_what_is_drawn(monkeypatch):
     assert np.allclose(cad.mesh.extents, 0.1, rtol=1e-3)
     assert "ball.stl: 20,480 triangles" in cad.summary()
     assert any("drawn with" in b and "20,480" in b for b in cad.bounded)
+
+
+def test_a_step_file_is_sized_by_its_tessellation_before_it_is_read(monkeypatch):
+    import assistant.cell.cad.step as step
+    from cad_builders import step_boxes
+
+    data = step_boxes([((0, 0, 0), (10, 10, 10))])
+    assert len(load_cad(data, "box.step").mesh.faces) == 12
+    monkeypatch.setattr(step, "MAX_FACES", 10)
+    with pytest.raises(CadImportError, match=r"box\.step.*tessellates to 12 triangles, more "
+                                             r"than the 10.*coarser STEP tolerance"):
+        load_cad(data, "box.step")
+
+
+def test_a_cell_layout_dxf_is_sized_before_ezdxf_reads_it():
+    from assistant.cell.cad.layout import read_layout
+
+    dxf = (b"0\nSECTION\n2\nENTITIES\n0\nTEXT\n8\nLOCATIONS\n1\nP1 start\n"
+           + b"0\n3DFACE\n8\n0\n" * 130_000 + b"0\nENDSEC\n0\nEOF\n")
+    with pytest.raises(CadImportError, match=r"layout\.dxf.*about 260,000 triangles"):
+        read_layout(dxf, "layout.dxf")
