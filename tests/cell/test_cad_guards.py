@@ -175,8 +175,9 @@ def test_the_summary_names_the_full_part_and_what_is_drawn(monkeypatch):
 
 
 def test_a_step_file_is_sized_by_its_tessellation_before_it_is_read(monkeypatch):
-    import assistant.cell.cad.step as step
     from cad_builders import step_boxes
+
+    import assistant.cell.cad.step as step
 
     data = step_boxes([((0, 0, 0), (10, 10, 10))])
     assert len(load_cad(data, "box.step").mesh.faces) == 12
