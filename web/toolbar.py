@@ -150,8 +150,6 @@ class Toolbar:
     def on_event(self, ev: Event) -> None:
         if isinstance(ev, RobotHalted):
             self.refresh()
-        if isinstance(ev, StateChanged) and ev.mode == "moving":
-            self._on_message("clear", "")  # a run starts: the last phase's line is history
         if isinstance(ev, ProgressChanged):
             self._progress(ev)
         elif isinstance(ev, (StateChanged, SceneChanged, PlanReady, ProgramReady,

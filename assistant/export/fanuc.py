@@ -93,6 +93,7 @@ from assistant.export.rules import (
     DialectRules,
     check_identifier,
     check_lines,
+    euler_deg,
     format_fixed,
 )
 from assistant.robots.model import Robot
@@ -311,7 +312,7 @@ class FanucDialect:
         else:
             T = pose_in_work(program, position_pose(robot, p))
             x, y, z = T[:3, 3] * 1000.0
-            w, pp, r = np.degrees(xyz_fixed_angles(T))
+            w, pp, r = euler_deg(xyz_fixed_angles(T), 3)
             body = [f"\t{uf}\t\tCONFIG : '{config_text(robot, p.q)}',",
                     f"\tX ={_num(x, p.name)}  mm,\tY ={_num(y, p.name)}  mm,"
                     f"\tZ ={_num(z, p.name)}  mm,",

@@ -66,6 +66,7 @@ from assistant.export.rules import (
     DialectRules,
     check_identifier,
     check_lines,
+    euler_deg,
     format_compact,
     format_fixed,
     parse_number,
@@ -103,7 +104,7 @@ def kuka_abc(T: Array) -> tuple[float, float, float]:
 
 
 def frame_text(T: Array, what: str = "frame", step: str = "") -> str:
-    a, b, c = np.degrees(kuka_abc(T))
+    a, b, c = euler_deg(kuka_abc(T), 3)
     x, y, z = T[:3, 3] * 1000.0
     f = [format_fixed(v, 3, what=what, step=step) for v in (x, y, z, a, b, c)]
     return f"X {f[0]},Y {f[1]},Z {f[2]},A {f[3]},B {f[4]},C {f[5]}"

@@ -78,6 +78,7 @@ from assistant.export.rules import (
     DialectRules,
     check_identifier,
     check_lines,
+    euler_deg,
     format_compact,
     format_fixed,
     parse_number,
@@ -301,7 +302,7 @@ class MelfaDialect:
 
     def _pose_text(self, T: Array, what: str) -> str:
         A, B, C = melfa_abc(T)
-        vals = list(T[:3, 3] * 1000.0) + list(np.degrees([A, B, C]))
+        vals = list(T[:3, 3] * 1000.0) + euler_deg((A, B, C), 2)
         return "(" + ",".join(format_fixed(v, 2, plus=True, what=what) for v in vals) + ")"
 
     @staticmethod

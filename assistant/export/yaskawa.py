@@ -94,6 +94,7 @@ from assistant.export.rules import (
     DialectRules,
     check_identifier,
     check_lines,
+    euler_deg,
     format_fixed,
 )
 from assistant.export.yaskawa_jbi import parse_jbi
@@ -360,7 +361,7 @@ class YaskawaDialect:
                 T = pose_in_work(program, position_pose(robot, p))
                 x, y, z = (format_fixed(v, 3, what=p.name) for v in T[:3, 3] * 1000.0)
                 rx, ry, rz = (format_fixed(v, 4, what=p.name)
-                              for v in np.degrees(xyz_fixed_angles(T)))
+                              for v in euler_deg(xyz_fixed_angles(T), 4))
                 pos.append(f"C{k:05d}={x},{y},{z},{rx},{ry},{rz}")
         comm = "cellteach" if cycle is None else cycle.header_text().partition(" (")[0]
         lines = (["/JOB", f"//NAME {name}", "//POS"] + pos

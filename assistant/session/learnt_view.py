@@ -4,8 +4,9 @@ The world model learns in octree leaves (62.5 mm on the thesis cell) and every l
 holds the arm's own hand at the indicated posture: drawn as whole leaves, the learnt solid
 sits over the arm. What a contact implies is only the part of those leaves outside the arm:
 each leaf is cut into sub-cells and the sub-cells the arm's links occupy in the posture it
-stands in are left out (real FCL, the arm's collision geometry against each sub-cell box).
-Only what is drawn changes; the world model keeps its leaves.
+stands in, or occupied at an indicated contact (it touched there, it did not go in), are left
+out (real FCL, the arm's collision geometry against each sub-cell box). Only what is drawn
+changes; the world model keeps its leaves.
 """
 
 from __future__ import annotations
@@ -37,10 +38,11 @@ class LearntView:
     under_arm: int
 
 
-def learnt_view(cells: OccupiedCells, robot: Robot, q: Array, T_world_base: Array,
+def learnt_view(cells: OccupiedCells, robot: Robot, postures: Array, T_world_base: Array,
                 split: int = SPLIT) -> LearntView:
     """The learnt leaves `cells` cut into `split`^3 sub-cells, without those the arm's links
-    touch at joints `q` (the robot's base at `T_world_base`)."""
+    touch at any of the joint rows `postures` (K, dof) (the robot's base at
+    `T_world_base`)."""
     R = np.asarray(cells.R_world_grid, dtype=float)
     edge = cells.leaf / split
     k = (np.arange(split) + 0.5) / split - 0.5  # sub-cell centres in leaf units
@@ -54,7 +56,8 @@ def learnt_view(cells: OccupiedCells, robot: Robot, q: Array, T_world_base: Arra
     R_base_grid = T_base_world[:3, :3] @ R
     box = (CollisionShape(ShapeKind.BOX, (edge, edge, edge)),)
     subs = [Obstacle(f"sub{i}", make_T(R_base_grid, p), box) for i, p in enumerate(in_base)]
-    report = CollisionChecker(robot, subs).check(np.asarray(q, dtype=float))
-    touched = {c.other for c in report.contacts if not c.self_collision}
+    checker = CollisionChecker(robot, subs)
+    touched = {c.other for q in np.atleast_2d(np.asarray(postures, dtype=float))
+               for c in checker.check(q).contacts if not c.self_collision}
     keep = np.array([f"sub{i}" not in touched for i in range(len(subs))])
     return LearntView(centres[keep], edge, R, int((~keep).sum()))

@@ -391,13 +391,15 @@ class PlanningActions:
 
     def learnt_view(self) -> Any:
         """`learnt_cells` as the page draws them: cut into sub-cells, without those the arm
-        stands in now (`session.learnt_view`); None when nothing was learnt."""
+        stands in now or stood in at an indicated contact (`session.learnt_view`); None
+        when nothing was learnt."""
         from assistant.session.learnt_view import learnt_view
 
         cells = self.learnt_cells()
         if cells is None:
             return None
-        return learnt_view(cells, self.robot, self.current_joints(), self.T_world_base())
+        postures = np.array([self.current_joints(), *self.recorded_collisions])
+        return learnt_view(cells, self.robot, postures, self.T_world_base())
 
     def road_cells(self) -> tuple[Array, float] | None:
         """Centres (world frame) of the Voronoi road cells and the leaf size."""

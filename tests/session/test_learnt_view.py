@@ -52,3 +52,13 @@ def test_with_the_arm_elsewhere_every_sub_cell_is_drawn(rv2aj):
     # the sub-cells fill the leaves exactly: their mean is the leaves' mean
     np.testing.assert_allclose(view.centres.mean(axis=0), cells.centres.mean(axis=0),
                                rtol=0, atol=1e-12)  # sums of ~200 numbers of ~0.5 m
+
+
+def test_the_contact_postures_and_where_it_stands_are_all_left_out(rv2aj):
+    T_wb = np.eye(4)
+    cells = _cells_round_the_hand(rv2aj, Q_HALT, T_wb)
+    away = Q_HALT + np.array([2.0, 0.0, 0.0, 0.0, 0.0])
+    halt_only = learnt_view(cells, rv2aj, Q_HALT, T_wb)
+    both = learnt_view(cells, rv2aj, np.array([away, Q_HALT]), T_wb)
+    assert both.under_arm == halt_only.under_arm > 0
+    np.testing.assert_array_equal(both.centres, halt_only.centres)  # the same numbers

@@ -133,6 +133,7 @@ class PlanPanel(Panel):
             "Execute": wait or ("" if has_plan else "plan the mission first"),
             "Resume": wait or ("" if stopped else "only after a stopped run"),
         }
+        shown = {label, "Execute"} | ({"Resume"} if stopped else set())
         gate(self.plan, reasons[label], "Plan the mission in the known world")
         gate(self.execute, reasons["Execute"], "Run the planned mission on the robot")
         gate(self.resume, reasons["Resume"], "Continue a stopped mission from where it stopped")
@@ -142,7 +143,8 @@ class PlanPanel(Panel):
         gate(self.drive_final, wait, DRIVE_FINAL_HINT)
         # While a run has the robot the heading says what to do; greyed reasons would only
         # repeat "the robot is moving" under it.
-        _content(self.why, "" if run.robot_in_run else why_greyed(reasons))
+        _content(self.why, "" if run.robot_in_run else
+                 why_greyed({k: v for k, v in reasons.items() if k in shown}))
         ls = s.link_settings
         self.speed.visible = ls.kind == "simulated"
         gate(self.speed, wait, SPEED_HINT)
