@@ -22,6 +22,9 @@ import time
 from pathlib import Path
 
 DEFAULT_PORT = 8080
+#: web.uploads.DEFAULT_MAX_UPLOAD_MB, written again: importing `web` here would load viser
+#: for every command.
+DEFAULT_MAX_UPLOAD_MB = 200.0
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -55,7 +58,9 @@ def _serve_args(p: argparse.ArgumentParser) -> None:
                    help="interface to listen on (default 127.0.0.1: this computer only, no "
                         "login); any other address asks for the printed access code")
     p.add_argument("--port", type=int, default=DEFAULT_PORT)
-    p.add_argument("--max-upload-mb", type=float, default=50.0)
+    p.add_argument("--max-upload-mb", type=float, default=DEFAULT_MAX_UPLOAD_MB,
+                   help="largest upload (default %(default)s MB: a binary STL of the "
+                        "4 M triangles a CAD import takes)")
     p.add_argument("--token-file", type=Path, default=None,
                    help="keep the access codes here (operator, then viewer; created if "
                         "missing, mode 0600) so they survive a restart")

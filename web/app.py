@@ -47,12 +47,11 @@ from web.panels.view import ViewPanel
 from web.pump import EventPump
 from web.scene.layers import SceneLayers
 from web.toolbar import Toolbar
-from web.uploads import install_early_limit
+from web.uploads import DEFAULT_MAX_UPLOAD_MB, install_early_limit
 from web.wording import goal_reached
 
 log = logging.getLogger(__name__)
 
-DEFAULT_MAX_UPLOAD_MB = 50
 #: The simulated robot in the page runs at most this fast (x real time): a person watches it
 #: and presses Collision! in time. Scripts keep the sample's faster pace.
 OPERATOR_PACE = 1.0

@@ -206,7 +206,7 @@ class TeachPanel(Panel):
         obj = self.session.cell.objects.get(obj_name)
         if obj is None:
             return
-        hit = pick(obj.display_mesh, obj.T_world_object, np.array(ev.ray_origin),
+        hit = pick(obj.full_mesh, obj.T_world_object, np.array(ev.ray_origin),
                    np.array(ev.ray_direction))
         if hit is None:
             return
