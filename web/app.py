@@ -28,7 +28,9 @@ from assistant.session.events import (
     StateChanged,
 )
 from web.actions import Actions
+from web.authority import PageAuthority
 from web.gate import Access, GateConfig
+from web.heartbeat import Heartbeat
 from web.notify import Notifier
 from web.pages import Pages
 from web.panels.base import Panel
@@ -72,6 +74,9 @@ class App:
     pump: EventPump = field(init=False)
     scene_layers: SceneLayers = field(init=False)
     toolbar: Toolbar = field(init=False)
+    #: Which operator page holds motion authority (`web.authority`).
+    authority: PageAuthority = field(init=False)
+    heartbeat: Heartbeat = field(init=False)
     panels: dict[str, Panel] = field(init=False)
     #: The workflow step the page shows (a step change makes earlier errors stale).
     _shown_state: str = field(init=False, default="")
@@ -98,8 +103,16 @@ class App:
             TeachPanel(self), PathsPanel(self), ExplorePanel(self), PlanPanel(self),
             ExportPanel(self), JogPanel(self), ViewPanel(self), SessionPanel(self))}
         install_early_limit(self)
+        # The enabling switch: only the present holder's page moves the robot (the session's
+        # rule); the pages tell it who comes and goes, the heartbeat who falls silent.
         if self.access is not None:
-            self.access.attach(self)
+            self.authority = self.access.attach(self)
+        else:
+            self.authority = PageAuthority(self._session.hold)
+            self.authority.attach(self.server)
+        self._session.hold.enforce()
+        self.heartbeat = Heartbeat(self.server, self._session.hold)
+        self.heartbeat.start()
         self.pump.attach(self._session.bus)
         self.refresh()
 
@@ -114,6 +127,7 @@ class App:
             old = self._session
             self.pump.detach()
             old.close()  # its robot, link and cameras stop with it
+            new.adopt_hold(old.hold)  # the pages' motion authority carries over
             self._session = new
             operator_pace(new)
             self.pump.attach(new.bus)
@@ -204,6 +218,7 @@ class App:
 
     def stop(self) -> None:
         """Stop the page; the robot, link and cameras of the session stop too."""
+        self.heartbeat.stop()
         if self.access is not None:
             self.access.stop()
         self.pump.stop()

@@ -286,14 +286,14 @@ class Front:
             try:
                 up = await self._ws_client.ws_connect(
                     self.upstream, protocols=offered, headers={CONN_HEADER: conn_id},
-                    max_msg_size=0, compress=0, autoping=True)
+                    max_msg_size=0, compress=0, autoping=False)
             except (aiohttp.ClientError, OSError) as exc:
                 log.warning("the page server behind the front refused a websocket: %s", exc)
                 return web.Response(status=502, text="The assistant is not answering.\n")
             down = web.WebSocketResponse(
                 protocols=[up.protocol] if up.protocol else (),
                 max_msg_size=self.cfg.max_ws_message_bytes, compress=False,
-                heartbeat=self.cfg.limits.ws_heartbeat_s)
+                heartbeat=self.cfg.limits.ws_heartbeat_s, autoping=False)
             try:
                 await down.prepare(request)
                 self._sockets.add(down)
@@ -311,8 +311,16 @@ class Front:
 
     async def _pump(self, down: web.WebSocketResponse,
                     up: aiohttp.ClientWebSocketResponse, guard: MessageGuard) -> None:
+        # Pings pass through both ways: the page server's heartbeat (`web.heartbeat`) is
+        # answered by the browser, not by this front.
         async def upwards() -> None:
             async for msg in down:
+                if msg.type == aiohttp.WSMsgType.PONG:
+                    await up.pong(msg.data)
+                    continue
+                if msg.type == aiohttp.WSMsgType.PING:
+                    await down.pong(msg.data)
+                    continue
                 if msg.type != aiohttp.WSMsgType.BINARY:
                     continue  # viser speaks binary only
                 try:
@@ -325,7 +333,9 @@ class Front:
 
         async def downwards() -> None:
             async for msg in up:
-                if msg.type == aiohttp.WSMsgType.BINARY:
+                if msg.type == aiohttp.WSMsgType.PING:
+                    await down.ping(msg.data)
+                elif msg.type == aiohttp.WSMsgType.BINARY:
                     await down.send_bytes(msg.data)
                 elif msg.type == aiohttp.WSMsgType.TEXT:
                     await down.send_str(msg.data)
