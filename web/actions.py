@@ -97,7 +97,7 @@ class Actions:
         notifier.clear_errors()  # acting again: what failed before is stale
         try:
             # The session checks who starts motion (`MotionHold`): this page acts.
-            with MotionHold.acting(None if client is None else client.client_id):
+            with MotionHold.acting(getattr(client, "client_id", None)):
                 return fn()
         except TransitionRefused as exc:
             if not notifier.already_shown(str(exc)):

@@ -5,7 +5,8 @@ protocol-level ping: the browser answers it on its network thread, even while it
 is busy drawing). A page that has not answered for `SILENT_S` is silent: the session's
 `MotionHold` hears it and the robot stops; an answer later makes it present again (the holder
 then resumes by hand - nothing starts by itself). A page that closes needs no ping: the
-websocket's end is the `left` event, at once.
+end of its websocket is the `left` event, told from here the moment the socket closes (before
+viser tears the client down and calls its disconnect callbacks, a few steps later).
 
 Behind the gate the front passes pings and pongs through (`web.gate.front`), so the ping
 reaches the browser, not the front. If the page server itself was stalled (a busy machine:
@@ -43,6 +44,7 @@ class Heartbeat:
         self._hold = hold
         self._last_pong: dict[int, float] = {}
         self._task: Any = None
+        self._watched: int | None = None
 
     def start(self) -> None:
         loop = getattr(self._ws, "_background_event_loop", None)
@@ -75,12 +77,23 @@ class Heartbeat:
             if stalled or holder not in self._last_pong:
                 self._last_pong = {holder: now}  # a new holder, or our own late tick
             conn = self._connection(holder)
+            if conn is not None and self._watched != holder:
+                self._watched = holder
+                asyncio.ensure_future(self._watch_close(holder, conn))
             if conn is not None:
                 with contextlib.suppress(Exception):  # a closing socket: `left` comes next
                     waiter = await conn.ping()
                     waiter.add_done_callback(lambda f, h=holder: self._pong(h, f))
             silent = now - self._last_pong.get(holder, now) > SILENT_S
             self._hold.heard(holder, not silent)
+
+    async def _watch_close(self, holder: int, conn: Any) -> None:
+        """The holder's socket closed: tell the hold now (on a thread: the link's stop may
+        talk to a controller, which must not stall the page server's loop)."""
+        with contextlib.suppress(Exception):
+            await conn.wait_closed()
+            if self._hold.state.holder == holder:
+                asyncio.get_running_loop().run_in_executor(None, self._hold.left, holder)
 
     def _pong(self, holder: int, answered: Any) -> None:
         if not answered.cancelled() and answered.exception() is None:  # not a closed socket

@@ -123,11 +123,11 @@ class MotionHold:
 
     # ------------------------------------------------------------------ changes
     def _changed(self, lost: str = "") -> None:
+        if lost and self._lost is not None:
+            self._lost(lost)  # the robot stops first; the pages hear of it after
         st = self.state
         for fn in list(self._listeners):
             fn(st)
-        if lost and self._lost is not None:
-            self._lost(lost)
 
     def _set(self, holder: int | None) -> None:
         self._holder = holder
