@@ -110,7 +110,9 @@ class SampledTable(JointStore):
         m = max(1, int(np.ceil(np.log2(max(n, 2)))))
         U = _sobol(self.dof, m, seed=1)[:n]
         X = self.snap(lo + U * (hi - lo))
-        leaf = _bin(robot, self.grid, self, X, None)
+        # float32 FK (~4x quicker on a URDF arm): a TCP within ~1 um of a leaf face may be
+        # binned into the neighbour, which the positions' checks do not care about
+        leaf = _bin(robot, self.grid, self, X, None, dtype=np.float32)
         keep = np.flatnonzero(leaf >= 0)
         ids = np.r_[self.positions.astype(np.int64), len(self.index) + keep]
         lf = np.r_[self.leaf_of_positions(), leaf[keep]]
@@ -142,14 +144,19 @@ class SampledTable(JointStore):
         A = np.atleast_2d(np.asarray(anchors, dtype=float))
         w = np.asarray(weights, dtype=float)
         d = np.full(self.n_positions, np.inf)
+        # in the grid's own units (the index), each anchor moved into them once: the
+        # distances without decoding every position's joints (~0.6 s for 3 M)
+        ws = (w * self.step).astype(np.float32)
+        Ai = ((A - self.lower) / np.where(self.step > 0, self.step, 1.0)).astype(np.float32)
         for s in range(0, self.n_positions, 1 << 18):
-            P = self.joints(self.positions[s:s + (1 << 18)])
-            for a in A:
-                d[s:s + len(P)] = np.minimum(d[s:s + len(P)],
-                                             np.einsum("ij,ij->i", (P - a) * w, (P - a) * w))
+            X = self.index[self.positions[s:s + (1 << 18)]].astype(np.float32)
+            for a in Ai:
+                D = (X - a) * ws
+                d[s:s + len(X)] = np.minimum(d[s:s + len(X)], np.einsum("ij,ij->i", D, D))
         # one sort: slot in the integer part, the distance squashed into [0, 0.5) below it
+        # (the default sort is not stable but deterministic: the same table, the same order)
         slot = np.repeat(np.arange(len(self.leaves), dtype=np.float64), np.diff(self.offsets))
-        order = np.argsort(slot + d / (2.0 * (1.0 + d)), kind="stable")
+        order = np.argsort(slot + d / (2.0 * (1.0 + d)))
         return SampledTable(self.key, self.grid, self.radii, self.lower, self.step,
                             self.counts, self.leaves, self.offsets, self.positions[order],
                             self.build_seconds, index=self.index)
@@ -188,12 +195,14 @@ def check_grid_budget(total: int, memory_mb: float) -> None:
 
 
 def _bin(robot: Robot, grid: OctreeGrid, store: SampledTable, index: Array,
-         progress: Progress | None, chunk: int = 1 << 17) -> Array:
+         progress: Progress | None, chunk: int = 1 << 17, dtype: type = np.float64) -> Array:
     """Flat leaf of the TCP of each row of grid indices (-1 outside the octree)."""
     out = np.empty(len(index), dtype=np.int64)
     for s in range(0, len(index), chunk):
         Q = store.lower + index[s:s + chunk] * store.step
-        out[s:s + chunk] = grid.flat_of_points(robot.batch_fk(Q).positions)
+        P = robot.batch_fk(Q, dtype=dtype).positions if dtype is not np.float64 \
+            else robot.batch_fk(Q).positions
+        out[s:s + chunk] = grid.flat_of_points(np.asarray(P, dtype=np.float64))
         if progress is not None:
             progress.update(min(len(index), s + chunk) / len(index), "binning TCP positions")
     return out
