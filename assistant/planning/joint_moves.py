@@ -113,7 +113,7 @@ class _Moves:
         else:
             c = self.verifier.min_clearance_along([a, b], max_step=self.step)
             c = float(c) if np.isfinite(c) else 1.0  # no obstacle known: any move is clear
-            exact = getattr(self.verifier.checker, "keeps_clearance", None)
+            exact = getattr(getattr(self.verifier, "checker", None), "keeps_clearance", None)
             if c < self.target and exact is not None and self.exact_left > 0:
                 self.exact_left -= 1
                 if exact([a, b], self.target, self.step):

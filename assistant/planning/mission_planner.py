@@ -217,6 +217,18 @@ class MissionPlanner:
                              clearance_step=self.config.assembly.clearance_step)
             if checked.ok:
                 asm, notes = checked, ["one joint move: the straight joint motion is free"]
+        if asm is None and exploring and self.world.sampled and plan.searched != "direct":
+            # Exploring on a 6- or 7-axis arm: the searched path itself, as joint moves
+            # along the roads (their clearance keeps the run off what is not known yet).
+            # The exploring net costs seconds there (a numerical IK per particle) and a
+            # re-plan with the arm halted after a Collision! must take well under one; the
+            # final plan is formed afresh at the goal.
+            traj = _joint_moves(self.robot, plan.joint_path, label, self.config.assembly)
+            checked = verify(self.robot, traj, self.verifier,
+                             clearance_step=self.config.assembly.clearance_step)
+            if checked.ok:
+                asm, notes = checked, [f"{len(traj.motions)} joint moves along the roads "
+                                       "(exploring)"]
         if asm is None and forms:
             moves, _ = moves_along(self.robot, plan.joint_path, **self._form_args(q_s, label))
             if moves is not None:
