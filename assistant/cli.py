@@ -6,8 +6,11 @@
     cellteach run SCRIPT.yaml --out DIR
     cellteach study placement SESSION_OR_SCRIPT --region X0,Y0,X1,Y1 --step MM --out DIR
     cellteach cells
+    cellteach emulate {ur,abb,omnicore,kuka,melfa} [--remote] [--host H] [--any-port]
+    cellteach check-link {ur,abb,omnicore,kuka,melfa} HOST [--port P] [--user U]
 
-Exit codes: 0 ok, 1 the session ran but failed (report.json says why), 2 bad input.
+Exit codes: 0 ok, 1 the session ran but failed (report.json says why) or a link check
+failed, 2 bad input.
 """
 
 from __future__ import annotations
@@ -34,6 +37,7 @@ def build_parser() -> argparse.ArgumentParser:
                      help="folder for the program files, report.json and the session")
     sub.add_parser("cells", help="list the sample cells")
     _study_args(sub)
+    _link_args(sub)
     _serve_args(p)  # `cellteach --port 9000` works without the word serve
     return p
 
@@ -89,9 +93,94 @@ def _study_args(sub: argparse._SubParsersAction) -> None:
     pl.add_argument("--inline", action="store_true", help="run in this process (no workers)")
 
 
+#: `cellteach` vendor words -> link kinds.
+LINK_KINDS = {"ur": "ur", "abb": "abb", "omnicore": "omnicore", "kuka": "kuka_rest",
+              "melfa": "melfa"}
+
+
+def _link_args(sub: argparse._SubParsersAction) -> None:
+    em = sub.add_parser("emulate", help="run a controller emulator on its usual ports "
+                        "(prints one 'name host:port' line each; Ctrl-C stops it)")
+    em.add_argument("vendor", choices=tuple(LINK_KINDS))
+    em.add_argument("--host", default="127.0.0.1")
+    em.add_argument("--remote", action="store_true", help="UR: start in Remote control "
+                    "(a shipped e-Series starts in Local)")
+    em.add_argument("--local-mode", action="store_true",
+                    help="UR: start in Local control (the default, as shipped)")
+    em.add_argument("--any-port", action="store_true", help="free ports instead of the "
+                    "vendor's usual ones")
+    em.add_argument("--time-scale", type=float, default=1.0)
+    ck = sub.add_parser("check-link", help="pre-flight checklist of a robot link: one line "
+                        "per item with what to do; exit 0 only if all pass")
+    ck.add_argument("vendor", choices=tuple(LINK_KINDS))
+    ck.add_argument("host")
+    ck.add_argument("--port", type=int, default=None,
+                    help="the controller's port (ABB 80, OmniCore 443, KUKA bridge 8000, "
+                         "MELFA 10001); UR: the dashboard port, the others follow it "
+                         "(29999 -> 30001..30004)")
+    ck.add_argument("--user", default="Default User", help="ABB: the RWS user")
+    ck.add_argument("--log-dir", type=Path, default=None, help="write the wire log here")
+
+
+def cmd_emulate(args: argparse.Namespace) -> int:
+    from assistant.links.emulators.launch import start
+    from assistant.links.emulators.until_stopped import wait_until_stopped
+
+    if args.remote and args.local_mode:
+        print("cellteach: --remote and --local-mode exclude each other", file=sys.stderr)
+        return 2
+    try:
+        running = start(args.vendor, host=args.host, remote=args.remote,
+                        any_port=args.any_port, time_scale=args.time_scale)
+    except (OSError, FileNotFoundError) as exc:
+        print(f"cellteach: cannot start the {args.vendor} emulator: {exc} (a port taken? "
+              "--any-port picks free ones)", file=sys.stderr)
+        return 2
+    try:
+        for line in running.lines():
+            print(line, flush=True)
+        wait_until_stopped()
+    finally:
+        running.close()
+    return 0
+
+
+def cmd_check_link(args: argparse.Namespace) -> int:
+    import os
+
+    from assistant.links.checklist import check_link
+    from assistant.links.settings import LinkSettings, LinkSettingsError
+
+    kind = LINK_KINDS[args.vendor]
+    kw: dict = {"kind": kind, "host": args.host}
+    if kind == "ur":
+        if args.port is not None:
+            base = args.port
+            kw.update(ur_dashboard_port=base, ur_primary_port=base + 2,
+                      ur_script_port=base + 3, ur_rtde_port=base + 5)
+    else:
+        kw["port"] = args.port or {"abb": 80, "omnicore": 443, "kuka_rest": 8000,
+                                   "melfa": 10001}[kind]
+    if kind in ("abb", "omnicore"):
+        kw["rws_user"] = args.user
+        kw["rws_password"] = os.environ.get("CELLTEACH_RWS_PASSWORD", "robotics")
+    try:
+        settings = LinkSettings(**kw)
+    except LinkSettingsError as exc:
+        print(f"cellteach: {exc}", file=sys.stderr)
+        return 2
+    result = check_link(settings, log_dir=args.log_dir)
+    print(result.text(), flush=True)
+    return 0 if result.passed else 1
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
+        if args.command == "emulate":
+            return cmd_emulate(args)
+        if args.command == "check-link":
+            return cmd_check_link(args)
         if args.command == "study":
             return cmd_study(args)
         if args.command == "run":

@@ -136,6 +136,8 @@ class App:
     def _dispatch(self, ev: Event) -> None:
         """Apply one event on the UI thread: scene first, then panels, then the toolbar."""
         self.scene_layers.on_event(ev)
+        if isinstance(ev, StateChanged) and ev.mode == "moving":
+            self.notifier.clear_done()  # a run starts: "planned" and the like are history
         if isinstance(ev, StateChanged):
             entered = ev.state != self._shown_state
             if entered:  # the step moved on: earlier errors are stale

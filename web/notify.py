@@ -33,6 +33,8 @@ class Notifier:
         self._keyed: dict[tuple[str, int], viser.NotificationHandle] = {}
         #: Error notifications on screen, until superseded (`clear_errors`).
         self._errors: list[viser.NotificationHandle] = []
+        #: "Done" notifications on screen, until a new phase begins (`clear_done`).
+        self._done: list[viser.NotificationHandle] = []
         self._status_kind = ""
         #: Called with (kind, text) for every message (the toolbar's status line); kind
         #: "clear" with "" when a shown error is superseded.
@@ -52,12 +54,7 @@ class Notifier:
             errors, self._errors = self._errors, []
             self._recent.clear()
             was_error, self._status_kind = self._status_kind == "error", ""
-        for h in errors:
-            try:
-                if not h._impl.removed:  # noqa: SLF001
-                    h.remove()
-            except Exception:  # noqa: BLE001 - a closed tab's notification is gone anyway
-                log.debug("closing a stale notification failed", exc_info=True)
+        _remove(errors)
         if was_error and self.on_message is not None:
             self.on_message("clear", "")
 
@@ -85,8 +82,22 @@ class Notifier:
         self._status("notice", message)
 
     def success(self, message: str, *, client: viser.ClientHandle | None = None) -> None:
-        self._show("Done", message, color="green", auto_close=6.0, client=client)
+        shown = self._show("Done", message, color="green", auto_close=6.0, client=client)
+        with self._lock:
+            self._done.extend(shown)
         self._status("ok", message)
+
+    def clear_done(self) -> None:
+        """A new phase begins (a run starts): what the last one finished is history - its
+        "Done" notifications close and the status line forgets it."""
+        with self._lock:
+            done, self._done = self._done, []
+            was_ok = self._status_kind == "ok"
+            if was_ok:
+                self._status_kind = ""
+        _remove(done)
+        if was_ok and self.on_message is not None:
+            self.on_message("clear", "")
 
     def _status(self, kind: str, text: str) -> None:
         self._status_kind = kind
@@ -117,3 +128,12 @@ class Notifier:
 def _sentence(text: str) -> str:
     text = str(text).strip()
     return text if text.endswith((".", "!", "?")) else text + "."
+
+
+def _remove(handles: list[viser.NotificationHandle]) -> None:
+    for h in handles:
+        try:
+            if not h._impl.removed:  # noqa: SLF001
+                h.remove()
+        except Exception:  # noqa: BLE001 - a closed tab's notification is gone anyway
+            log.debug("closing a stale notification failed", exc_info=True)

@@ -1,10 +1,12 @@
 """The exported program as the operator reads it: every file in full, coloured per dialect.
 
-Pygments has no lexer for MELFA BASIC, KUKA KRL or ABB RAPID, so each dialect is a small
+Pygments has no lexer for MELFA BASIC, KUKA KRL, ABB RAPID, FANUC TP or Yaskawa INFORM, so
+each dialect is a small
 table of regexes (comments, strings, motion instructions, other keywords, system variables,
 numbers) tried in order at each place of the text; the position names are the ones the
 program itself declares (MELFA .POS lines, KRL DECL E6POS, RAPID robtarget, URScript
-assignments), so no guess colours a word that is not a position. Everything is HTML-escaped
+assignments, FANUC P[n:"NAME"], INFORM C00000=), so no guess colours a word that is not a
+position. Everything is HTML-escaped
 and nothing is added or dropped: stripping the tags and unescaping gives the file back exactly
 (line endings included), which the tests check on every dialect. Each line is a block of its
 own: a long line wraps inside the panel with a hanging indent instead of being cut off.
@@ -109,6 +111,25 @@ DIALECTS: dict[str, Dialect] = {
                                "pose_trans", "pose_inv", "get_actual_tcp_pose",
                                "get_actual_joint_positions", "p"))),
         declares=r"(?m)^\s*(\w+)\s*=\s*(?:p?\[|pose_trans)", ignore_case=False),
+    "fanuc": Dialect(
+        tokens=(("lineno", r"^[ \t]*\d*:"), ("comment", r"![^\r\n;]*|//[^\r\n;]*"),
+                ("str", r'"[^"\r\n]*"?|\'[^\'\r\n]*\'?'),
+                ("motion", r"(?<=:)[JLCA](?=[ \t])"),
+                ("kw", _words("FINE", "UFRAME_NUM", "UTOOL_NUM", "WAIT", "CALL", "RUN", "JMP",
+                              "IF", "THEN", "ELSE", "ENDIF", "PAUSE", "ABORT", "END", "OVERRIDE",
+                              "ON", "OFF", "TIMEOUT", "CONFIG", "UF", "UT", "Wjnt", "Offset",
+                              "Tool_Offset") + r"|\b(?:CNT|ACC|CR)\d+\b"),
+                ("sys", r"\b(?:DO|DI|RO|RI|UO|UI|GO|GI|AO|AI|SR|PR|R|F|M|LBL)\[[^\]\r\n]*\]"
+                        r"|^/(?:PROG|ATTR|APPL|MN|POS|END)\b")),
+        declares=r'P\[\d+:"(\w+)"\]', ignore_case=False),
+    "yaskawa": Dialect(
+        tokens=(("kw", r"^/{1,3}[A-Z0-9]+"), ("comment", r"'[^\r\n]*"),
+                ("motion", _words("MOVJ", "MOVL", "MOVC", "MOVS", "IMOV")),
+                ("kw", _words("NOP", "END", "DOUT", "TIMER", "CALL", "JOB", "WAIT", "PAUSE",
+                              "RET", "JUMP", "FPT", "NWAIT", "ON", "OFF")
+                 + r"|\b(?:VJ|VR|PL|CR|ACC|DEC|V|T)="),
+                ("sys", r"\b(?:OT|IN|OG|IG)#\(\d+\)")),
+        declares=r"(?m)^(C\d{5})=", ignore_case=False),
 }
 
 

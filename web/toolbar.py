@@ -22,6 +22,7 @@ from assistant.session.events import (
     SceneChanged,
     StateChanged,
 )
+from assistant.session.run_state import RunPhase, RunState
 from web.panels.base import busy_reason
 from web.wording import progress_words
 from workflow.states import NUMBER, STATES, leaves
@@ -38,7 +39,8 @@ NAV = ("previous", "next", "exit")
 MAIN_STEPS = [s for s in STATES if "." not in s]
 
 
-def step_heading(state: str, mode: str, busy_task: str, halted: bool = False) -> str:
+def step_heading(state: str, mode: str, run: RunState) -> str:
+    """The step, its help, and the one sentence of the run state while something runs."""
     n_main = len(MAIN_STEPS)
     spec = STATES[state]
     parent = STATES[state.split(".")[0]]
@@ -46,17 +48,10 @@ def step_heading(state: str, mode: str, busy_task: str, halted: bool = False) ->
     head = f"#### Step {NUMBER[state]} of {n_main}: {where}"
     if spec.help:
         head += f"\n\n{spec.help}"
-    if mode == "busy":
-        head += f"\n\n**Working:** {busy_task or 'long task'} (Cancel stops it; nothing is lost)"
-    elif mode == "moving" and halted:
-        head += "\n\n**The robot has stopped against something the model does not know.** " \
-                "Press **Collision!** (Space) to teach it: the plan is repaired and the " \
-                "robot carries on; Stop ends the run."
-    elif mode == "moving":
-        head += "\n\n**The robot is moving.** Press **Collision!** (or the Space key) the " \
-                "moment it would hit something; Stop halts it."
-    elif mode == "error":
+    if mode == "error":
         head += "\n\n**Error:** acknowledge it or reconnect the robot."
+    elif run.phase in (RunPhase.WORKING, RunPhase.MOVING, RunPhase.HALTED):
+        head += f"\n\n{run.sentence}"
     return head
 
 
@@ -154,10 +149,7 @@ class Toolbar:
     # ------------------------------------------------------------------ redraw
     def on_event(self, ev: Event) -> None:
         if isinstance(ev, RobotHalted):
-            self._halted = True
             self.refresh()
-        elif isinstance(ev, (CollisionRecorded, StateChanged)):
-            self._halted = False
         if isinstance(ev, ProgressChanged):
             self._progress(ev)
         elif isinstance(ev, (StateChanged, SceneChanged, PlanReady, ProgramReady,
@@ -180,8 +172,8 @@ class Toolbar:
         s = self.app.session
         m = s.machine
         mode = m.mode.value
-        self.heading.content = step_heading(m.state, mode, m.busy_task,
-                                            getattr(self, "_halted", False))
+        run = s.run_state()
+        self.heading.content = step_heading(m.state, mode, run)
         transitions = s.transitions()
         by_event = {t.event: t for t in transitions}
         for name, btn in (("previous", self.prev), ("next", self.next), ("exit", self.exit)):
@@ -189,7 +181,9 @@ class Toolbar:
             _set(btn, disabled=t is None or not t.allowed,
                  hint=(t.reason or _target_hint(t.target)) if t is not None else "")
         nxt = by_event.get("next")
-        self.why.content = "" if nxt is None or nxt.allowed or nxt.target is None else \
+        # while a run has the robot, the heading's sentence says what to do: no second one
+        self.why.content = "" if nxt is None or nxt.allowed or nxt.target is None or \
+            run.robot_in_run else \
             f"<small>Next is not available yet: {_md_escape(nxt.reason)}</small>"
         extra = [t for t in transitions if t.event not in NAV]
         self._sync_extra(extra)

@@ -123,5 +123,6 @@ def goal_reached(goal: str | None, summary: dict[str, Any]) -> str:
     where = f"the robot is at {goal}" if goal else "the mission is complete"
     n, r = int(summary.get("collision_indications", 0)), int(summary.get("replans", 0))
     learnt = "" if not n else (f" {n} collision{'s' if n != 1 else ''} learnt, {r} "
-                               f"re-plan{'s' if r != 1 else ''}; the final path is verified.")
+                               f"re-plan{'s' if r != 1 else ''}; the final path is planned round "
+                               "what was learnt.")
     return f"Goal reached: {where}.{learnt}"

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable, Hashable
 from dataclasses import dataclass
 
 import numpy as np
@@ -68,6 +69,9 @@ class ArmConfig:
     #: (joint, value rad): a 7-axis arm's redundant joint, held at the value the target
     #: carries (RAPID eax_a, KRL E1); None for arms without one.
     redundant: tuple[int, float] | None = None
+    #: Constraints that are unions of ranges (Yaskawa's flip and "R >= 180" flags): the joint
+    #: of each group lies in at least one of the group's ranges.
+    joint_sets: tuple[tuple[JointRange, ...], ...] = ()
 
     def matches(self, robot: Robot, q: Array, tol: float = 1e-6) -> bool:
         if self.redundant is not None and abs(q[self.redundant[0]] - self.redundant[1]) > tol:
@@ -77,7 +81,8 @@ class ArmConfig:
                              (self.wrist_negative, got.wrist_negative)):
             if mine is not None and theirs is not None and mine != theirs:
                 return False
-        return all(r.contains(q, tol) for r in self.joint_ranges)
+        return all(r.contains(q, tol) for r in self.joint_ranges) and \
+            all(any(r.contains(q, tol) for r in group) for group in self.joint_sets)
 
 
 def axis_slots(robot: Robot) -> list[int]:
@@ -131,6 +136,29 @@ def arm_configuration(robot: Robot, q: Array, *, front_reference: str = WRIST) -
     j5 = joint_for_slot(robot, 5)
     wrist_negative = None if j5 is None else bool(q[j5] < 0.0)
     return ArmConfig(front, elbow_up, wrist_negative, (), front_reference)
+
+
+def turn_ambiguous_joints(robot: Robot, q: Array, flags: Callable[[Array], Hashable]
+                          ) -> list[int]:
+    """Joints a controller's flags cannot place: turning the joint by a whole turn (+-360 or
+    +-720 deg) stays inside the robot's limits and gives the same `flags(q)`, so the same
+    pose with the same flags has a second joint solution (a UR's shoulder, +-360 deg)."""
+    lo = np.asarray(robot.limits.lower, dtype=float)
+    hi = np.asarray(robot.limits.upper, dtype=float)
+    q = np.asarray(q, dtype=float)
+    mine = flags(q)
+    out = []
+    for j in range(len(q)):
+        for k in (-2, -1, 1, 2):
+            v = q[j] + 2.0 * math.pi * k
+            if not lo[j] - 1e-9 <= v <= hi[j] + 1e-9:
+                continue
+            other = q.copy()
+            other[j] = v
+            if flags(other) == mine:
+                out.append(j)
+                break
+    return out
 
 
 def turn_count(angle: float) -> int:

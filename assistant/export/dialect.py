@@ -19,13 +19,22 @@ from typing import TYPE_CHECKING, Protocol, runtime_checkable
 import numpy as np
 
 from assistant.export.errors import ExportError
-from assistant.export.program import Instruction, Move, MoveKind, NeutralProgram, Position
-from assistant.export.rules import DialectRules
+from assistant.export.program import (
+    Gripper,
+    Instruction,
+    Move,
+    MoveKind,
+    NeutralProgram,
+    Position,
+    SetOutput,
+    Wait,
+)
+from assistant.export.rules import DialectRules, check_identifier
 
 if TYPE_CHECKING:  # the prediction imports the simulation, which imports this module
     from assistant.export.cycle_time import CycleTime
 from assistant.robots.model import Robot
-from assistant.transforms import angle_between, inv_T
+from assistant.transforms import angle_between, inv_T, matrix_to_rpy, rpy_to_matrix
 
 Array = np.ndarray
 
@@ -162,6 +171,38 @@ def parse_step_comment(text: str) -> str | None:
     return text[len(STEP_PREFIX):].strip() if text.startswith(STEP_PREFIX) else None
 
 
+# ------------------------------------------------------------------------------ checks
+def check_output_channels(program: NeutralProgram, gripper_output: int,
+                          ref: Callable[[int], str], first: int = 1) -> None:
+    """Outputs numbered from `first`; gripper n drives output `gripper_output + n - 1`, which
+    no plain output may also set (`ref(n)` names output n as the controller writes it)."""
+    hands = {i.hand for i in program.instructions if isinstance(i, Gripper)}
+    grippers = {gripper_output + h - 1 for h in hands}
+    for i in program.instructions:
+        if isinstance(i, SetOutput | Gripper):
+            ch = i.channel if isinstance(i, SetOutput) else gripper_output + i.hand - 1
+            if ch < first:
+                raise ExportError(f"{ref(ch)}: this controller's outputs are numbered from "
+                                  f"{first}", step=i.step)
+            if isinstance(i, SetOutput) and ch in grippers:
+                raise ExportError(f"output {ref(ch)} is the gripper's output on this "
+                                  "controller", step=i.step)
+
+
+def check_position_names(program: NeutralProgram, rules: DialectRules) -> None:
+    """Every position name legal as it is (`names.legal_for` renames before writing) and no
+    two differing only in case (a name comment is read back without case)."""
+    seen: dict[str, str] = {}
+    for m in program.moves():
+        for p in m.positions():
+            check_identifier(p.name, rules, what="position", step=m.step)
+            key = p.name.upper()
+            if seen.setdefault(key, p.name) != p.name:
+                raise ExportError(f"positions {seen[key]!r} and {p.name!r} differ only in "
+                                  f"case ({rules.dialect} names)", step=m.step,
+                                  dialect=rules.dialect)
+
+
 # ------------------------------------------------------------------------------ frames
 def pose_in_work(program: NeutralProgram, T_base_tool: Array) -> Array:
     """A base-frame target re-expressed in the program's work frame (what controllers store)."""
@@ -178,6 +219,40 @@ def position_pose(robot: Robot, p: Position) -> Array:
     if p.q is None:
         raise ExportError(f"position {p.name!r} has neither a pose nor joints")
     return robot.fk(p.q)
+
+
+def positions_to_base(prog: NeutralProgram) -> NeutralProgram:
+    """A program read with its positions in its work frame, re-expressed in the robot base."""
+    if prog.work.is_identity:
+        return prog
+    cache: dict[int, Position] = {}
+
+    def conv(p: Position | None) -> Position | None:
+        if p is None or p.T_base_tool is None:
+            return p
+        if id(p) not in cache:
+            cache[id(p)] = replace(p, T_base_tool=pose_in_base(prog.work.T, p.T_base_tool))
+        return cache[id(p)]
+
+    out = []
+    for ins in prog.instructions:
+        if isinstance(ins, Move):
+            ins = replace(ins, target=conv(ins.target), via=conv(ins.via),
+                          through=tuple(conv(t) for t in ins.through))
+        out.append(ins)
+    return replace(prog, instructions=out)
+
+
+def xyz_fixed_angles(T: Array) -> tuple[float, float, float]:
+    """(rx, ry, rz) in rad, rotations about the fixed X, Y, Z axes: R = Rz(rz) Ry(ry) Rx(rx).
+    MELFA's A, B, C, FANUC's W, P, R and Yaskawa's Rx, Ry, Rz all mean this."""
+    a, b, c = matrix_to_rpy(np.asarray(T, dtype=float)[:3, :3])
+    return c, b, a
+
+
+def xyz_fixed_matrix(rx: float, ry: float, rz: float) -> Array:
+    """The rotation matrix of `xyz_fixed_angles` (rad)."""
+    return rpy_to_matrix(rz, ry, rx)
 
 
 # ------------------------------------------------------------------------------ parts
@@ -233,6 +308,48 @@ def split_into_parts(program: NeutralProgram, limit: int | None,
         return [Part(0, parts[0][0], list(parts[0][1].values()))]
     return [Part(i + 1, ins, list(pos.values()), starts[i])
             for i, (ins, pos) in enumerate(parts)]
+
+
+def with_arc_start(m: Move, prev: Position | None) -> list[Position]:
+    """The positions a move's text names when a circular move also names its start point
+    (MELFA's MVR start,via,end; INFORM's three MOVC steps): `split_into_parts`' `needs`."""
+    pts = m.positions()
+    if m.kind == MoveKind.CIRCULAR and prev is not None:
+        pts = [prev] + pts
+    return pts
+
+
+def parts_within(program: NeutralProgram, max_positions: int | None, max_lines: int | None,
+                 lines: Callable[[Part], int],
+                 needs: Callable[[Move, Position | None], list[Position]] | None = None,
+                 what: str = "the controller") -> list[Part]:
+    """`split_into_parts`, with the positions per part lowered until no part has more than
+    `max_lines` program lines (`lines(part)` counts them as the dialect writes them)."""
+    need = needs or (lambda m, prev: m.positions())
+    fewest, prev = 1, None
+    for m in program.moves():  # no part can hold fewer positions than one move names
+        fewest = max(fewest, len({p.name for p in need(m, prev)}))
+        prev = m.target
+    limit = max_positions
+    while True:
+        parts = split_into_parts(program, limit, needs)
+        longest = max(lines(p) for p in parts)
+        if max_lines is None or longest <= max_lines:
+            return parts
+        most = max(len(p.positions) for p in parts)
+        if most <= fewest:
+            raise ExportError(f"{what} allows {max_lines} lines per program; a part as small "
+                              f"as the program's moves allow needs {longest}")
+        limit = max(fewest, min(most - 1, int(most * max_lines / longest)))
+
+
+def part_names(main: str, count: int, max_length: int) -> list[str]:
+    """Names of the parts a main program calls: MAIN1, MAIN2, ... shortened to fit."""
+    out = []
+    for k in range(1, count + 1):
+        suffix = str(k)
+        out.append(main[: max_length - len(suffix)] + suffix)
+    return out
 
 
 def cut_long_splines(program: NeutralProgram, limit: int | None) -> NeutralProgram:
@@ -325,6 +442,40 @@ def _corner_blend(a: Array | None, b: Array | None, c: Array | None) -> float:
     if turn > 1e-9:
         r = min(r, CORNER_DEVIATION / np.tan(turn / 4.0))
     return float(np.floor(r * 1e4) / 1e4)  # whole 0.1 mm: survives every number format
+
+
+def settle_values(program: NeutralProgram, *,
+                  joint_speed: Callable[[float, Move], float] | None = None,
+                  cartesian_speed: Callable[[float, Move], float] | None = None,
+                  blend: Callable[[float, Move], float] | None = None,
+                  acceleration: Callable[[float, Move], float] | None = None,
+                  wait: Callable[[float, Wait], float] | None = None) -> NeutralProgram:
+    """The program with every setting as a dialect writes it (whole percent, mm/s steps,
+    CNT values, ...), so the cycle time, the round trip and the read-back compare with
+    what the controller gets. Controllers that want a speed on every motion get one: a move
+    without one keeps the previous speed of its kind, the first joint move runs at full
+    speed, a Cartesian move before any speed is refused (as `cycle_time` rules)."""
+    out: list[Instruction] = []
+    speeds: dict[bool, float | None] = {True: 1.0, False: None}
+    for ins in program.instructions:
+        if isinstance(ins, Move):
+            joint = ins.kind == MoveKind.JOINT
+            v = ins.speed if ins.speed is not None else speeds[joint]
+            if v is None:
+                raise ExportError(f"the {ins.kind.value} move to {ins.target.name!r} has no "
+                                  "speed", step=ins.step)
+            speeds[joint] = v
+            settle = joint_speed if joint else cartesian_speed
+            changes: dict[str, object] = {"speed": settle(v, ins) if settle else v}
+            if blend is not None and ins.blend_radius > 0.0:
+                changes["blend_radius"] = blend(ins.blend_radius, ins)
+            if acceleration is not None and ins.acceleration is not None:
+                changes["acceleration"] = acceleration(ins.acceleration, ins)
+            ins = replace(ins, **changes)
+        elif isinstance(ins, Wait) and wait is not None:
+            ins = replace(ins, seconds=wait(ins.seconds, ins))
+        out.append(ins)
+    return replace(program, instructions=out)
 
 
 def flatten(programs: Sequence[NeutralProgram], name: str) -> NeutralProgram:

@@ -54,6 +54,9 @@ class ExportResult:
     cycle_time: CycleTime | None = None
     #: Positions renamed to satisfy the controller's identifier rules, one line each.
     renames: tuple[str, ...] = ()
+    #: Other things the controller's rules changed: a program split into parts, positions
+    #: written as joint values, blends the controller cannot express (one line each).
+    notes: tuple[str, ...] = ()
 
     @property
     def download(self) -> DownloadFile:
@@ -87,25 +90,30 @@ def export_files(program: NeutralProgram, dialect: str | Dialect, robot: Robot, 
     # The check's simulation is the lowered program's when lowering changed nothing.
     cycle = predict_cycle_time(lowered, robot, cycle_limits,
                                simulation=sim if lowered is program else None)
-    files = _write(d, program, robot, cycle)
+    files, notes = _write(d, program, robot, cycle)
     if verify:
         _verify(d, program, files, robot)
     out = tuple(DownloadFile(f.name, f.data, _mime(f)) for f in files)
     zipped = _zip(program.name, d, files) if len(files) > 1 else None
     return ExportResult(d.name, program.name, out, zipped, lowered.primitive_count(),
-                        lowered.primitive_counts(), cycle, renames)
+                        lowered.primitive_counts(), cycle, renames, notes)
 
 
 def _write(d: Dialect, program: NeutralProgram, robot: Robot,
-           cycle: CycleTime) -> list[ProgramFile]:
-    """The dialect's files with the predicted cycle time in their header.
+           cycle: CycleTime) -> tuple[list[ProgramFile], tuple[str, ...]]:
+    """The dialect's files with the predicted cycle time in their header, and its notes.
 
     The built-in dialects take the prediction made here (the header and the result agree);
-    a dialect written to the plain `Dialect.write(program, robot)` predicts its own.
+    a dialect written to the plain `Dialect.write(program, robot)` predicts its own. One
+    with `write_noted` also says what the controller's rules changed (a split, ...).
     """
+    noted = getattr(d, "write_noted", None)
+    if noted is not None:
+        files, notes = noted(program, robot, cycle_time=cycle)
+        return files, tuple(notes)
     if "cycle_time" in inspect.signature(d.write).parameters:
-        return d.write(program, robot, cycle_time=cycle)
-    return d.write(program, robot)
+        return d.write(program, robot, cycle_time=cycle), ()
+    return d.write(program, robot), ()
 
 
 def _mime(f: ProgramFile) -> str:

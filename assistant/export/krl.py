@@ -43,9 +43,9 @@ from assistant.export.dialect import (
     lower_splines,
     merge_smooth_splines,
     parse_step_comment,
-    pose_in_base,
     pose_in_work,
     position_pose,
+    positions_to_base,
     split_into_parts,
     step_changes,
     step_line,
@@ -66,6 +66,7 @@ from assistant.export.rules import (
     DialectRules,
     check_identifier,
     check_lines,
+    euler_deg,
     format_compact,
     format_fixed,
     parse_number,
@@ -103,7 +104,7 @@ def kuka_abc(T: Array) -> tuple[float, float, float]:
 
 
 def frame_text(T: Array, what: str = "frame", step: str = "") -> str:
-    a, b, c = np.degrees(kuka_abc(T))
+    a, b, c = euler_deg(kuka_abc(T), 3)
     x, y, z = T[:3, 3] * 1000.0
     f = [format_fixed(v, 3, what=what, step=step) for v in (x, y, z, a, b, c)]
     return f"X {f[0]},Y {f[1]},Z {f[2]},A {f[3]},B {f[4]},C {f[5]}"
@@ -339,7 +340,7 @@ class KrlDialect:
         mains = [k for k in srcs if k not in called]
         if len(mains) != 1:
             raise ExportError(f"expected one main .src, found {mains}")
-        return _to_base(self._read_module(mains[0], srcs, dats, robot, set()))
+        return positions_to_base(self._read_module(mains[0], srcs, dats, robot, set()))
 
     def _read_module(self, key: str, srcs: dict[str, ProgramFile], dats: dict[str, ProgramFile],
                      robot: Robot, stack: set[str]) -> NeutralProgram:
@@ -471,28 +472,6 @@ class KrlDialect:
                             ranges, redundant=e1)
             out[name] = Position(name, T, None, cfg)
         return out
-
-
-def _to_base(prog: NeutralProgram) -> NeutralProgram:
-    """Positions were read in the work frame: re-express them in the robot base frame."""
-    if prog.work.is_identity:
-        return prog
-    cache: dict[int, Position] = {}
-
-    def conv(p: Position | None) -> Position | None:
-        if p is None or p.T_base_tool is None:
-            return p
-        if id(p) not in cache:
-            cache[id(p)] = replace(p, T_base_tool=pose_in_base(prog.work.T, p.T_base_tool))
-        return cache[id(p)]
-
-    out = []
-    for ins in prog.instructions:
-        if isinstance(ins, Move):
-            ins = replace(ins, target=conv(ins.target), via=conv(ins.via),
-                          through=tuple(conv(t) for t in ins.through))
-        out.append(ins)
-    return replace(prog, instructions=out)
 
 
 def _frame(text: str) -> Array:

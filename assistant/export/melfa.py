@@ -58,6 +58,9 @@ from assistant.export.dialect import (
     split_into_parts,
     step_changes,
     step_line,
+    with_arc_start,
+    xyz_fixed_angles,
+    xyz_fixed_matrix,
 )
 from assistant.export.errors import ExportError
 from assistant.export.program import (
@@ -75,12 +78,12 @@ from assistant.export.rules import (
     DialectRules,
     check_identifier,
     check_lines,
+    euler_deg,
     format_compact,
     format_fixed,
     parse_number,
 )
 from assistant.robots.model import Robot
-from assistant.transforms import matrix_to_rpy, rpy_to_matrix
 
 Array = np.ndarray
 
@@ -110,14 +113,9 @@ def melfa_rules(variant: str = "IV", max_positions_per_file: int | None = 500) -
         program_hint="upper-case letters and digits only", max_program_name=8)
 
 
-def melfa_abc(T: Array) -> tuple[float, float, float]:
-    """MELFA (A, B, C) in rad: rotations about X, Y, Z with R = Rz(C) Ry(B) Rx(A)."""
-    a, b, c = matrix_to_rpy(T[:3, :3])
-    return c, b, a
-
-
-def melfa_matrix(A: float, B: float, C: float) -> Array:
-    return rpy_to_matrix(C, B, A)
+#: MELFA (A, B, C) in rad: rotations about X, Y, Z with R = Rz(C) Ry(B) Rx(A).
+melfa_abc = xyz_fixed_angles
+melfa_matrix = xyz_fixed_matrix
 
 
 @dataclass
@@ -163,7 +161,7 @@ class MelfaDialect:
                                  program=True)
         names = self._names(program)
         cycle = (cycle_time or predict_cycle_time(program, robot)).header_text()
-        parts = split_into_parts(program, self.rules.max_positions_per_file, _needs)
+        parts = split_into_parts(program, self.rules.max_positions_per_file, with_arc_start)
         files: list[ProgramFile] = []
         if len(parts) == 1:
             files += self._program_files(pname, program, parts[0], names, robot,
@@ -304,7 +302,7 @@ class MelfaDialect:
 
     def _pose_text(self, T: Array, what: str) -> str:
         A, B, C = melfa_abc(T)
-        vals = list(T[:3, 3] * 1000.0) + list(np.degrees([A, B, C]))
+        vals = list(T[:3, 3] * 1000.0) + euler_deg((A, B, C), 2)
         return "(" + ",".join(format_fixed(v, 2, plus=True, what=what) for v in vals) + ")"
 
     @staticmethod
@@ -468,13 +466,6 @@ class _State:
         if self.values.get(key) != value:
             self.values[key] = value
             out.append(text)
-
-
-def _needs(m: Move, prev: Position | None) -> list[Position]:
-    pts = m.positions()
-    if m.kind == MoveKind.CIRCULAR and prev is not None:
-        pts = [prev] + pts
-    return pts
 
 
 def _percent(fraction: float, step: str) -> int:

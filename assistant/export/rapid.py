@@ -73,6 +73,7 @@ from assistant.export.rules import (
     check_lines,
     format_compact,
     format_fixed,
+    half_turn_sign,
     parse_number,
 )
 from assistant.robots.model import Robot
@@ -108,6 +109,8 @@ def rapid_rules(max_positions_per_file: int | None = 1000) -> DialectRules:
 def quaternion_wxyz(R: Array) -> Array:
     x, y, z, w = Rotation.from_matrix(R).as_quat()
     q = np.array([w, x, y, z])
+    if round(abs(q[0]), 6) == 0.0:  # a half turn: w's sign is noise, fix the first shown
+        return np.array(half_turn_sign(q, 6, skip=1))
     return -q if q[0] < 0.0 else q
 
 

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
 from assistant.export.errors import ExportError
@@ -61,6 +62,27 @@ def format_fixed(value: float, decimals: int, *, plus: bool = False, what: str =
     if plus and not text.startswith("-"):
         text = "+" + text
     return text
+
+
+def euler_deg(angles_rad: Sequence[float], decimals: int) -> list[float]:
+    """Euler angles in degrees as one orientation is always written: an angle that would
+    read -180 at `decimals` is written +180 (the same turn). Near a half turn the angle's
+    sign follows the last bits of the rotation matrix, which differ between processors and
+    between a typed and a measured pose; the program text must not."""
+    out = []
+    for a in angles_rad:
+        d = math.degrees(float(a))
+        out.append(d + 360.0 if round(d, decimals) <= -180.0 else d)
+    return out
+
+
+def half_turn_sign(v: Sequence[float], decimals: int, *, skip: int = 0) -> list[float]:
+    """A quaternion (w first, `skip` = 1) or a rotation vector whose sign is free - w = 0, or
+    a turn of pi - written with its first component that shows at `decimals` positive, so
+    the same orientation always gives the same text."""
+    vals = [float(x) for x in v]
+    lead = next((x for x in vals[skip:] if round(abs(x), decimals) > 0.0), 0.0)
+    return [-x for x in vals] if lead < 0.0 else vals
 
 
 def format_compact(value: float, max_decimals: int = 3, *, what: str = "value",

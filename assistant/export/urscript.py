@@ -59,6 +59,7 @@ from assistant.export.rules import (
     check_lines,
     format_compact,
     format_fixed,
+    half_turn_sign,
     parse_number,
 )
 from assistant.robots.model import Robot
@@ -98,6 +99,8 @@ def controller_base(robot: Robot) -> tuple[Array, str]:
 
 def pose_literal(T: Array, what: str = "pose") -> str:
     rv = rotation_vector(T[:3, :3])
+    if abs(float(np.linalg.norm(rv)) - np.pi) < 1e-6:  # a half turn: +-axis is one turn
+        rv = np.array(half_turn_sign(rv, 6))
     vals = list(T[:3, 3]) + list(rv)
     return "p[" + ", ".join(format_fixed(v, 6, what=what) for v in vals) + "]"
 

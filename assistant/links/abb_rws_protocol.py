@@ -56,8 +56,11 @@ ELOG_PROGRAM_STOPPED = 10011
 #: Event codes that mean "the arm touched something" (collision detection options too).
 COLLISION_CODES = frozenset({ELOG_MOTION_SUPERVISION, 50056})
 
-#: The RAPID module name of the link's exploration moves.
+#: The RAPID module name of the link's exploration moves, and its routine: no ``main`` - a
+#: controller's task has a main of its own, and RAPID allows one per task; the link sets the
+#: program pointer to this routine instead (RWS "set PP to routine").
 MOVE_MODULE = "CellMove"
+MOVE_ROUTINE = "cellmove"
 
 
 @dataclass(frozen=True)
@@ -75,14 +78,19 @@ class ElogEntry:
 
 
 # ---------------------------------------------------------------------- replies (both sides)
-def envelope(base: str, states: Sequence[dict[str, Any]]) -> str:
+def envelope(base: str, states: Sequence[dict[str, Any]], version: int = 1) -> str:
+    if version == 2:
+        return json.dumps({"_links": {"base": {"href": base}}, "state": list(states)})
     return json.dumps({"_links": {"base": {"href": base}},
                        "_embedded": {"_state": list(states)}})
 
 
-def error_body(base: str, code: int, msg: str) -> str:
+def error_body(base: str, code: int, msg: str, version: int = 1) -> str:
+    status = {"code": int(code), "msg": msg}
+    if version == 2:
+        return json.dumps({"_links": {"base": {"href": base}}, "status": status})
     return json.dumps({"_links": {"base": {"href": base}},
-                       "_embedded": {"_state": [], "status": {"code": int(code), "msg": msg}}})
+                       "_embedded": {"_state": [], "status": status}})
 
 
 def _json(raw: bytes, what: str) -> dict:
@@ -98,13 +106,15 @@ def _json(raw: bytes, what: str) -> dict:
 
 
 def states(raw: bytes, what: str, type_: str | None = None) -> list[dict[str, Any]]:
-    """The ``_embedded._state`` list of a reply; each of `type_` when given."""
+    """The state list of a reply (``_embedded._state`` on RWS 1.0, ``state`` on 2.0); each
+    of `type_` when given."""
     data = _json(raw, what)
-    try:
-        out = data["_embedded"]["_state"]
-    except (KeyError, TypeError):
-        raise ProtocolError(f"controller reply to {what} has no _embedded._state: "
-                            f"{raw[:200]!r}", raw=raw.decode(errors="replace")) from None
+    out = data.get("state") if "state" in data else \
+        (data.get("_embedded") or {}).get("_state") if isinstance(data.get("_embedded"),
+                                                                  dict) else None
+    if out is None:
+        raise ProtocolError(f"controller reply to {what} has no state list: "
+                            f"{raw[:200]!r}", raw=raw.decode(errors="replace"))
     if not isinstance(out, list) or not all(isinstance(s, dict) for s in out):
         raise ProtocolError(f"controller reply to {what} is malformed: {raw[:200]!r}",
                             raw=raw.decode(errors="replace"))
@@ -125,7 +135,8 @@ def state(raw: bytes, what: str, type_: str) -> dict[str, Any]:
 def error_status(raw: bytes) -> tuple[int, str] | None:
     """(code, msg) of an RWS error body, or None when the body is not one."""
     try:
-        st = json.loads(raw.decode("utf-8", errors="replace"))["_embedded"]["status"]
+        data = json.loads(raw.decode("utf-8", errors="replace"))
+        st = data["status"] if "status" in data else data["_embedded"]["status"]
         return int(st["code"]), str(st.get("msg", ""))
     except (ValueError, KeyError, TypeError):
         return None
@@ -195,8 +206,10 @@ def parse_elog(raw: bytes) -> list[ElogEntry]:
 
 
 # ---------------------------------------------------------------------- RAPID for moves
-def joint_move_module(targets_rad: Array, speed_mm_s: float, name: str = MOVE_MODULE) -> str:
-    """A module whose main moves through joint targets with MoveAbsJ, exact stops (fine).
+def joint_move_module(targets_rad: Array, speed_mm_s: float, name: str = MOVE_MODULE,
+                      routine: str = MOVE_ROUTINE) -> str:
+    """A module whose routine `routine` moves through joint targets with MoveAbsJ, exact
+    stops (fine).
 
     RAPID speeds are TCP speeds also for MoveAbsJ; we use the exporter's convention that
     1000 mm/s is the arm's full joint speed, so `speed_mm_s` = scale x 1000.
@@ -212,7 +225,7 @@ def joint_move_module(targets_rad: Array, speed_mm_s: float, name: str = MOVE_MO
         vals[:len(q)] = np.degrees(q)
         axes = ",".join(f"{a:.6f}" for a in vals)
         lines.append(f"    CONST jointtarget cj{k} := [[{axes}],{EXTERNAL}];")
-    lines += ["", "    PROC main()"]
+    lines += ["", f"    PROC {routine}()"]
     lines += [f"        MoveAbsJ cj{k}\\NoEOffs, vCellMove, fine, tool0;"
               for k in range(1, len(Q) + 1)]
     lines += ["    ENDPROC", "ENDMODULE", ""]
@@ -230,3 +243,12 @@ def module_name(text: str) -> str | None:
 
 def has_main(text: str) -> bool:
     return _MAIN.search(text) is not None
+
+
+def main_as_routine(text: str, routine: str) -> str:
+    """The module with its ``PROC main()`` renamed to `routine` (a task keeps one main)."""
+    out, n = re.subn(r"^(\s*PROC\s+)main(\s*\(\s*\))", rf"\g<1>{routine}\g<2>", text,
+                     count=1, flags=re.IGNORECASE | re.MULTILINE)
+    if n != 1:
+        raise ValueError("no PROC main() in the module")
+    return out

@@ -56,6 +56,8 @@ class BridgeReply:
     message: str
     program: str
     raw: str
+    #: The arm's axes in degrees, when the bridge reports them (ours does; 002's did not).
+    axes: tuple[float, ...] = ()
 
     @property
     def ok(self) -> bool:
@@ -108,6 +110,7 @@ def parse_reply(raw: bytes, endpoint: str) -> BridgeReply:
     try:
         code = int(data["statuscode"])
         pos = tuple(float(v) for v in data.get("position", ()))
+        axes = tuple(float(v) for v in data.get("axes", ()))
     except (TypeError, ValueError):
         raise ProtocolError(f"bridge reply to /{endpoint} is malformed: {text[:200]!r}",
                             raw=text) from None
@@ -115,7 +118,7 @@ def parse_reply(raw: bytes, endpoint: str) -> BridgeReply:
         raise ProtocolError(f"bridge reply to /{endpoint} lacks a 6-value position: "
                             f"{text[:200]!r}", raw=text)
     return BridgeReply(code, pos, str(data.get("message", "")), str(data.get("program", "")),
-                       text)
+                       text, axes)
 
 
 def reply_json(statuscode: int, position: Sequence[float], message: str = "",

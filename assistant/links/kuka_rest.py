@@ -39,6 +39,7 @@ from assistant.links.kuka_protocol import BridgeReply
 from assistant.links.link import LinkError, LinkEvent, LinkEventKind, LinkLost, RobotLink
 from assistant.links.operator_button import OperatorButton
 from assistant.links.timing import time_parametrize, validate_path
+from assistant.links.wirelog import NULL, WireLog
 from assistant.robots.model import Robot
 
 Array = np.ndarray
@@ -66,8 +67,10 @@ class KukaRestLink(OperatorButton, RobotLink):
         timeout_s: float = 2.0,
         decimation_tol_m: float = 0.002,
         set_tcp_on_connect: bool = True,
+        wire: WireLog = NULL,
     ):
         super().__init__()
+        self.wire = wire
         if timeout_s <= 0 or decimation_tol_m <= 0:
             raise ValueError("timeout_s and decimation_tol_m must be positive")
         self.robot = robot
@@ -97,12 +100,15 @@ class KukaRestLink(OperatorButton, RobotLink):
         req = urllib.request.Request(self._url(endpoint, params), data=body, method="POST",
                                      headers={"Content-Type": content_type,
                                               "Connection": "close"})
+        self.wire.sent("http", f"POST {req.full_url}" + (f" ({len(body)} bytes)" if body else ""))
         with self._lock:
             try:
                 with urllib.request.urlopen(req, timeout=timeout) as resp:
                     raw = resp.read()
+                    self.wire.received("http", raw[:500])
             except urllib.error.HTTPError as exc:
                 text = exc.read().decode("utf-8", errors="replace")[:200]
+                self.wire.received("http", f"HTTP {exc.code} {text}")
                 raise LinkError(f"bridge answered /{endpoint} with HTTP {exc.code}: "
                                 f"{text!r}") from None
             except TimeoutError:
@@ -126,8 +132,12 @@ class KukaRestLink(OperatorButton, RobotLink):
         return LinkLost(f"KUKA bridge at {self.base_url} lost: {why}")
 
     # ------------------------------------------------------------------ kinematics
-    def _joints_of(self, position: tuple[float, ...], seed: Array) -> Array:
-        """Joints for a reported position: the IK solution nearest the last known joints."""
+    def _joints_of(self, position: tuple[float, ...], seed: Array,
+                   axes: tuple[float, ...] = ()) -> Array:
+        """Joints for a reported position: the axes the bridge reports (cellteach's does),
+        else the IK solution nearest the last known joints."""
+        if len(axes) >= self.robot.dof:
+            return np.radians(np.asarray(axes[:self.robot.dof], dtype=float))
         res = self.robot.ik(kp.position_to_T(position), seed)
         if not res.ok:
             res = self.robot.ik(kp.position_to_T(position), seed, position_only=True)
@@ -135,6 +145,9 @@ class KukaRestLink(OperatorButton, RobotLink):
             raise ProtocolError(f"bridge reports a position our model cannot reach: "
                                 f"{list(position)}", raw=str(list(position)))
         return res.best(seed)
+
+    def _reply_joints(self, reply: BridgeReply, seed: Array) -> Array:
+        return self._joints_of(reply.position, seed, reply.axes)
 
     def target_params(self, q: Array, speed_scale: float = 1.0) -> dict[str, str]:
         params = kp.pose_params(self.robot.fk(q), status_bits(arm_config(self.robot, q)),
@@ -151,8 +164,7 @@ class KukaRestLink(OperatorButton, RobotLink):
             if not np.allclose(kp.position_to_T(tcp.position), self.robot.T_flange_tool,
                                atol=1e-6):
                 raise LinkError(f"bridge did not take our TCP: it reports {tcp.position}")
-        pos = self.command("getpos").position
-        self._last_q = self._joints_of(pos, self._last_q)
+        self._last_q = self._reply_joints(self.command("getpos"), self._last_q)
         self._connected = True
 
     def close(self) -> None:
@@ -164,7 +176,7 @@ class KukaRestLink(OperatorButton, RobotLink):
 
     def current_joints(self) -> Array:
         if self._connected:
-            self._last_q = self._joints_of(self.command("getpos").position, self._last_q)
+            self._last_q = self._reply_joints(self.command("getpos"), self._last_q)
         return self._last_q.copy()
 
     def current_pose(self) -> Array:
@@ -234,12 +246,12 @@ class KukaRestLink(OperatorButton, RobotLink):
 
     def _refresh_after_error(self) -> None:
         with contextlib.suppress(LinkError):
-            self._last_q = self._joints_of(self.command("getpos").position, self._last_q)
+            self._last_q = self._reply_joints(self.command("getpos"), self._last_q)
 
     def _on_status(self, reply: BridgeReply, path_index: int) -> LinkEvent:
         if reply.position and len(reply.position) == 6:
             with contextlib.suppress(ProtocolError):
-                self._last_q = self._joints_of(reply.position, self._last_q)
+                self._last_q = self._reply_joints(reply, self._last_q)
         details = {"statuscode": reply.statuscode, "raw": reply.raw,
                    "bridge_message": reply.message}
         if reply.statuscode == kp.STATUS_COLLISION:
@@ -299,7 +311,8 @@ class KukaRestLink(OperatorButton, RobotLink):
                 return self._event(LinkEventKind.ERROR, str(exc), 0, {"raw": exc.raw})
             if not reply.ok:
                 return self._on_status(reply, 0)
-            self._last_q = self._joints_of(reply.position, self._last_q if q is None else q)
+            self._last_q = self._joints_of(reply.position, self._last_q if q is None else q,
+                                           reply.axes)
             return self._event(LinkEventKind.REACHED, "reached", 0)
 
     # ------------------------------------------------------------------ programs
@@ -343,5 +356,5 @@ class KukaRestLink(OperatorButton, RobotLink):
             if not reply.program:
                 raise LinkError(f"bridge did not confirm which module it ran; raw {reply.raw!r}")
             if fname.endswith(".src"):
-                self._last_q = self._joints_of(reply.position, self._last_q)
+                self._last_q = self._reply_joints(reply, self._last_q)
         return unique

@@ -47,6 +47,7 @@ from assistant.links.melfa_protocol import DState, MelfaPose, Reply
 from assistant.links.melfa_streaming import MelfaStreaming
 from assistant.links.operator_button import OperatorButton
 from assistant.links.timing import time_parametrize, validate_path
+from assistant.links.wirelog import NULL, WireLog
 from assistant.robots.model import Robot
 
 Array = np.ndarray
@@ -89,8 +90,10 @@ class MelfaLink(MelfaStreaming, MelfaPrograms, OperatorButton, RobotLink):
         reset_alarms_on_connect: bool = True,
         reached_tol_rad: float = math.radians(0.05),
         collision_codes: frozenset[int] = mp.COLLISION_CODES,
+        wire: WireLog = NULL,
     ):
         super().__init__()
+        self.wire = wire
         if stream_cycle_s <= 0 or stream_window < 1 or timeout_s <= 0:
             raise ValueError("stream_cycle_s, stream_window and timeout_s must be positive")
         self.robot = robot
@@ -146,6 +149,8 @@ class MelfaLink(MelfaStreaming, MelfaPrograms, OperatorButton, RobotLink):
             sock = self._cmd
             try:
                 sock.settimeout(self.timeout_s if timeout_s is None else timeout_s)
+                self.wire.sent(f"command:{self.port}", mp.format_request(
+                    self.robot_number, self.slot, command))
                 sock.sendall(mp.format_request(self.robot_number, self.slot, command))
                 while b"\r" not in self._cmd_buf:
                     chunk = sock.recv(4096)
@@ -159,6 +164,7 @@ class MelfaLink(MelfaStreaming, MelfaPrograms, OperatorButton, RobotLink):
             except OSError as exc:
                 raise self._lost(f"{exc} during {command!r}") from None
             raw, _, self._cmd_buf = self._cmd_buf.partition(b"\r")
+            self.wire.received(f"command:{self.port}", raw)
             return mp.parse_reply(raw.decode("ascii", errors="replace") + "\r", command)
 
     def command(self, command: str, *, timeout_s: float | None = None) -> Reply:

@@ -11,14 +11,16 @@ from __future__ import annotations
 import re
 from collections.abc import Iterable
 from dataclasses import asdict, dataclass, fields
+from pathlib import Path
 from typing import Any, Literal
 
 from assistant.collision.reports import ObstacleView
 from assistant.links.link import RobotLink
+from assistant.links.wirelog import NULL, WireLog
 from assistant.robots.model import Robot
 
-LinkKind = Literal["simulated", "melfa", "kuka_rest", "ur", "abb"]
-KINDS: tuple[str, ...] = ("simulated", "melfa", "kuka_rest", "ur", "abb")
+LinkKind = Literal["simulated", "melfa", "kuka_rest", "ur", "abb", "omnicore"]
+KINDS: tuple[str, ...] = ("simulated", "melfa", "kuka_rest", "ur", "abb", "omnicore")
 
 
 class LinkSettingsError(ValueError):
@@ -44,12 +46,15 @@ class LinkSettings:
     decimation_tol_m: float = 0.002
     kuka_base_path: str = "/krl"
     #: Universal Robots: secondary interface (URScript), RTDE and dashboard server ports,
-    #: and the RTDE state rate (500 Hz on e-Series, 125 Hz on CB3).
+    #: and the highest RTDE state rate wanted (the controller's version caps it: 500 Hz on
+    #: e-Series, 125 Hz on CB3); the primary interface carries messages and calibration.
     ur_script_port: int = 30002
+    ur_primary_port: int = 30001
     ur_rtde_port: int = 30004
     ur_dashboard_port: int = 29999
     ur_rtde_hz: float = 500.0
-    #: ABB (Robot Web Services on `port`, 80 on an IRC5): the login - the controller's
+    #: ABB (Robot Web Services on `port`: 80 on an IRC5, "abb"; 443 on an OmniCore,
+    #: "omnicore", RWS 2.0 over HTTPS): the login - the controller's
     #: default user unless the cell has its own - and the RAPID motion task.
     rws_user: str = "Default User"
     rws_password: str = "robotics"
@@ -62,7 +67,7 @@ class LinkSettings:
         if self.kind not in KINDS:
             raise LinkSettingsError(f"kind must be one of {KINDS}, got {self.kind!r}")
         for name in ("port", "datalink_port", "ur_script_port", "ur_rtde_port",
-                     "ur_dashboard_port"):
+                     "ur_dashboard_port", "ur_primary_port"):
             v = getattr(self, name)
             if not 0 <= v <= 65535:
                 raise LinkSettingsError(f"{name} {v} is not a TCP port")
@@ -104,9 +109,17 @@ class LinkSettings:
         return LinkSettings(**kw)
 
 
+def wire_log(settings: LinkSettings, log_dir: Path | str | None) -> WireLog:
+    """The link's wire log in `log_dir` (None: nothing recorded); the password is masked."""
+    return WireLog(log_dir, settings.kind, secrets=[settings.rws_password])
+
+
 def make_link(settings: LinkSettings, robot: Robot,
-              hidden_obstacles: Iterable[ObstacleView] = ()) -> RobotLink:
-    """The link the settings describe. Hidden obstacles only exist for the simulated robot."""
+              hidden_obstacles: Iterable[ObstacleView] = (),
+              log_dir: Path | str | None = None) -> RobotLink:
+    """The link the settings describe. Hidden obstacles only exist for the simulated robot;
+    with `log_dir` the link writes its wire traffic there (`wirelog`)."""
+    wire = wire_log(settings, log_dir) if settings.kind != "simulated" else NULL
     if settings.kind == "simulated":
         from assistant.links.simulated import SimulatedRobot
 
@@ -122,20 +135,22 @@ def make_link(settings: LinkSettings, robot: Robot,
                          connect_timeout_s=settings.connect_timeout_s,
                          timeout_s=settings.timeout_s, stream_cycle_s=settings.stream_cycle_s,
                          stream_window=settings.stream_window,
-                         event_period_s=settings.event_period_s)
-    if settings.kind == "abb":
+                         event_period_s=settings.event_period_s, wire=wire)
+    if settings.kind in ("abb", "omnicore"):
         from assistant.links.abb_rws import AbbRwsLink
 
         return AbbRwsLink(robot, host=settings.host, port=settings.port,
                           username=settings.rws_user, password=settings.rws_password,
                           task=settings.rws_task, timeout_s=settings.timeout_s,
-                          decimation_tol_m=settings.decimation_tol_m)
+                          decimation_tol_m=settings.decimation_tol_m,
+                          rws_version=2 if settings.kind == "omnicore" else 1, wire=wire)
     if settings.kind == "ur":
         from assistant.links.ur import URLink
 
         return URLink(robot, host=settings.host, script_port=settings.ur_script_port,
                       rtde_port=settings.ur_rtde_port,
                       dashboard_port=settings.ur_dashboard_port, rtde_hz=settings.ur_rtde_hz,
+                      primary_port=settings.ur_primary_port, wire=wire,
                       connect_timeout_s=settings.connect_timeout_s,
                       timeout_s=settings.timeout_s, decimation_tol_m=settings.decimation_tol_m,
                       event_period_s=settings.event_period_s)

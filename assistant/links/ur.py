@@ -1,12 +1,21 @@
 """Drive a Universal Robots arm: state over RTDE, motion and programs as URScript.
 
 State - joints, TCP, robot mode, safety mode, the running program's progress registers -
-comes over RTDE (30004) at up to 500 Hz from our own small client (`ur_rtde_client` says why
-not ur-rtde's). Motion goes as URScript programs over the secondary interface (30002,
-`ur_script`): ur-rtde's control interface would need its own control script running on
+comes over RTDE (30004) at the controller's rate (500 Hz on an e-Series, 125 Hz on a CB3:
+read from its version) from our own small client (`ur_rtde_client` says why not ur-rtde's).
+Motion goes as URScript programs over the secondary interface (30002, `ur_script`); what
+the controller says back - runtime exceptions, safety messages, error popups - and its
+calibrated kinematics come on the primary interface (30001, `ur_primary`), which the link
+reads all along. ur-rtde's control interface would need its own control script running on
 the controller and RTDE input registers, i.e. a full controller; plain programs work on every
 UR and are what the exporter writes anyway. A joint path is decimated (`decimate.py`) and sent
 as one program of exact-stop ``movej`` - one round trip per path, not per target.
+
+Connecting checks what a controller as it ships would refuse: an e-Series starts in Local
+control, drops the client interfaces and refuses ``power on``; the link asks the dashboard
+``is in remote control`` first and says what to switch on the pendant. The TCP the controller
+reports is checked against its own calibrated kinematics (`ur_kinematics`), and how far the
+calibration moves the TCP from the nominal model is reported (`calibration`).
 
 How moves end, mapped onto the session's states as the MELFA and KUKA links do:
 - the finish register reaches the program's number: REACHED;
@@ -33,6 +42,7 @@ import time
 
 import numpy as np
 
+from assistant.links import ur_kinematics as uk
 from assistant.links import ur_rtde_wire as w
 from assistant.links import ur_script as us
 from assistant.links.decimate import exact_stop_targets
@@ -42,6 +52,7 @@ from assistant.links.operator_button import OperatorButton
 from assistant.links.timing import time_parametrize, validate_path
 from assistant.links.ur_channels import ScriptChannel, dashboard
 from assistant.links.ur_rtde_client import RtdeClient, RtdeState
+from assistant.links.wirelog import NULL, WireLog
 from assistant.robots.model import Robot
 
 Array = np.ndarray
@@ -49,6 +60,11 @@ Array = np.ndarray
 #: left on the controller never match a new program's number.
 _program_seq = itertools.count(int(time.time()) % 100000 * 100)
 TCP_CHECK_M = 0.002  # the robot's TCP must agree with our model within this
+#: What an e-Series in Local control needs from the operator (PolyScope 5 user manual,
+#: "Remote Control"; the toggle is at the top right of the pendant's header).
+LOCAL_MODE = ("the UR is in Local control: on the teach pendant tap the Local icon at the top "
+              "right and choose Remote Control (if it is not offered: Settings > System > "
+              "Remote Control > Enable, with the admin password), then Connect again")
 
 
 class URLink(OperatorButton, RobotLink):
@@ -69,7 +85,8 @@ class URLink(OperatorButton, RobotLink):
                  connect_timeout_s: float = 2.0, timeout_s: float = 1.0,
                  decimation_tol_m: float = 0.002, unlock_wait_s: float = 6.0,
                  joint_accel_rad_s2: float = 4.0, tool_speed_m_s: float = 0.25,
-                 event_period_s: float = 0.05, keep_arrivals: int = 0):
+                 event_period_s: float = 0.05, keep_arrivals: int = 0,
+                 primary_port: int = 30001, wire: WireLog = NULL):
         super().__init__()
         if timeout_s <= 0 or decimation_tol_m <= 0 or unlock_wait_s < 0:
             raise ValueError("timeout_s, decimation_tol_m must be > 0, unlock_wait_s >= 0")
@@ -80,9 +97,18 @@ class URLink(OperatorButton, RobotLink):
         self.decimation_tol_m, self.unlock_wait_s = float(decimation_tol_m), float(unlock_wait_s)
         self.joint_accel, self.tool_speed = float(joint_accel_rad_s2), float(tool_speed_m_s)
         self.event_period_s = float(event_period_s)
+        self.wire = wire
         self.rtde = RtdeClient(host, rtde_port, frequency_hz=rtde_hz, timeout_s=timeout_s,
-                               connect_timeout_s=connect_timeout_s, keep_arrivals=keep_arrivals)
-        self.script = ScriptChannel(host, script_port, connect_timeout_s)
+                               connect_timeout_s=connect_timeout_s, keep_arrivals=keep_arrivals,
+                               wire=wire)
+        self.primary = ScriptChannel(host, primary_port, connect_timeout_s, wire, "primary")
+        self.script = self.primary if int(primary_port) == int(script_port) else \
+            ScriptChannel(host, script_port, connect_timeout_s, wire, "secondary")
+        #: The controller's calibrated kinematics (None before connect or if not published).
+        self.kinematics = None
+        self.calibration: uk.CalibrationReport | None = None
+        self._kin_robot: Robot | None = None
+        self.remote_control: bool | None = None
         self._radii = robot.arm_radii()
         self._flange = robot.with_tool(np.eye(4))
         self._connected = False
@@ -97,14 +123,46 @@ class URLink(OperatorButton, RobotLink):
         self.close()
         try:
             st = self.rtde.connect()
+            self.check_remote_control()
+            self.primary.connect()
+            if self.script is not self.primary:
+                self.script.connect()
             st = self._ready(st, on_connect=True)
-            self.script.connect()
+            self._read_calibration(st)
             self._check_tcp(st)
         except Exception:
             self.close()
             raise
         self._last_q = st.q
         self._connected = True
+
+    @property
+    def e_series(self) -> bool:
+        return self.rtde.controller_version[0] >= 5
+
+    def dashboard(self, command: str) -> str:
+        return dashboard(self.host, self.dashboard_port, command, self.timeout_s, self.wire)
+
+    def check_remote_control(self) -> None:
+        """An e-Series must be in Remote control (CB3s have no such mode)."""
+        self.remote_control = None
+        if not self.e_series:
+            return
+        reply = self.dashboard("is in remote control").strip().lower()
+        if reply in ("true", "false"):
+            self.remote_control = reply == "true"
+        if self.remote_control is False:
+            raise ControllerRefused(LOCAL_MODE, code="local_control", raw=reply)
+
+    def _read_calibration(self, st: RtdeState) -> None:
+        """The calibrated DH table from the primary interface, and how far it is from nominal.
+        Without one (software before 3.6) the nominal model is all we have."""
+        self.kinematics = self.primary.wait_kinematics(max(self.timeout_s, 0.5))
+        if self.kinematics is None:
+            self._kin_robot, self.calibration = None, None
+            return
+        self._kin_robot = uk.calibrated_robot(self.kinematics, self.robot)
+        self.calibration = uk.compare(self.kinematics, self.robot, st.q)
 
     def _ready(self, st: RtdeState, *, on_connect: bool = False) -> RtdeState:
         """Make the arm able to move: unlock a protective stop, power on after an e-stop."""
@@ -122,7 +180,7 @@ class URLink(OperatorButton, RobotLink):
                            "Reconnect to power it on and release the brakes")
         if on_connect and st["robot_mode"] != w.RobotMode.RUNNING:
             for cmd, want in (("power on", "Powering on"), ("brake release", "Brake releasing")):
-                reply = dashboard(self.host, self.dashboard_port, cmd, self.timeout_s)
+                reply = self.dashboard(cmd)
                 if not reply.startswith(want):
                     raise ControllerRefused(f"the robot refused {cmd!r}: {reply!r}",
                                             code=cmd, raw=reply)
@@ -136,8 +194,7 @@ class URLink(OperatorButton, RobotLink):
     def _unlock_protective_stop(self) -> None:
         deadline = time.monotonic() + self.unlock_wait_s
         while True:
-            reply = dashboard(self.host, self.dashboard_port, "unlock protective stop",
-                              self.timeout_s)
+            reply = self.dashboard("unlock protective stop")
             if reply.startswith("Protective stop releasing"):
                 return
             if not reply.startswith("Cannot unlock protective stop"):
@@ -150,17 +207,35 @@ class URLink(OperatorButton, RobotLink):
             time.sleep(0.1)
 
     def _check_tcp(self, st: RtdeState) -> None:
-        """The robot's reported TCP must be where our model puts the tool or the flange."""
-        T = us.from_controller_pose(self.robot, st.tcp_pose)
-        off = min(float(np.linalg.norm(m.fk(st.q)[:3, 3] - T[:3, 3]))
-                  for m in (self.robot, self._flange))
+        """The robot's reported TCP must be where the controller's calibrated chain puts our
+        tool (or the bare flange, before our first program sets the TCP); our model's flange
+        must be the controller's tool flange, or every pose would be turned."""
+        model, _, angle = uk.identify(self.robot)
+        if model is not None and angle > 1e-3:
+            raise LinkError(f"our {self.robot.name} model's flange ({self._flange_name()}) is "
+                            f"turned {np.degrees(angle):.0f} deg against the UR's tool flange: "
+                            "choose the tool link 'tool0' for this robot")
+        if self._kin_robot is not None:
+            T_rep = us.from_controller_pose(self._kin_robot, st.tcp_pose)
+            cands = [self._kin_robot.fk(st.q) @ self.robot.T_flange_tool,
+                     self._kin_robot.fk(st.q)]
+            what = "the controller's calibrated kinematics put"
+        else:
+            T_rep = us.from_controller_pose(self.robot, st.tcp_pose)
+            cands = [m.fk(st.q) for m in (self.robot, self._flange)]
+            what = f"our {self.robot.name} model puts"
+        off = min(float(np.linalg.norm(T[:3, 3] - T_rep[:3, 3])) for T in cands)
         if off > TCP_CHECK_M:
-            raise LinkError(f"the robot reports its TCP {off * 1000:.1f} mm from where our "
-                            f"{self.robot.name} model puts it: wrong robot model or tool?")
+            raise LinkError(f"the robot reports its TCP {off * 1000:.1f} mm from where {what} "
+                            "our tool: wrong robot model or tool?")
+
+    def _flange_name(self) -> str:
+        return str(getattr(self.robot, "tool_link", "flange"))
 
     def close(self) -> None:
         self._connected = False
         self.rtde.close()
+        self.primary.close()
         self.script.close()
 
     @property
@@ -201,7 +276,8 @@ class URLink(OperatorButton, RobotLink):
         st = self._state()
         return {"robot_mode": w.mode_name(w.RobotMode, st["robot_mode"]),
                 "safety_mode": w.mode_name(w.SafetyMode, st["safety_mode"]),
-                "runtime_state": w.mode_name(w.RuntimeState, st["runtime_state"])}
+                "runtime_state": w.mode_name(w.RuntimeState, st["runtime_state"]),
+                "control": {None: "n/a", True: "remote", False: "local"}[self.remote_control]}
 
     def stop(self) -> None:
         self._stop.set()
@@ -324,8 +400,14 @@ class URLink(OperatorButton, RobotLink):
                 self._emit(LinkEvent(LinkEventKind.MOVED, st.q, now, "moving",
                                      self._index(st, index)))
 
+    def _errors(self, since: float) -> list:
+        """The controller's error messages since `since` (primary interface)."""
+        chans = [self.primary] if self.script is self.primary else [self.primary, self.script]
+        return [m for c in chans for m in c.messages_since(since) if m.is_error
+                and m.kind != 5]  # safety-mode messages: RTDE's safety mode tells those
+
     def _refused(self, since: float) -> bool:
-        return any(m.kind == 10 for m in self.script.messages_since(since))
+        return bool(self._errors(since))
 
     def _index(self, st: RtdeState | None, index: Array) -> int:
         k = 0 if st is None else int(st["output_int_register_26"])
@@ -353,7 +435,7 @@ class URLink(OperatorButton, RobotLink):
             end = time.monotonic() + min(0.2, self.timeout_s)
             while time.monotonic() < end and not self._refused(t_sent):
                 time.sleep(0.01)
-        refusals = [m for m in self.script.messages_since(t_sent) if m.kind == 10]
+        refusals = self._errors(t_sent)
         if refusals and not self._stop.is_set():
             msg = refusals[0].describe()
             details["controller_message"] = msg

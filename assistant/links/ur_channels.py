@@ -1,8 +1,9 @@
-"""The UR link's two text channels: the secondary interface (URScript out, robot messages
-in) and the dashboard server (one command, one reply line).
+"""The UR link's text and package channels: the primary / secondary client interface
+(URScript out; robot messages, robot mode and the calibrated kinematics in, `ur_primary`)
+and the dashboard server (one command, one reply line).
 
 Both have deadlines on every read; a dead peer is `LinkLost`, an answer outside the protocol
-a `ProtocolError` quoting it.
+a `ProtocolError` quoting it. Both write what they send and hear to the link's wire log.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from dataclasses import dataclass
 from assistant.links import ur_primary as up
 from assistant.links.errors import ProtocolError
 from assistant.links.link import LinkError, LinkLost
+from assistant.links.wirelog import NULL, WireLog
 
 
 @dataclass(frozen=True)
@@ -27,11 +29,16 @@ class Heard:
 
 
 class ScriptChannel:
-    """Sends URScript to 30002 and collects the robot messages the controller sends back."""
+    """A primary (30001) or secondary (30002) interface connection: sends URScript, keeps the
+    robot messages, robot mode and kinematics info the controller sends back."""
 
-    def __init__(self, host: str, port: int, connect_timeout_s: float):
+    def __init__(self, host: str, port: int, connect_timeout_s: float,
+                 wire: WireLog = NULL, name: str = "primary"):
         self.host, self.port = host, int(port)
         self.connect_timeout_s = connect_timeout_s
+        self.wire, self.name = wire, name
+        self.kinematics: up.KinematicsInfo | None = None
+        self.robot_mode: up.RobotModeData | None = None
         self._sock: socket.socket | None = None
         self._send_lock = threading.Lock()
         self._cond = threading.Condition()
@@ -46,28 +53,41 @@ class ScriptChannel:
         try:
             self._sock = socket.create_connection((self.host, self.port), self.connect_timeout_s)
         except OSError as exc:
-            raise LinkLost(f"cannot reach the UR secondary interface at {self.host}:"
+            raise LinkLost(f"cannot reach the UR {self.name} interface at {self.host}:"
                            f"{self.port}: {exc}") from None
         self._sock.settimeout(0.2)
-        self._thread = threading.Thread(target=self._read, daemon=True, name="ur-secondary")
+        self.wire.note(f"{self.name}:{self.port}", "connected")
+        self._thread = threading.Thread(target=self._read, daemon=True, name=f"ur-{self.name}")
         self._thread.start()
 
     def send(self, text: str) -> float:
         """Send a script; returns the send time. LinkLost if the socket is gone."""
         with self._send_lock:
             if self._sock is None or self.failure is not None:
-                raise self.failure or LinkLost("UR secondary interface is not connected")
+                raise self.failure or LinkLost(f"UR {self.name} interface is not connected")
             try:
                 t = time.monotonic()
+                self.wire.sent(f"{self.name}:{self.port}", text)
                 self._sock.sendall(text.encode("utf-8"))
                 return t
             except OSError as exc:
-                raise LinkLost(f"UR secondary interface {self.host}:{self.port}: {exc}") \
+                raise LinkLost(f"UR {self.name} interface {self.host}:{self.port}: {exc}") \
                     from None
 
     def messages_since(self, t: float) -> list[up.RobotMessage]:
         with self._cond:
             return [h.message for h in self.heard if h.t >= t]
+
+    def wait_kinematics(self, timeout_s: float) -> up.KinematicsInfo | None:
+        """The kinematics info of the first robot state package (10 Hz), or None."""
+        deadline = time.monotonic() + timeout_s
+        with self._cond:
+            while self.kinematics is None and self.failure is None:
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    break
+                self._cond.wait(min(left, 0.05))
+            return self.kinematics
 
     def _read(self) -> None:
         sock, reader = self._sock, up.PrimaryReader()
@@ -79,23 +99,37 @@ class ScriptChannel:
             except TimeoutError:
                 continue
             except OSError as exc:
-                why = LinkLost(f"UR secondary interface: {exc}")
+                why = LinkLost(f"UR {self.name} interface: {exc}")
                 break
             if not data:
-                why = LinkLost("the UR closed the secondary interface connection")
+                why = LinkLost(f"the UR closed the {self.name} interface connection (an "
+                               "e-Series in Local control does that)")
                 break
             try:
-                msgs = list(reader.feed(data))
+                items = list(reader.feed(data))
             except ProtocolError as exc:
+                self.wire.received(f"{self.name}:{self.port}", exc.raw)
                 why = exc
                 break
+            now = time.monotonic()
+            msgs = [m for m in items if isinstance(m, up.RobotMessage)]
+            for m in msgs:
+                self.wire.received(f"{self.name}:{self.port}", f"message {m.kind}: "
+                                   f"{m.describe()}")
             with self._cond:
-                self.heard += [Heard(time.monotonic(), m) for m in msgs]
+                for m in items:
+                    if isinstance(m, up.KinematicsInfo):
+                        self.kinematics = m
+                    elif isinstance(m, up.RobotModeData):
+                        self.robot_mode = m
+                self.heard += [Heard(now, m) for m in msgs]
                 del self.heard[:-100]
                 self._cond.notify_all()
         with self._cond:
             if not self._closing:
                 self.failure = why
+                self.wire.note(f"{self.name}:{self.port}", f"lost: {why}")
+            self._cond.notify_all()
         with contextlib.suppress(OSError):
             sock.close()
 
@@ -111,7 +145,8 @@ class ScriptChannel:
         self._sock, self._thread = None, None
 
 
-def dashboard(host: str, port: int, command: str, timeout_s: float) -> str:
+def dashboard(host: str, port: int, command: str, timeout_s: float,
+              wire: WireLog = NULL) -> str:
     """One dashboard command on its own connection; returns the reply line."""
     try:
         with socket.create_connection((host, port), timeout_s) as s:
@@ -132,8 +167,10 @@ def dashboard(host: str, port: int, command: str, timeout_s: float) -> str:
                     if not lines[0].startswith("Connected: Universal Robots Dashboard Server"):
                         raise ProtocolError(f"not a UR dashboard server: {lines[0][:120]!r}",
                                             raw=lines[0])
+                    wire.sent(f"dashboard:{port}", command)
                     s.sendall(command.encode() + b"\n")
                     sent = True
+            wire.received(f"dashboard:{port}", lines[1])
             return lines[1]
     except TimeoutError:
         raise LinkLost(f"the UR dashboard server did not answer {command!r} within "

@@ -26,12 +26,19 @@ import numpy as np
 from assistant.links import ur_rtde_wire as w
 from assistant.links.errors import ProtocolError
 from assistant.links.link import LinkError, LinkLost
+from assistant.links.wirelog import NULL, WireLog
 
 #: What the link reads: joints, TCP, the modes, and the registers its programs write.
 STATE_VARIABLES = ("timestamp", "actual_q", "actual_TCP_pose", "robot_mode", "safety_mode",
                    "safety_status_bits", "runtime_state", "robot_status_bits",
                    "output_int_register_24", "output_int_register_25",
                    "output_int_register_26")
+
+
+def max_rate_hz(version: tuple[int, ...]) -> float:
+    """The RTDE output rate a controller offers: 125 Hz on a CB3 (software 3.x), 500 Hz on an
+    e-Series (5.x and later) - UR's RTDE guide."""
+    return 125.0 if version and 0 < version[0] < 5 else 500.0
 
 
 @dataclass(frozen=True)
@@ -59,10 +66,14 @@ class RtdeClient:
 
     def __init__(self, host: str, port: int = 30004, *, frequency_hz: float = 500.0,
                  variables: tuple[str, ...] = STATE_VARIABLES, timeout_s: float = 1.0,
-                 connect_timeout_s: float = 2.0, keep_arrivals: int = 0):
+                 connect_timeout_s: float = 2.0, keep_arrivals: int = 0,
+                 wire: WireLog = NULL):
         if not 0.0 < frequency_hz <= 500.0:
             raise ValueError(f"RTDE frequency must be in (0, 500] Hz, got {frequency_hz}")
         self.host, self.port = host, int(port)
+        self.wire = wire
+        #: The rate asked for; `frequency_hz` is what the controller's version allows of it.
+        self.requested_hz = float(frequency_hz)
         self.frequency_hz = float(frequency_hz)
         self.variables = tuple(variables)
         self.timeout_s, self.connect_timeout_s = float(timeout_s), float(connect_timeout_s)
@@ -108,6 +119,9 @@ class RtdeClient:
                 raise ProtocolError(f"{self._where()}: malformed controller version {ver!r}",
                                     raw=ver.decode("latin-1"))
             self.controller_version = struct.unpack(">IIII", ver)
+            self.frequency_hz = min(self.requested_hz, max_rate_hz(self.controller_version))
+            self.wire.note("rtde", f"controller {'.'.join(map(str, self.controller_version))}"
+                           f", {self.frequency_hz:g} Hz")
             names = ",".join(self.variables).encode()
             reply = self._request(w.Cmd.SETUP_OUTPUTS, struct.pack(">d", self.frequency_hz)
                                   + names)
@@ -140,12 +154,14 @@ class RtdeClient:
     def _request(self, cmd: int, payload: bytes = b"") -> bytes:
         """Send a control package and return the payload of the reply of the same type."""
         assert self._sock is not None
+        self.wire.sent_binary("rtde", cmd, payload)
         self._sock.sendall(w.pack(cmd, payload))
         while True:
             data = self._sock.recv(65536)
             if not data:
                 raise OSError("controller closed the connection")
             for got, body in self._reader.feed(data):
+                self.wire.received_binary("rtde", got, body)
                 if got == w.Cmd.TEXT_MESSAGE:
                     self.messages.append(w.parse_text_message(body))
                 elif got == cmd:
@@ -173,6 +189,7 @@ class RtdeClient:
                         continue
                     if cmd != w.Cmd.DATA_PACKAGE:
                         continue  # e.g. the reply to a pause
+                    self.wire.count("rtde data", every=5000)
                     if len(body) != 1 + self._struct.size or body[0] != self._recipe_id:
                         raw = body[:64].decode("latin-1")
                         raise ProtocolError(f"{self._where()}: data package of {len(body)} "

@@ -120,8 +120,11 @@ class ExecutionConfig:
     #: After reaching the goal, plan the final (high-shrink) trajectory (False: the run ends
     #: at the goal of the exploring run, no final plan is offered).
     plan_final: bool = True
-    #: After reaching the goal, plan the final (high-shrink) trajectory and drive it once from
-    #: the start; it is offered only if that run had no indication.
-    validate_final: bool = True
-    #: Final validation rounds (each: back to the start, drive the final plan).
+    #: Within `run`, drive the final trajectory once from the start after the goal is reached
+    #: (it is offered only if that drive had no indication). Off by default: a run never
+    #: drives back over work already done unasked - the final plan is checked in simulation
+    #: against everything learnt, and a drive of it is a step of its own that the operator
+    #: starts (`MissionExecutor.drive_final`).
+    validate_final: bool = False
+    #: Final validation rounds within `run` (each: back to the start, drive the final plan).
     max_final_rounds: int = 4

@@ -13,9 +13,12 @@ The loop of the thesis (003 Listing 6, L5583-5627), piece by piece:
   nearly equal paths.
 * A collision on an application path ends the run: the work itself collides (move the part
   or re-teach the path); no re-plan can fix that.
-* Once the goal is reached, the final plan (high shrink) is made with everything learnt and,
-  unless disabled, driven once from the start: it is offered only if that run had no
-  indication (otherwise the new evidence is kept and another round starts, within budget).
+* Once the goal is reached, the final plan (high shrink) is made with everything learnt and
+  checked in simulation against it; the run ends there, at the goal. The robot never drives
+  back over work already done unasked: driving the final plan once from the start is a step
+  the operator starts (`drive_final`); an indication there is learnt, the final plan is made
+  again and the drive ends with the robot standing - the operator starts the next one.
+  (`ExecutionConfig.validate_final` makes `run` drive it in rounds by itself, for scripts.)
 
 Budgets (indications, re-plans, final rounds) and the roadmap's/net's own budgets make every
 run end with an `EndReason` and a sentence. LINK_LOST, a stop on request and a cancellation
@@ -243,10 +246,7 @@ class MissionExecutor:
             if self._phase == _Phase.FINAL and self.config.plan_final:
                 self._final_phase()
             rep.end = EndReason.COMPLETED
-            rep.reason = "mission executed; " + (
-                "final trajectory validated on the robot" if rep.final_validated
-                else "final trajectory planned (not driven)" if rep.final_plan is not None
-                else "no final plan requested")
+            rep.reason = "mission executed; " + self._final_words()
             self._phase = _Phase.DONE
         except _End as end:
             rep.end, rep.reason = end.reason, end.message
@@ -257,6 +257,57 @@ class MissionExecutor:
             self._running = False
         rep.log.append(f"end: {rep.end.value} - {rep.reason}")
         return rep
+
+    def drive_final(self, progress: Progress | None = None) -> ExecutionReport:
+        """Drive the final plan once, from where the arm stands to its start and through it
+        (the operator's step after a completed run). An indication on the way is learnt and
+        the final plan made again; the drive then ends with the robot standing (reason
+        FINAL_NOT_VALIDATED, resumable by another `drive_final`)."""
+        rep = self.report
+        if self._mission is None or rep.final_plan is None or not rep.final_plan.ok:
+            raise RuntimeError("nothing to drive: plan and run the mission first")
+        if not self.link.connected:
+            self.link.connect()
+        self._progress = progress or Progress("drive the final program")
+        rep.end, rep.reason = None, ""
+        self._running = True
+        try:
+            final = rep.final_plan
+            items = self._approach(self._current_joints(), final.pieces[0].q_start,
+                                   "to the final program's start")
+            self._queue = items + [_Item(p, False, self._world_version()) for p in final.pieces]
+            self._index, self._phase = 0, _Phase.FINAL
+            try:
+                self._drive_queue(final=True)
+            except _RoundFailed:
+                self._queue = None
+                self._plan_final()
+                raise _End(EndReason.FINAL_NOT_VALIDATED,
+                           "the robot met something new on the final program: it is learnt "
+                           "and the final program planned again round it - drive it again "
+                           "to check it") from None
+            rep.final_validated = True
+            rep.end, rep.reason = EndReason.COMPLETED, "mission executed; " + \
+                self._final_words()
+            self._phase = _Phase.DONE
+        except _End as end:
+            rep.end, rep.reason = end.reason, end.message
+        except Cancelled:
+            self._safe_stop()
+            rep.end, rep.reason = EndReason.CANCELLED, f"cancelled at {self._where()}"
+        finally:
+            self._running = False
+        rep.log.append(f"final drive end: {rep.end.value} - {rep.reason}")
+        return rep
+
+    def _final_words(self) -> str:
+        rep = self.report
+        if rep.final_validated:
+            return "final trajectory validated on the robot"
+        if rep.final_plan is not None:
+            return ("final trajectory planned with everything learnt and checked in "
+                    "simulation (not driven; drive it once to validate it on the robot)")
+        return "no final plan requested"
 
     def _start_explore(self) -> None:
         assert self._mission is not None and self._T_wb is not None
@@ -287,18 +338,7 @@ class MissionExecutor:
                                f"{rep.final_rounds} validation runs")
                 rep.final_rounds += 1
                 q_now = self._current_joints()
-                # seeded with the first plan's start: the same arm branch at every location
-                first = rep.first_plan
-                seed = first.pieces[0].q_start if first is not None and first.pieces else q_now
-                final = self.planner.plan_mission(self._mission, self._T_wb, seed,
-                                                  self._sub(0.8, 0.85, "final plan"),
-                                                  exploring=False)
-                if not final.ok:
-                    raise _End(EndReason.PLAN_FAILED, f"final plan: {final.report.reason}")
-                self._final = rep.final_plan = final
-                rep.log.append(f"final plan (round {rep.final_rounds}) in "
-                               f"{final.report.planning_seconds:.2f} s: "
-                               f"{final.report.primitives} primitives")
+                final = self._plan_final()
                 if not cfg.validate_final:
                     return
                 items = self._approach(q_now, final.pieces[0].q_start, "back to the start")
@@ -311,6 +351,24 @@ class MissionExecutor:
                 continue
             rep.final_validated = True
             return
+
+    def _plan_final(self) -> MissionPlan:
+        """The final (high-shrink) plan with everything learnt, checked in simulation."""
+        assert self._mission is not None and self._T_wb is not None
+        rep = self.report
+        # seeded with the first plan's start: the same arm branch at every location
+        first = rep.first_plan
+        seed = first.pieces[0].q_start if first is not None and first.pieces else \
+            self._current_joints()
+        final = self.planner.plan_mission(self._mission, self._T_wb, seed,
+                                          self._sub(0.8, 0.85, "final plan"), exploring=False)
+        if not final.ok:
+            raise _End(EndReason.PLAN_FAILED, f"final plan: {final.report.reason}")
+        self._final = rep.final_plan = final
+        rep.log.append(f"final plan (round {rep.final_rounds}) in "
+                       f"{final.report.planning_seconds:.2f} s: "
+                       f"{final.report.primitives} primitives")
+        return final
 
     def _approach(self, q_now: Array, q_start: Array, label: str) -> list[_Item]:
         """A transfer from where the arm is to where the plan starts (if it is elsewhere)."""

@@ -15,6 +15,33 @@ import numpy as np
 from assistant.robots.model import Robot, Tool
 
 BUILTIN_ROBOTS = ("rv2aj",)
+ARMS_DIR = Path(__file__).with_name("arms")
+
+
+@dataclass(frozen=True)
+class CatalogArm:
+    """An arm shipped with cellteach as a URDF in `arms/`, written from the maker's public
+    data sheet (the file cites it). A `RobotSpec` names it by its key in `CATALOG`; to add an
+    arm, put its URDF in `arms/` and copy an entry."""
+
+    label: str  # what the set-up page offers
+    urdf: str  # file name in arms/
+    base_link: str  # the controller's robot base frame
+    tool_link: str  # the flange, z out of it (tools run along z)
+    vendor: str  # the link kind that drives it
+    source: str  # the public document its numbers come from
+
+
+CATALOG: dict[str, CatalogArm] = {
+    "kuka_kr6_r900_sixx": CatalogArm(
+        label="KUKA KR 6 R900 sixx (KR AGILUS)", urdf="kuka_kr6_r900_sixx.urdf",
+        base_link="base_link", tool_link="tool0", vendor="kuka_rest",
+        source="KUKA specification 'KR AGILUS sixx', technical data of the KR 6 R900 sixx"),
+}
+
+
+def catalog_path(kind: str) -> Path:
+    return ARMS_DIR / CATALOG[kind].urdf
 
 
 class RobotModelError(ValueError):
@@ -62,7 +89,7 @@ class ToolSpec:
 class RobotSpec:
     """Which robot: a built-in by name, or a URDF file with its package folders and frames."""
 
-    kind: str = "rv2aj"  # "rv2aj" or "urdf"
+    kind: str = "rv2aj"  # "rv2aj", "urdf" or a `CATALOG` key
     urdf_path: str | None = None
     package_dirs: tuple[str, ...] = ()
     base_link: str | None = None
@@ -77,6 +104,15 @@ class RobotSpec:
 
             return RV2AJ(RV2AJConfig(limits_deg=self.limits_deg or DATASHEET_LIMITS_DEG,
                                      tool=self.tool.build()))
+        if self.kind in CATALOG:
+            from assistant.robots.urdf_robot import URDFRobot
+
+            arm = CATALOG[self.kind]
+            robot = URDFRobot.from_file(catalog_path(self.kind), base_link=arm.base_link,
+                                        tool_link=arm.tool_link, tool=self.tool.build())
+            if self.limits_deg is not None:
+                robot = robot.with_limits(np.radians(np.array(self.limits_deg, dtype=float)))
+            return robot
         if self.kind == "urdf":
             if not self.urdf_path:
                 raise RobotModelError("a URDF robot needs urdf_path")
@@ -88,7 +124,8 @@ class RobotSpec:
             if self.limits_deg is not None:
                 robot = robot.with_limits(np.radians(np.array(self.limits_deg, dtype=float)))
             return robot
-        raise RobotModelError(f"unknown robot kind {self.kind!r} (known: rv2aj, urdf)")
+        raise RobotModelError(f"unknown robot kind {self.kind!r} (known: rv2aj, urdf, "
+                              f"{', '.join(CATALOG)})")
 
     def to_json(self) -> dict[str, Any]:
         return {"kind": self.kind, "urdf_path": self.urdf_path,

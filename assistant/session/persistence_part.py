@@ -74,10 +74,14 @@ class Persistence:
             s.export_dialect = str(meta.get("dialect", s.export_dialect))
             mission_path = src / "mission.json"
             if with_mission and mission_path.exists():
-                s.mission = Mission.from_json(json.loads(mission_path.read_text("utf-8")))
+                doc = json.loads(mission_path.read_text("utf-8"))
+                s.mission = Mission.from_json(doc)
                 for loc in (s.mission.start, s.mission.goal):
                     if loc is not None:
                         s.locations[loc.name] = loc
+                for d in doc.get("locations", ()):  # taught locations besides start and goal
+                    loc = Location.from_json(d)
+                    s.locations[loc.name] = loc
         except (OSError, ValueError, KeyError, TypeError) as exc:
             raise SampleError(f"sample {src.name}: {exc}") from None
         s.sample = src.name

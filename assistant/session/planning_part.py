@@ -20,6 +20,7 @@ from assistant.session.events import (
     PlanReady,
     SceneChanged,
 )
+from assistant.session.run_state import RunState, run_state
 from assistant.session.types import (
     EDIT_MISSION,
     OccupiedCells,
@@ -44,6 +45,7 @@ class PlanningActions:
                 self.machine.require(steps, task)
             if moving:
                 self.machine.begin_moving()
+                self.halted, self.halts_this_run = False, 0
             else:
                 self.machine.begin_busy(task)
         self._emit_state()
@@ -177,6 +179,7 @@ class PlanningActions:
 
     def _plan(self, progress: Progress) -> dict:
         t0 = time.perf_counter()
+        self.last_run = None  # planned again: the last run's outcome is history
         backend = self._backend(progress.sub(0.0, 0.3, "world model"))
         planner = self._mission_planner(backend)
         plan = planner.plan_mission(self.mission, self.T_world_base(), self.current_joints(),
@@ -222,6 +225,46 @@ class PlanningActions:
         """Continue after a lost link or a stop, re-planning from where the robot is."""
         return self._run_busy("resume the mission", self._resume, ("plan",), moving=True)
 
+    def run_state(self) -> RunState:
+        """The run's one state and its sentence (`session.run_state`)."""
+        m = self.machine
+        halts = self.halts_this_run if self.halted and m.mode.value == "moving" else 0
+        return run_state(m.mode.value, m.busy_task, halts, self.trajectory is not None,
+                         self.last_run, self.final_driven())
+
+    def start_drive_final(self) -> Future:
+        """Drive the final program once on the robot, from where it stands to the program's
+        start and through it (after a completed run; the operator starts it)."""
+        return self._run_busy("drive the final program", self._drive_final, ("plan",),
+                              moving=True)
+
+    def drive_final(self) -> dict:
+        return self.start_drive_final().result()
+
+    def final_driven(self) -> bool | None:
+        """None without a final program to drive; else whether it was driven on the robot
+        without an indication."""
+        ex = self._backend_executor()
+        rep = None if ex is None else ex.report
+        if rep is None or rep.final_plan is None or not rep.final_plan.ok:
+            return None
+        return bool(rep.final_validated)
+
+    def _drive_final(self, progress: Progress) -> dict:
+        ex = self._backend_executor()
+        if ex is None or ex.report.final_plan is None:
+            raise SessionError("no final program to drive: execute the mission first")
+        if ex.link is not self.link():
+            raise SessionError("the link changed since the run: execute the mission again")
+        t0 = time.perf_counter()
+        report = ex.drive_final(progress.sub(0.0, 1.0, "final program"))
+        return self._after_execution(report, time.perf_counter() - t0)
+
+    def _backend_executor(self) -> Any:
+        """The executor of the last run, if the world it ran in is still the current one."""
+        backend = self._world if self.world_ready else None
+        return None if backend is None else backend.executor
+
     def _executor(self, backend: _Backend, link: RobotLink) -> Any:
         from assistant.planning import MissionExecutor
 
@@ -258,12 +301,13 @@ class PlanningActions:
                 self.trajectory = final.trajectory
                 self.plan_report = _report_json(final.report)
                 self.program = None
-        summary = {"ok": report.ok, "end": report.end.value if report.end else None,
-                   "reason": report.reason, "collision_indications":
-                   report.collision_indications, "replans": report.replans,
-                   "backoffs": report.backoffs, "executed_tcp_length_m":
-                   report.executed_tcp_length, "median_replan_s": report.median_replan_seconds,
-                   "seconds": seconds, "resumable": report.resumable}
+        self.last_run = summary = {
+            "ok": report.ok, "end": report.end.value if report.end else None,
+            "reason": report.reason, "collision_indications": report.collision_indications,
+            "replans": report.replans, "backoffs": report.backoffs,
+            "executed_tcp_length_m": report.executed_tcp_length,
+            "median_replan_s": report.median_replan_seconds, "seconds": seconds,
+            "resumable": report.resumable}
         self.bus.emit(ExecutionFinished(report.ok, dict(summary), report.resumable))
         if report.ok and self.plan_report is not None:
             self.bus.emit(PlanReady(dict(self.plan_report)))
@@ -344,6 +388,18 @@ class PlanningActions:
         return OccupiedCells(grid.centres_of_ijk(ijk) @ T[:3, :3].T + T[:3, 3],
                              occ[tuple(ijk.T)].astype(float), float(grid.leaf),
                              T[:3, :3].copy())
+
+    def learnt_view(self) -> Any:
+        """`learnt_cells` as the page draws them: cut into sub-cells, without those the arm
+        stands in now or stood in at an indicated contact (`session.learnt_view`); None
+        when nothing was learnt."""
+        from assistant.session.learnt_view import learnt_view
+
+        cells = self.learnt_cells()
+        if cells is None:
+            return None
+        postures = np.array([self.current_joints(), *self.recorded_collisions])
+        return learnt_view(cells, self.robot, postures, self.T_world_base())
 
     def road_cells(self) -> tuple[Array, float] | None:
         """Centres (world frame) of the Voronoi road cells and the leaf size."""

@@ -246,6 +246,7 @@ VERBS: dict[str, tuple[Verb, bool]] = {
     "order_mission": (lambda s, a: s.order_mission(), False),
     "plan": (lambda s, a: s.plan(), False),
     "execute": (lambda s, a: s.execute(), False),
+    "drive_final": (lambda s, a: s.drive_final(), False),
     "indicate_collision": (lambda s, a: s.indicate_collision(), False),
     "export": (lambda s, a: s.export(a.get("dialect"), frame=a.get("frame")), False),
     "undo": (lambda s, a: s.undo(), False),

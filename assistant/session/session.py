@@ -91,6 +91,11 @@ class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActi
         #: The page's simulated robot halts against a hidden obstacle and waits for the
         #: operator's Collision!; scripts keep the self-reporting robot.
         self.operator_confirms_contacts = False
+        #: The simulated robot stands against something unknown, waiting for Collision!.
+        self.halted = False
+        self.halts_this_run = 0
+        #: How the last run ended (`ExecutionFinished.summary`); None when planned since.
+        self.last_run: dict | None = None
         self._world: Any = None  # planning back end (world model + roadmap), built on demand
         self._world_key: tuple | None = None
         self._last_error: str = ""

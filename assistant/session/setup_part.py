@@ -80,7 +80,8 @@ class SetupActions:
             if self._link is None:
                 hidden = [Obstacle(h.name, inv_T(self.T_world_base()) @ h.T_world_object,
                                    (h.primitive().collision_shape(),)) for h in self.hidden]
-                link = make_link(self.link_settings, self.robot, hidden)
+                link = make_link(self.link_settings, self.robot, hidden,
+                                 log_dir=self.link_log_dir())
                 if self._q_sim is not None and hasattr(link, "set_joints"):
                     link.set_joints(self._q_sim)  # type: ignore[attr-defined]
                 if hasattr(link, "wait_for_operator"):
@@ -90,6 +91,17 @@ class SetupActions:
             if not self._link.connected:
                 self._link.connect()
             return self._link
+
+    def link_log_dir(self):  # noqa: ANN201
+        """Where the links write their wire log: ``links/`` in the session folder."""
+        return None if self.folder is None else self.folder / "links"
+
+    def check_link(self):  # noqa: ANN201
+        """The link's pre-flight checklist (`assistant.links.checklist`) for the chosen
+        settings and robot; moves nothing, changes nothing in the session."""
+        from assistant.links.checklist import check_link
+
+        return check_link(self.link_settings, self.robot, log_dir=self.link_log_dir())
 
     def _drop_link(self) -> None:
         if self._link is not None:
@@ -112,7 +124,11 @@ class SetupActions:
             self._q_sim = np.asarray(ev.q, dtype=float)
             self.bus.emit(RobotMoved(self._q_sim.copy()))
         if ev.message.startswith("halted, touching"):
+            self.halted = True
+            self.halts_this_run += 1
             self.bus.emit(RobotHalted(ev.message.split(":", 1)[-1].strip()))
+        if ev.kind == LinkEventKind.COLLISION_INDICATED:
+            self.halted = False
         if ev.kind == LinkEventKind.COLLISION_INDICATED and ev.q is not None:
             # The executor/explorer feeds the world model; the session keeps the posture so a
             # reloaded session knows it too.

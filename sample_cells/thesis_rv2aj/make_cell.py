@@ -14,8 +14,10 @@ Writes, next to this script (or into OUT_DIR):
   base at the world origin on the table, the table top (z = 0) as a fixture, O1 and O2.
 * ``hidden.json`` - obstacle O3, a box the planner does not know; only the simulated robot
   has it, so it is found through collision indications as in the thesis.
-* ``mission.json`` - start P1, goal P10 and the application line P7 -> P8 (tool pointing
-  down, gripper closed before the line and opened after it).
+* ``mission.json`` - what ``session.yaml`` teaches before it plans: start P1 and goal P10
+  from the layout drawing, P7 and P8 by the simulated marker pointer, the application line
+  SEAM from P7 to P8 (tool pointing down, gripper closed before the line and opened after
+  it). The served sample starts with it, so the page's program is the script's.
 
 Layout (world = robot base frame, metres): P1 on the robot's right (-y), P10 on its left (+y),
 O1 and O2 between them and the application line in front (+x). O3 stands across the arc the
@@ -161,11 +163,43 @@ def hidden_json() -> dict:
                            "T_world_object": make_T(p=c).tolist()}]}
 
 
+def mission_from_script() -> dict:
+    """The mission and locations `session.yaml` teaches (P1/P10 from the layout drawing, P7/P8
+    by the simulated marker pointer, the SEAM line), as the served sample starts with them:
+    the page's program is then the script's, byte for byte."""
+    from assistant.session import Session
+    from assistant.session.script import parse_script, run_action
+
+    script = parse_script(HERE / "session.yaml")
+    s = Session.from_sample(HERE, None, with_objects=script.with_objects,
+                            with_mission=script.with_mission)
+    for action in script.actions:
+        if action.verb == "build_world":
+            break
+        run_action(s, action, script.path.parent, script.path)
+    doc = s.mission.to_json()
+    named = {loc.name for loc in (s.mission.start, s.mission.goal) if loc is not None}
+    doc["locations"] = [loc.to_json() for name, loc in s.locations.items() if name not in named]
+    return _rounded(doc)
+
+
+def _rounded(doc: object) -> object:
+    """Every float to 1e-9 (m, rad): the pointer's measurement may differ in its last bits
+    between processors (OpenCV's and numpy's SIMD forms), the file must not."""
+    if isinstance(doc, float):
+        return round(doc, 9) + 0.0  # + 0.0: no "-0.0"
+    if isinstance(doc, dict):
+        return {k: _rounded(v) for k, v in doc.items()}
+    if isinstance(doc, list):
+        return [_rounded(v) for v in doc]
+    return doc
+
+
 def main(out: Path = HERE) -> None:
     out.mkdir(parents=True, exist_ok=True)
     save_cell(make_cell(out), out / "cell")
     (out / "hidden.json").write_text(json.dumps(hidden_json(), indent=1) + "\n")
-    (out / "mission.json").write_text(json.dumps(make_mission().to_json(), indent=1) + "\n")
+    (out / "mission.json").write_text(json.dumps(mission_from_script(), indent=1) + "\n")
     print(f"wrote {out / 'cell'}, hidden.json, mission.json")
 
 

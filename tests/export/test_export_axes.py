@@ -1,7 +1,9 @@
 """Dialects refuse robots their controller does not run (issue 32 item 5).
 
-URScript runs on 6-axis UR arms; MELFA on 4-, 5- and 6-axis Mitsubishi arms; KRL writes the
-main axes A1..A6 and a 7-axis arm's third joint as E1 (KUKA LBR); RAPID the robot axes
+URScript runs on 6-axis UR arms; MELFA on 4-, 5- and 6-axis Mitsubishi arms; FANUC TP and
+Yaskawa INFORM are written for 4- to 6-axis arms (a FANUC position's seventh value would be
+an extended axis, a Motoman 7-axis arm's elbow angle Re is not public); KRL writes the main
+axes A1..A6 and a 7-axis arm's third joint as E1 (KUKA LBR); RAPID the robot axes
 rax_1..rax_6 and a 7-axis arm's third joint as eax_a (IRB 14000 YuMi); what they write for a
 7-axis arm is tested in test_export_seven_axes.py. The refusal is an `ExportError` before
 anything is checked or written, at every way into a program: the download (`export_files`),
@@ -29,8 +31,8 @@ from assistant.export.dialect import check_axis_count
 from assistant.robots.urdf_robot import URDFRobot
 
 #: What every dialect takes, as the refusal of an axis count no dialect writes ends.
-TAKES = ("MELFA takes 4, 5 or 6 axes; KRL and RAPID take 4, 5, 6 or 7 axes; URScript takes 6 "
-         "axes.")
+TAKES = ("MELFA, FANUC and Yaskawa take 4, 5 or 6 axes; KRL and RAPID take 4, 5, 6 or 7 axes; "
+         "URScript takes 6 axes.")
 SEVEN_AXES = "Choose KRL or RAPID for a 7-axis arm."
 
 
@@ -67,12 +69,13 @@ def one_joint_move(robot) -> NeutralProgram:
 # ------------------------------------------------------------------ declared axis counts
 def test_each_dialect_declares_the_axis_counts_its_controller_runs():
     assert {n: get_dialect(n).axis_counts for n in DIALECT_NAMES} == {
-        "melfa": (4, 5, 6), "krl": (4, 5, 6, 7), "rapid": (4, 5, 6, 7), "urscript": (6,)}
+        "melfa": (4, 5, 6), "krl": (4, 5, 6, 7), "rapid": (4, 5, 6, 7), "urscript": (6,),
+        "fanuc": (4, 5, 6), "yaskawa": (4, 5, 6)}
 
 
 # ------------------------------------------------------------------ 7 axes: KRL and RAPID
-@pytest.mark.parametrize("dialect", ["melfa", "urscript"])
-def test_a_seven_axis_panda_is_refused_by_melfa_and_urscript(panda, dialect):
+@pytest.mark.parametrize("dialect", ["melfa", "urscript", "fanuc", "yaskawa"])
+def test_a_seven_axis_panda_is_refused_by_the_six_axis_dialects(panda, dialect):
     assert panda.dof == 7
     prog = one_joint_move(panda)
     with pytest.raises(ExportError) as e:
@@ -82,8 +85,20 @@ def test_a_seven_axis_panda_is_refused_by_melfa_and_urscript(panda, dialect):
         "urscript": "URScript runs on 6-axis UR arms",
         "melfa": "MELFA BASIC runs on 4-, 5- and 6-axis Mitsubishi arms (RH SCARA, 5-axis "
                  "RV such as the RV-2AJ, 6-axis RV)",
+        # the format cannot hold a redundant arm joint: the reason is part of the refusal
+        "fanuc": "FANUC TP positions hold the joints J1..J6 of 4- to 6-axis FANUC arms; this "
+                 "robot (panda) has 7 axes. A seventh joint would be an extended axis E1 (a "
+                 "rail or positioner) in FANUC's positions, not an arm joint, so a 7-axis arm "
+                 "cannot be written",
+        "yaskawa": "INFORM Cartesian positions are written here for 4- to 6-axis Motoman arms; "
+                   "this robot (panda) has 7 axes. A 7-axis arm's (SIA, SDA) Cartesian "
+                   "positions carry its elbow angle Re, which Yaskawa does not define "
+                   "publicly, and pulse positions need the controller's pulses per degree",
     }[dialect]
-    assert str(e.value) == f"{rule}; this robot (panda) has 7 axes. {SEVEN_AXES}"
+    if dialect in ("fanuc", "yaskawa"):
+        assert str(e.value) == f"{rule}. {SEVEN_AXES}"
+    else:
+        assert str(e.value) == f"{rule}; this robot (panda) has 7 axes. {SEVEN_AXES}"
     # The same refusal from the round-trip proof and from the writer itself.
     with pytest.raises(ExportError, match="has 7 axes"):
         round_trip(prog, dialect, panda)
@@ -99,11 +114,11 @@ def test_urscript_refuses_seven_axes_before_checking_the_program(panda, rv2aj, t
     assert str(e.value).startswith("URScript runs on 6-axis UR arms; this robot (panda) has 7")
 
 
-@pytest.mark.parametrize("dialect", ["melfa", "urscript"])
+@pytest.mark.parametrize("dialect", ["melfa", "urscript", "fanuc", "yaskawa"])
 def test_a_seven_axis_arm_from_a_urdf_string_is_refused(arm, dialect):
     robot = arm(7)
-    with pytest.raises(ExportError, match="this robot \\(arm7\\) has 7 axes. Choose KRL or "
-                       "RAPID for a 7-axis arm.$"):
+    with pytest.raises(ExportError, match="this robot \\(arm7\\) has 7 axes. (.* )?Choose "
+                       "KRL or RAPID for a 7-axis arm.$"):
         export_files(one_joint_move(robot), dialect, robot)
 
 
@@ -146,7 +161,7 @@ def test_a_three_axis_arm_is_refused_by_every_dialect(arm):
 # ------------------------------------------------------------------ 5 axes: not URScript
 def test_the_five_axis_rv2aj_is_refused_by_urscript(rv2aj, thesis_program):
     message = ("URScript runs on 6-axis UR arms; this robot (Mitsubishi RV-2AJ) has 5 axes. "
-               "Choose MELFA, KRL or RAPID for a 5-axis arm.")
+               "Choose MELFA, FANUC, Yaskawa, KRL or RAPID for a 5-axis arm.")
     for run in (lambda: export_files(thesis_program, "urscript", rv2aj),
                 lambda: round_trip(thesis_program, "urscript", rv2aj),
                 lambda: get_dialect("urscript").write(thesis_program, rv2aj)):
@@ -155,7 +170,7 @@ def test_the_five_axis_rv2aj_is_refused_by_urscript(rv2aj, thesis_program):
         assert str(e.value) == message and e.value.dialect == "urscript"
 
 
-@pytest.mark.parametrize("dialect", ["melfa", "krl", "rapid"])
+@pytest.mark.parametrize("dialect", ["melfa", "krl", "rapid", "fanuc", "yaskawa"])
 def test_the_rv2aj_is_accepted_by_the_others(rv2aj, dialect):
     check_axis_count(get_dialect(dialect), rv2aj)
 
@@ -163,9 +178,10 @@ def test_the_rv2aj_is_accepted_by_the_others(rv2aj, dialect):
 @pytest.mark.parametrize("n", [4, 5])
 def test_four_and_five_axis_arms_are_pointed_away_from_urscript(arm, n):
     robot = arm(n)
-    with pytest.raises(ExportError, match=f"Choose MELFA, KRL or RAPID for a {n}-axis arm"):
+    with pytest.raises(ExportError, match=f"Choose MELFA, FANUC, Yaskawa, KRL or RAPID for a "
+                       f"{n}-axis arm"):
         check_axis_count(get_dialect("urscript"), robot)
-    for dialect in ("melfa", "krl", "rapid"):
+    for dialect in ("melfa", "krl", "rapid", "fanuc", "yaskawa"):
         check_axis_count(get_dialect(dialect), robot)
 
 

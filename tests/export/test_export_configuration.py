@@ -93,7 +93,7 @@ def test_turn_and_quadrant_numbers(deg, turns, quad):
     assert quadrant(np.radians(deg)) == quad
 
 
-@pytest.mark.parametrize("dialect", ["melfa", "krl", "rapid"])
+@pytest.mark.parametrize("dialect", ["melfa", "krl", "rapid", "fanuc", "yaskawa"])
 def test_flags_read_back_select_the_planned_branch(rv2aj, dialect):
     """Write the elbow-down solution of a pose; the reader's flags must pick it again."""
     from assistant.export import Move, MoveKind, NeutralProgram, get_dialect

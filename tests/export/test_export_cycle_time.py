@@ -202,6 +202,28 @@ def test_every_dialect_writes_the_predicted_total_in_its_header(rv2aj, thesis_pr
     assert len(back.moves()) == result.primitives
 
 
+@pytest.mark.parametrize("dialect", ["fanuc", "yaskawa"])
+def test_thirty_two_character_comments_carry_the_total_and_the_caveat(rv2aj, thesis_program,
+                                                                      dialect):
+    """FANUC and INFORM comments hold 32 characters: the total is a comment line of its own
+    near the top, the caveat wraps onto the next ones (INFORM's job comment holds it too)."""
+    result = export_files(thesis_program, dialect, rv2aj)
+    ct = result.cycle_time
+    rows = result.files[0].data.decode("ascii").splitlines()
+    # a comment's text: after "!" (FANUC, up to " ;") or "'" (INFORM)
+    texts = [m.group(1).strip() for row in rows
+             if (m := re.search(r"^\s*(?:\d+:\s*!|')([^;]*)", row))]
+    found = [k for k, t in enumerate(texts) if re.fullmatch(r"predicted cycle time \d+\.\d s", t)]
+    assert len(found) == 1, texts[:10]
+    assert found[0] <= 3  # in the header: after the name and the robot
+    secs = float(texts[found[0]].split()[-2])
+    assert abs(secs - ct.total_s) <= 0.05  # written with one decimal
+    assert " ".join(texts[found[0] + 1:found[0] + 3]) == \
+        "(a prediction, not measured on a controller)"
+    if dialect == "yaskawa":
+        assert f"///COMM predicted cycle time {secs:.1f} s" in rows
+
+
 def replace_file(f):
     from assistant.export.dialect import ProgramFile
 

@@ -19,7 +19,8 @@ def test_export_files_gives_bytes_names_and_mime(robot_for, program_for, dialect
     assert res.dialect == dialect and res.primitives == 7
     names = [f.name for f in res.files]
     expected = {"melfa": ["THESIS.MB4", "THESIS.POS"], "krl": ["thesis.src", "thesis.dat"],
-                "rapid": ["thesis.mod"], "urscript": ["thesis.script"]}[dialect]
+                "rapid": ["thesis.mod"], "urscript": ["thesis.script"],
+                "fanuc": ["THESIS.LS"], "yaskawa": ["THESIS.JBI"]}[dialect]
     assert names == expected
     for f in res.files:
         assert f.mime.startswith("text/plain") and f.data.decode("ascii")
@@ -64,4 +65,4 @@ def test_verification_catches_a_writer_that_lies(rv2aj, thesis_program, monkeypa
 
 def test_unknown_dialect(rv2aj, thesis_program):
     with pytest.raises(ValueError, match="unknown dialect"):
-        export_files(thesis_program, "fanuc", rv2aj)
+        export_files(thesis_program, "gcode", rv2aj)

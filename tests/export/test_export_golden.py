@@ -1,6 +1,8 @@
 """Golden files: the exact text each dialect writes for the thesis scenario and two drawings
 (screen 9: lines and a free curve as a spline; frame 1: lines and arcs as LIN and CIRC), on
-the RV-2AJ for MELFA, KRL and RAPID and on a UR5 for URScript (UR arms have 6 axes).
+the RV-2AJ for MELFA, KRL, RAPID, FANUC and Yaskawa and on a UR5 for URScript (UR arms have 6
+axes). The UR5 and UR10 sample cells' own programs in FANUC and Yaskawa, as `cellteach run`
+wrote them, are checked in test_export_cell_golden.py.
 
 They encode what a hand-written program looks like and were reviewed line by line before
 they were committed. Regenerate after an intended change with
@@ -23,7 +25,7 @@ from assistant.export.dialect import ProgramFile
 from assistant.export.simulate import max_deviation, simulate
 
 GOLDEN = Path(__file__).parent / "golden"
-ALL = ("melfa", "krl", "rapid", "urscript")
+ALL = ("melfa", "krl", "rapid", "urscript", "fanuc", "yaskawa")
 UPDATE = os.environ.get("CELLTEACH_UPDATE_GOLDEN") == "1"
 
 

@@ -16,9 +16,11 @@ import pytest
 from grammars import CHECKERS, check_report, check_text
 
 from assistant.export import (
+    FanucDialect,
     KrlDialect,
     MelfaDialect,
     RapidDialect,
+    YaskawaDialect,
     export_files,
     get_dialect,
     program_from_trajectory,
@@ -31,7 +33,7 @@ HERE = Path(__file__).resolve().parent
 ROOT = HERE.parents[1]
 GOLDEN = HERE / "golden"
 GRAMMARS = HERE / "grammars"
-ALL = ("melfa", "krl", "rapid", "urscript")
+ALL = ("melfa", "krl", "rapid", "urscript", "fanuc", "yaskawa")
 SCENARIOS = ("thesis", "drawing", "frame")
 #: Fresh exports: URScript runs on the UR5, whose samples take ~15 s each to plan (the golden
 #: URScript files, checked in the fast run, are the same text: test_export_golden).
@@ -83,6 +85,14 @@ def _variants(dialect: str) -> dict[str, object]:
         base |= {"parts": KrlDialect(max_positions_per_file=4)}
     elif dialect == "rapid":
         base |= {"parts": RapidDialect(max_positions_per_file=4)}
+    elif dialect == "fanuc":
+        base |= {"parts": FanucDialect(max_positions_per_file=4),
+                 "line limit": FanucDialect(max_lines=40)}
+    elif dialect == "yaskawa":
+        base |= {"parts": YaskawaDialect(max_positions_per_file=4),
+                 "line limit": YaskawaDialect(max_lines=45),
+                 "PL zones": YaskawaDialect(position_levels_mm=(0.1, 0.5, 1, 5, 10, 25, 50,
+                                                               100))}
     return base
 
 
@@ -104,7 +114,8 @@ def test_exported_samples_follow_the_documented_syntax(robot_for, program_for, d
 
 @pytest.mark.parametrize("dialect", FRESH)
 def test_a_drawing_in_a_work_frame_follows_the_documented_syntax(robot_for, dialect):
-    """Targets in a calibrated frame: KRL $BASE, RAPID wobjdata, URScript pose_trans."""
+    """Targets in a calibrated frame: KRL $BASE, RAPID wobjdata, URScript pose_trans, FANUC
+    UF 1, Yaskawa USER 1."""
     robot = robot_for(dialect)
     T = paper_frame((290.0, 0.0, 100.0))
     T[:3, :3] = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
@@ -126,7 +137,7 @@ def test_a_blended_joint_move_follows_the_documented_syntax(rv2aj, thesis_progra
     ins[k] = replace(ins[k], blend_radius=0.01)
     program = replace(thesis_program, instructions=ins)
     problems = []
-    for dialect in ("melfa", "rapid", "krl"):
+    for dialect in ("melfa", "rapid", "krl", "fanuc", "yaskawa"):
         result = export_files(program, get_dialect(dialect), rv2aj)
         problems += check_text(dialect, {f.name: f.data for f in result.files})
     assert problems == []
@@ -229,6 +240,63 @@ BROKEN = [
      "no parameter speed", "movel(SEAM_A"),
     ("urscript", ".script", "3.1416, 0.0]\n  SEAM_B", "3.1416]\n  SEAM_B",
      "a pose has 6 values", "P7 = p["),
+    ("fanuc", ".LS", "L P[3:SEAM_A] 250mm/sec", "L P[9:SEAM_A] 250mm/sec",
+     "P[9] is used but not in /POS", "P[9:SEAM_A]"),
+    ("fanuc", ".LS", "X =   320.000  mm", "X =   3.2e2  mm", "number with an exponent",
+     "3.2e2"),
+    ("fanuc", ".LS", "LINE_COUNT\t= 21;", "LINE_COUNT\t= 22;",
+     "LINE_COUNT = 22 but /MN has 21 lines", "LINE_COUNT"),
+    ("fanuc", ".LS", "J P[2:P1_V1] 40%", "J P[2:P1_V1] 400mm/sec", "J with a speed in mm/sec",
+     "J P[2:P1_V1]"),
+    ("fanuc", ".LS", "J P[1:HOME] 100% FINE", "J P[1:HOME] 150% FINE", "outside 1..100 %",
+     "150%"),
+    ("fanuc", ".LS", "!Glue seam, nozzle on UT 2", "!Glue the seam with the nozzle on UTOOL 2",
+     "a comment of 40 characters; the controller takes 32", "!Glue the seam"),
+    ("fanuc", ".LS", "'F U T, 0, 0, 1'", "'F X T, 0, 0, 1'", "is not 'F|N", "F X T"),
+    ("fanuc", ".LS", "Y =   -20.000  mm,\tZ =   170.000  mm,", "Y =   -20.000  mm,",
+     "P[3] lacks Z", 'P[3:"SEAM_A"]{'),
+    ("fanuc", ".LS", 'P[6:"P8"]{\n   GP1:\n\tUF : 1', 'P[6:"P8"]{\n   GP1:\n\tUF : 2',
+     "P[6] is taught in UF 2 but UFRAME_NUM is 1", "L P[6:P8] 1500cm/min"),
+    ("fanuc", ".LS", "L P[3:SEAM_A] 250mm/sec CNT10", "L P[3:SEAM_A] 250mm/sec", "unexpected",
+     "L P[3:SEAM_A]"),
+    ("fanuc", ".LS", "/PROG  SEAM", "/PROG  SEAMS", "the program is named as its file",
+     "/PROG  SEAMS"),
+    ("fanuc", ".LS", "\n/END", "", "ends too early", "};"),
+    ("fanuc", ".LS", "DO[1:dispenser]=ON", "DO[0:dispenser]=ON", "I/O are numbered from 1",
+     "DO[0:dispenser]"),
+    ("fanuc", ".LS", 'P[4:"P7"]{', 'P[4:"P7_ON_THE_ARC_TOP"]{',
+     "has 17 characters; the controller takes 16", "P7_ON_THE_ARC_TOP"),
+    ("fanuc", ".LS", "C P[4:P7]    \n    :  P[5:SEAM_B]", "C P[5:SEAM_B]",
+     "a circular motion names two points", "C P[5:SEAM_B]"),
+    ("yaskawa", ".JBI", "MOVL C00005 V=66.0", "MOVL C00007 V=66.0",
+     "C00007 is used but not defined", "MOVL C00007"),
+    ("yaskawa", ".JBI", "C00002=320.000", "C00002=3.2e2", "number with an exponent",
+     "C00002="),
+    ("yaskawa", ".JBI", "///NPOS 6,0,0,1,0,0", "///NPOS 7,0,0,1,0,0",
+     "///NPOS says 7 C positions, 6 follow", "///NPOS"),
+    ("yaskawa", ".JBI", "MOVL C00002 V=250.0", "MOVL C00002 VJ=25.00",
+     "MOVL takes its speed as V=", "MOVL C00002"),
+    ("yaskawa", ".JBI", "PL=3", "PL=9", "PL=9: a whole number 0..8", "PL=9"),
+    ("yaskawa", ".JBI", "MOVC C00003 V=100.0\n", "", "are not whole arcs",
+     "MOVC C00002 V=100.0"),
+    ("yaskawa", ".JBI", "'glue the seam, nozzle on tool 2",
+     "'glue the seam with the nozzle on tool 2", "a comment of 39 characters",
+     "'glue the seam with"),
+    ("yaskawa", ".JBI", "//NAME SEAM", "//NAME SEAMS", "a job is named as its file",
+     "//NAME SEAMS"),
+    ("yaskawa", ".JBI", "\nEND", "", "ends too early", "MOVJ C00000 VJ=50.00"),
+    ("yaskawa", ".JBI", "DOUT OT#(1) ON", "DOUT OT#(0) ON", "outputs are numbered from 1",
+     "DOUT OT#(0)"),
+    ("yaskawa", ".JBI", "TIMER T=0.50", "TIMER T=0.00", "TIMER T=0.00: 0.01..655.35 s",
+     "TIMER"),
+    ("yaskawa", ".JBI", "C00001=220.000,-220.000,230.000,180.0000",
+     "C00001=220.000,-220.000,230.000,190.0000", "Rx, Ry, Rz within", "C00001="),
+    ("yaskawa", ".JBI", "///RECTAN\n///RCONF 1,0,0,0,0,0,0,0\n", "///RECTAN\n",
+     "Cartesian data after a ///RCONF", "C00001="),
+    ("yaskawa", ".JBI", "///COMM GLUE SEAM", "///COMM GLUE THE SEAM ON THE PLATE, TOOL 2",
+     "///COMM of 34 characters", "///COMM"),
+    ("yaskawa", ".JBI", "MOVJ C00001 VJ=40.00", "MOVJ C00001 VJ=0.00",
+     "VJ=0.00: 0.01..100.00 %", "MOVJ C00001"),
 ]
 
 

@@ -27,7 +27,7 @@ def _renamed_thesis(rv2aj, names: dict[str, str]):
 
 
 def test_legal_names_are_kept_without_a_note(rv2aj, thesis_program):
-    for dialect in ("melfa", "krl", "rapid"):
+    for dialect in ("melfa", "krl", "rapid", "fanuc", "yaskawa"):
         d = get_dialect(dialect)
         prog, notes = legal_names(thesis_program, d.rules,
                                   getattr(d, "position_identifiers", identity))

@@ -1,7 +1,7 @@
 """Round trip for every move type in every dialect: write -> read -> simulate -> compare.
 
-MELFA, KRL and RAPID run on the thesis RV-2AJ (5 axes), URScript on a UR5 (UR arms have 6
-axes; `robot_for` in conftest picks the arm)."""
+MELFA, KRL, RAPID, FANUC and Yaskawa run on the thesis RV-2AJ (5 axes), URScript on a UR5
+(UR arms have 6 axes; `robot_for` in conftest picks the arm)."""
 
 from __future__ import annotations
 
@@ -30,10 +30,12 @@ from assistant.export.roundtrip import RoundTripReport
 from assistant.export.samples import R_DOWN
 from assistant.transforms import make_T, rot_z
 
-ALL = ("melfa", "krl", "rapid", "urscript")
+ALL = ("melfa", "krl", "rapid", "urscript", "fanuc", "yaskawa")
 #: What each number format allows: MELFA 0.01 mm / 0.01 deg; KRL and RAPID 0.001 mm and
-#: 0.001 deg joints (0.0005 deg at 0.4 m is 3.5 um); URScript 1 um and 1 urad.
-TOLERANCE = {"melfa": 2e-5, "krl": 5e-6, "rapid": 5e-6, "urscript": 3e-6}
+#: 0.001 deg joints (0.0005 deg at 0.4 m is 3.5 um); URScript 1 um and 1 urad; FANUC 0.001 mm
+#: and 0.001 deg (W, P, R: as KRL); Yaskawa 0.001 mm and 0.0001 deg (0.9 um + 0.35 um).
+TOLERANCE = {"melfa": 2e-5, "krl": 5e-6, "rapid": 5e-6, "urscript": 3e-6, "fanuc": 5e-6,
+             "yaskawa": 3e-6}
 #: Simulation step (m): the UR5's numerical IK (every solution, each sample) is slow, so its
 #: paths are compared every 20 mm rather than every 2 mm; the number format shows either way.
 MAX_STEP = {"urscript": 0.02}
@@ -155,12 +157,12 @@ def test_settings_read_back(robot_for, programs, dialect):
             rel = 0.01 if dialect == "melfa" else 1e-3  # whole % and mm/s on MELFA
             assert b.speed == pytest.approx(a.speed, rel=rel, abs=5e-4)
         assert b.step == a.step
-    if dialect in ("melfa", "krl", "urscript"):
+    if dialect in ("melfa", "krl", "urscript", "fanuc", "yaskawa"):
         acc = [m.acceleration for m in back if m.acceleration is not None]
         assert acc and acc[0] == pytest.approx(0.6, abs=0.01)
 
 
-@pytest.mark.parametrize("dialect", ["krl", "rapid", "urscript"])
+@pytest.mark.parametrize("dialect", ["krl", "rapid", "urscript", "fanuc", "yaskawa"])
 def test_work_frame_round_trips(robot_for, programs, dialect):
     robot = robot_for(dialect)
     program_in_work_frame = programs(robot, in_work_frame=True)
@@ -169,8 +171,9 @@ def test_work_frame_round_trips(robot_for, programs, dialect):
     assert rep.max_tcp_deviation <= TOLERANCE[dialect]
     files = get_dialect(dialect).write(program_in_work_frame, robot)
     text = "\n".join(f.text for f in files)
-    assert {"krl": "$BASE = {X 50.000", "rapid": "wobjdata wTable", "urscript": "TABLE = p["}[
-        dialect] in text
+    assert {"krl": "$BASE = {X 50.000", "rapid": "wobjdata wTable", "urscript": "TABLE = p[",
+            "fanuc": "!UFRAME[1] table ;\n  14:  !X 50.000 Y -20.000",
+            "yaskawa": "'USER 1 table\n'X 50.000 Y -20.000"}[dialect] in text
 
 
 def test_krl_spline_block_and_linear_fallback(rv2aj, program):
@@ -221,6 +224,9 @@ _TAMPER = {
     "krl": (r"(XPB=\{X )(-?\d+\.\d+)", lambda v: f"{float(v) + 1.0:.3f}"),
     "rapid": (r"(PB := \[\[)(-?\d+\.\d+)", lambda v: f"{float(v) + 1.0:.3f}"),
     "urscript": (r"(PB = p\[)(-?\d+\.\d+)", lambda v: f"{float(v) + 0.001:.6f}"),
+    "fanuc": (r'(P\[\d+:"PB"\]\{\n   GP1:\n[^\n]*\n\tX = *)(-?\d+\.\d+)',
+              lambda v: f"{float(v) + 1.0:.3f}"),
+    "yaskawa": (r"(C00002=)(-?\d+\.\d+)", lambda v: f"{float(v) + 1.0:.3f}"),  # PB
 }
 
 

@@ -12,10 +12,12 @@ import pytest
 
 from assistant.export import (
     ExportError,
+    FanucDialect,
     KrlDialect,
     MelfaDialect,
     RapidDialect,
     URScriptDialect,
+    YaskawaDialect,
     get_dialect,
     round_trip,
 )
@@ -23,7 +25,7 @@ from assistant.export.krl import krl_rules
 from assistant.export.program import Comment, Move, MoveKind
 from assistant.export.rules import check_lines, format_compact, format_fixed
 
-ALL = ("melfa", "krl", "rapid", "urscript")
+ALL = ("melfa", "krl", "rapid", "urscript", "fanuc", "yaskawa")
 
 
 # ------------------------------------------------------------------------------ numbers
@@ -143,8 +145,10 @@ def test_a_tighter_line_limit_is_enforced(rv2aj, thesis_program):
 # ------------------------------------------------------------------------------ file size
 @pytest.mark.parametrize("dialect", [MelfaDialect(max_positions_per_file=4),
                                      KrlDialect(max_positions_per_file=4),
-                                     RapidDialect(max_positions_per_file=4)],
-                         ids=["melfa", "krl", "rapid"])
+                                     RapidDialect(max_positions_per_file=4),
+                                     FanucDialect(max_positions_per_file=4),
+                                     YaskawaDialect(max_positions_per_file=4)],
+                         ids=["melfa", "krl", "rapid", "fanuc", "yaskawa"])
 def test_too_many_positions_split_into_parts_with_a_main(rv2aj, thesis_program, dialect):
     files = dialect.write(thesis_program, rv2aj)
     names = [f.name for f in files]
@@ -152,12 +156,12 @@ def test_too_many_positions_split_into_parts_with_a_main(rv2aj, thesis_program, 
     parts = [n.rsplit(".", 1)[0] for n in names[1:]]
     parts = list(dict.fromkeys(parts))
     assert len(parts) >= 3
-    calls = re.findall(r"(\w+)\s*(?:\(\s*\)|;)|CALLP \"(\w+)\"", main.text)
-    called = [a or b for a, b in calls if (a or b) in parts]
+    calls = re.findall(r"(\w+)\s*(?:\(\s*\)|;)|CALLP \"(\w+)\"|CALL JOB:(\w+)", main.text)
+    called = [a or b or c for a, b, c in calls if (a or b or c) in parts]
     assert called == parts  # the main calls every part, in order
     for f in files[1:]:
-        n_decl = len(re.findall(r"^\s*(?:P\w*=|J\w*=|DECL E6|CONST (?:robtarget|jointtarget))",
-                                f.text, re.M))
+        n_decl = len(re.findall(r"^\s*(?:P\w*=|J\w*=|DECL E6|CONST (?:robtarget|jointtarget)"
+                                r"|P\[\d+:\"|C\d{5}=)", f.text, re.M))
         assert n_decl <= 4, f.name
     rep = round_trip(thesis_program, dialect, rv2aj)
     assert rep.primitives == thesis_program.primitive_count()

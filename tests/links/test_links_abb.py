@@ -83,10 +83,13 @@ def test_thesis_like_execution_explore_collide_replan_upload_run(start, robot):
     # Re-planned: back off home.
     assert link.move_path(np.array([ev.q, HOME])).kind == LinkEventKind.REACHED
     # The final program: uploaded, loaded (our CellMove unloaded first), run to its end.
+    # The task keeps its own MainModule (a shipped task has a main): our main goes in as
+    # the routine ct_MISSION, started with "set PP to routine".
     files = mission(robot)
     assert link.upload_program("MISSION", files) == "MISSION"
-    assert emu.rapid.files["$HOME/MISSION.MOD"] == files["MISSION.mod"]
-    assert [m.name for m, _ in emu.rapid.modules.values()] == ["MISSION"]
+    assert emu.rapid.files["$HOME/MISSION.MOD"] == rp.main_as_routine(
+        files["MISSION.mod"].decode(), "ct_MISSION").encode()
+    assert [m.name for m, _ in emu.rapid.modules.values()] == ["MainModule", "MISSION"]
     moved: list = []
     link.subscribe(lambda e: moved.append(e) if e.kind == LinkEventKind.MOVED else None)
     ev = link.run_program("MISSION")
@@ -156,7 +159,8 @@ def test_late_replies_past_the_timeout(start):
     assert ev.kind == LinkEventKind.LINK_LOST and "no answer to" in ev.message
     emu.faults.clear()
     link.connect()
-    assert link.move_path(np.array([Q_A])).kind == LinkEventKind.REACHED
+    ev = link.move_path(np.array([Q_A]))
+    assert ev.kind == LinkEventKind.REACHED, ev.message
 
 
 def test_garbage_replies_are_quoted_and_the_program_is_stopped(start):

@@ -80,7 +80,7 @@ def test_single_mastership(emu, client, closing):
     with pytest.raises(rws.ABBException) as info:
         other._do_post("rw/mastership?action=request")
     assert info.value.code == rp.RC_HELD_BY_OTHER and "held by another" in str(info.value)
-    other.upload_file("$HOME/m.mod", b"MODULE m\nPROC main()\nENDPROC\nENDMODULE\n")
+    other.upload_file("$HOME/m.mod", b"MODULE m\nPROC go()\nENDPROC\nENDMODULE\n")
     with pytest.raises(rws.ABBException, match="held by another"):
         other._do_post("rw/rapid/tasks/T_ROB1?action=loadmod",
                        {"modulepath": "$HOME/m.mod", "replace": "true"})
@@ -107,7 +107,9 @@ def test_upload_load_start_stop_and_the_event_log(emu, client):
                     {"modulepath": "$HOME/CellMove.mod", "replace": "true"})
     client._do_post("rw/mastership?action=release")
     assert client.get_rapid_variable("cj1", "T_ROB1/CellMove").startswith("[[-40.000000,")
-    client.resetpp()
+    # The task has its own main (MainModule): PP to our routine, as RWS documents it.
+    client._do_post("rw/rapid/tasks/T_ROB1/pcp?action=set-pp-routine",
+                    {"module": "CellMove", "routine": "cellmove", "userlevel": "false"})
     client.start(cycle="once")
     assert client.get_execution_state().ctrlexecstate == "running"
     while emu.arm.q[0] > Q_A[0] / 2:  # under way to Q_A
@@ -121,7 +123,6 @@ def test_upload_load_start_stop_and_the_event_log(emu, client):
     assert np.allclose(np.radians(client.get_jointtarget().robax), HOME, atol=1e-6)
     titles = [(e.code, e.title) for e in client.read_event_log()]
     assert titles[0][0] == rp.ELOG_PROGRAM_STOPPED  # newest first, as the controller lists
-    assert (rp.ELOG_PP_RESET, "Program pointer has been reset") in titles
     assert all(e.msgtype != rp.ELOG_ERROR for e in client.read_event_log())
     assert emu.rapid.runs == ["CellMove", "CellMove"]
     client.delete_file("$HOME/CellMove.mod")
@@ -140,17 +141,17 @@ def test_what_it_does_not_understand_is_refused(emu, client):
     with pytest.raises(rws.ABBException, match="program pointer lost"):
         client.start(cycle="once")  # nothing loaded, pointer never set
     client._do_post("rw/mastership?action=request")
-    client.upload_file("$HOME/bad.mod", b"MODULE bad\nPROC main()\n  TPWrite \"hi\";\n"
+    client.upload_file("$HOME/bad.mod", b"MODULE bad\nPROC go()\n  TPWrite \"hi\";\n"
                                         b"ENDPROC\nENDMODULE\n")
     client._do_post("rw/rapid/tasks/T_ROB1?action=loadmod", {"modulepath": "$HOME/bad.mod"})
     with pytest.raises(rws.ABBException, match="cannot execute 'TPWrite") as info:
-        client.resetpp()
+        client._do_post("rw/rapid/tasks/T_ROB1/pcp?action=set-pp-routine",
+                        {"module": "bad", "routine": "go"})
     assert info.value.code == rp.RC_LOAD_ERROR
     client._do_post("rw/rapid/tasks/T_ROB1?action=unloadmod", {"module": "bad"})
-    for name in ("one", "two"):
-        client.upload_file(f"$HOME/{name}.mod",
-                           f"MODULE {name}\nPROC main()\nENDPROC\nENDMODULE\n".encode())
-    client._do_post("rw/rapid/tasks/T_ROB1?action=loadmod", {"modulepath": "$HOME/one.mod"})
+    # The shipped task holds a main of its own: a second one cannot be loaded.
+    assert [m.name for m, _ in emu.rapid.modules.values()] == ["MainModule"]
+    client.upload_file("$HOME/two.mod", b"MODULE two\nPROC main()\nENDPROC\nENDMODULE\n")
     with pytest.raises(rws.ABBException, match="ambiguous PROC MAIN"):  # one main per task
         client._do_post("rw/rapid/tasks/T_ROB1?action=loadmod", {"modulepath": "$HOME/two.mod"})
     client.upload_file("$HOME/worse.mod", b"MODULE worse\n  garbage here\nENDMODULE\n")
@@ -186,3 +187,34 @@ def test_the_emulator_runs_as_a_script():
         proc.stdout.close()
         proc.stderr.close()
     assert proc.returncode == 0
+
+
+def test_abb_robot_clients_subscription_hears_the_execution_state(emu, client):
+    """abb-robot-client's own websocket subscription (robapi2_subscription) on our emulator:
+    the execution state arrives as events, the way our link follows a program."""
+    import threading
+
+    heard: list = []
+    got = threading.Event()
+
+    def handler(ev):  # noqa: ANN001
+        heard.append(ev)
+        if isinstance(ev, rws.RAPIDExecutionState) and ev.ctrlexecstate == "stopped":
+            got.set()
+
+    sub = client.subscribe([rws.SubscriptionResourceRequest(
+        rws.SubscriptionResourceType.ExecutionState, rws.SubscriptionResourcePriority.Medium)],
+        handler)
+    try:
+        deadline = time.monotonic() + 20.0
+        while not emu.events._subs or not any(s.sockets for s in emu.events._subs.values()):
+            assert time.monotonic() < deadline, f"the websocket never opened: {heard}"
+            time.sleep(0.02)
+        client._do_post("rw/rapid/tasks/T_ROB1/pcp?action=set-pp-routine",
+                        {"module": "MainModule", "routine": "main"})
+        client.start(cycle="once")  # the cell's own main: WaitTime 0.1
+        assert got.wait(20.0), heard
+        states = [e.ctrlexecstate for e in heard if isinstance(e, rws.RAPIDExecutionState)]
+        assert states[-2:] == ["running", "stopped"]
+    finally:
+        sub.close()

@@ -23,6 +23,7 @@ from ur_fixtures import (
 )
 
 from assistant.collision.checker import CollisionChecker
+from assistant.links import ur_kinematics as uk
 from assistant.links import ur_rtde_wire as w
 from assistant.links import ur_script as us
 from assistant.links.emulators.ur_script_interp import ScriptError, compile_script
@@ -46,9 +47,12 @@ def test_ur_rtde_receive_interface_reads_the_emulator(ur5, closing):
     assert got["safety_mode"] == w.SafetyMode.NORMAL and not got["protective_stop"]
     assert np.allclose(got["q"], q, atol=1e-12)  # doubles on the wire: exact up to packing
     # The TCP, in the controller's base frame (the URDF's "base", turned 180 deg about z
-    # against base_link), is our model's tool pose: the emulator's installation TCP.
+    # against base_link), is the installation TCP on the controller's *calibrated* chain:
+    # a few mm from our nominal model (the wire's doubles round at 1e-9 here).
     T = us.from_controller_pose(ur5, got["tcp"])
-    assert np.allclose(T, ur5.fk(q), atol=1e-9)
+    cal = uk.calibrated_robot(emu.calibration, ur5)
+    assert np.allclose(got["tcp"][:3], (cal.fk(q) @ ur5.T_flange_tool)[:3, 3], atol=1e-9)
+    assert 0.001 < np.linalg.norm(T[:3, 3] - ur5.fk(q)[:3, 3]) < 0.01
     assert not np.allclose(np.array(got["tcp"][:2]), ur5.fk(q)[:2, 3], atol=0.01)
     emu.trigger_protective_stop("C153A1 protective stop: test")
     got = peer.read_until(lambda s: s["safety_mode"] != w.SafetyMode.NORMAL)
@@ -123,9 +127,10 @@ def test_thesis_like_session_explore_collide_replan_upload(ur5, closing):
     # Re-planned: the link unlocks the protective stop (refused for a while, as on a UR),
     # backs off and goes on.
     ev = link.move_path(np.array([ev.q, HOME]))
-    assert ev.kind == LinkEventKind.REACHED
-    unlocks = [r.text for r in emu.received if r.channel == "dashboard"]
-    assert unlocks and set(unlocks) == {"unlock protective stop"}
+    assert ev.kind == LinkEventKind.REACHED, ev.message
+    said = [r.text for r in emu.received if r.channel == "dashboard"]
+    assert said[0] == "is in remote control"  # connect asks first (an e-Series)
+    assert said[1:] and set(said[1:]) == {"unlock protective stop"}
     assert emu.safety_mode == w.SafetyMode.NORMAL
     assert np.allclose(emu.arm.q, HOME, atol=WIRE_TOL)
     # The final program: the URScript exporter's own output, uploaded and run to its end.
@@ -145,7 +150,12 @@ def test_thesis_like_session_explore_collide_replan_upload(ur5, closing):
     pose = re.search(rf"^\s*{target} = p\[(.*)\]", text, re.M)
     assert kind != "movej" and pose is not None
     T_goal = us.from_controller_pose(ur5, [float(v) for v in pose.group(1).split(",")])
-    assert np.allclose(ur5.fk(emu.arm.q), T_goal, atol=1e-6)  # 1e-6: the file's 6 decimals
+    # The controller solves movel with its calibrated chain: that chain, not our nominal
+    # model, puts the tool on the goal (1e-6: the file's 6 decimals).
+    cal = uk.calibrated_robot(emu.calibration, ur5).with_tool(ur5.T_flange_tool)
+    assert np.allclose(us.from_controller_pose(ur5, us.to_controller_pose(cal, cal.fk(
+        emu.arm.q))), T_goal, atol=1e-6)
+    assert link.calibration is not None and 0.001 < link.calibration.max_deviation_m < 0.01
     assert np.allclose(link.current_joints(), emu.arm.q, atol=1e-12)
     uploaded = [r.text for r in emu.received if r.channel == "script"][-1]
     assert f"def {name}():" in uploaded and "set_tcp(p[0.000000, 0.000000, 0.100000" in uploaded
@@ -155,6 +165,7 @@ def test_settings_build_the_ur_link(ur5, closing):
     emu = start_emulator(ur5, closing)
     data = {"kind": "ur", "host": emu.host, "ur_script_port": emu.script_port,
             "ur_rtde_port": emu.rtde_port, "ur_dashboard_port": emu.dashboard_port,
+            "ur_primary_port": emu.primary_port,
             "ur_rtde_hz": 125.0, "timeout_s": 0.5}
     settings = LinkSettings.from_json(data)
     assert LinkSettings.from_json(settings.to_json()) == settings
@@ -186,7 +197,8 @@ def test_wire_rotation_vectors_and_the_wrong_robot_model(ur5, closing, rng):
     other = ur5.with_tool(np.array([[1, 0, 0, 0.0], [0, 1, 0, 0.05], [0, 0, 1, 0.1],
                                     [0, 0, 0, 1]]))
     link = closing(URLink(other, host=emu.host, script_port=emu.script_port,
-                          rtde_port=emu.rtde_port, dashboard_port=emu.dashboard_port))
-    with pytest.raises(LinkError, match="50.0 mm from where our"):
+                          rtde_port=emu.rtde_port, dashboard_port=emu.dashboard_port,
+                          primary_port=emu.primary_port))
+    with pytest.raises(LinkError, match="50.0 mm from where the controller"):
         link.connect()
     assert not link.connected

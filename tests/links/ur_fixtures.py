@@ -41,8 +41,9 @@ def ur5():
     urdf, share = installed_robot_urdf(UR5_URDF)
     T = np.eye(4)
     T[2, 3] = 0.1
+    # tool0: the UR's own tool flange (the URDF's default ee_link is turned against it)
     return URDFRobot.from_file(urdf, package_dirs=[share], load_visual=False,
-                               tool=Tool("gripper", T))
+                               tool_link="tool0", tool=Tool("gripper", T))
 
 
 def box_on_wrist(robot, qa, qb, frac: float, size: float = 0.08) -> Obstacle:  # noqa: ANN001
@@ -58,6 +59,7 @@ def start_emulator(robot, closing, *, rtde_port: int = 0, **kw) -> UREmulator:  
     kw.setdefault("start_q", HOME)
     kw.setdefault("time_scale", 4.0)
     kw.setdefault("unlock_delay_s", 0.3)
+    kw.setdefault("local_mode", False)  # the factory state (Local) has its own tests
     for _ in range(20):
         host = f"127.{random.randint(1, 250)}.{random.randint(1, 250)}.{random.randint(2, 250)}"
         with contextlib.suppress(OSError):
@@ -70,7 +72,8 @@ def connect_link(robot, emu: UREmulator, closing, **kw) -> URLink:  # noqa: ANN0
     kw.setdefault("rtde_hz", 250.0)
     kw.setdefault("unlock_wait_s", 3.0)
     link = closing(URLink(robot, host=emu.host, script_port=emu.script_port,
-                          rtde_port=emu.rtde_port, dashboard_port=emu.dashboard_port, **kw))
+                          rtde_port=emu.rtde_port, dashboard_port=emu.dashboard_port,
+                          primary_port=emu.primary_port, **kw))
     link.connect()
     return link
 

@@ -66,9 +66,13 @@ def test_indication_is_repaired_with_a_back_off(planner, robot, first_plan, scen
     assert rep.executed_tcp_length > rep.backoff_tcp_length > 0
     # transfer 2 was checked against the new evidence, still valid: kept (hysteresis)
     assert rep.switches == 0
-    assert "P7-P8 -> P10: re-checked against new evidence, still valid: kept" in rep.log
-    # the final plan ran clean on the robot and is collision-free against everything
-    assert rep.final_validated and rep.final_plan is not None and rep.final_plan.ok
+    assert "SEAM -> P10: re-checked against new evidence, still valid: kept" in rep.log
+    # the run ends at the goal with the final plan made and not driven (no work repeated)
+    assert not rep.final_validated and rep.final_plan is not None and rep.final_plan.ok
+    assert np.allclose(link.current_joints(), first_plan.locations["P10"], atol=1e-6)
+    # driven once when the operator asks: it runs clean and is free against everything
+    rep = ex.drive_final()
+    assert rep.end == EndReason.COMPLETED and rep.final_validated, rep.describe()
     everything = CollisionChecker(robot, scenario.known_obstacles() + [hidden])
     assert everything.check_path(list(rep.final_plan.trajectory.dense_joint_path())) is None
     assert np.allclose(link.current_joints(), first_plan.locations["P10"], atol=1e-6)
@@ -99,7 +103,7 @@ def test_indication_and_replan_budgets_end_the_run(planner, robot, first_plan, s
     link = sim_robot(robot, [hidden], first_plan.locations["P1"])
     cfg = ExecutionConfig(max_replans=0, plan_final=False)
     rep = MissionExecutor(planner, link, cfg).run(scenario.mission, np.eye(4), plan=first_plan)
-    assert rep.end == EndReason.REPLAN_BUDGET and "P1 -> P7-P8" in rep.reason
+    assert rep.end == EndReason.REPLAN_BUDGET and "P1 -> SEAM" in rep.reason
 
 
 def test_collision_on_the_application_path_stops_the_mission(planner, robot, first_plan,
@@ -110,7 +114,7 @@ def test_collision_on_the_application_path_stops_the_mission(planner, robot, fir
     rep = MissionExecutor(planner, link, QUICK).run(scenario.mission, np.eye(4),
                                                     plan=first_plan)
     assert rep.end == EndReason.MISSION_COLLIDES
-    assert "P7-P8" in rep.reason and "re-teach" in rep.reason
+    assert "SEAM" in rep.reason and "re-teach" in rep.reason
     assert rep.collision_indications == 1 and len(planner.world.collisions) == 1
 
 

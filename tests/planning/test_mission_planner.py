@@ -57,9 +57,9 @@ def test_sample_mission_is_one_verified_trajectory(plan, planner, scenario, robo
     # labels name the mission steps, in order
     labels = [m.label for m in traj.motions]
     steps = list(dict.fromkeys(labels))
-    assert steps == ["P1 -> P7-P8", "P7-P8", "P7-P8 -> P10"]
+    assert steps == ["P1 -> SEAM", "SEAM", "SEAM -> P10"]
     # the application path is one straight MVS, tool down, from P7 to P8 (named so)
-    app = [m for m in traj.motions if m.label == "P7-P8"]
+    app = [m for m in traj.motions if m.label == "SEAM"]
     assert len(app) == 1 and app[0].kind == MotionKind.LINEAR and app[0].target.name == "P8"
     line = scenario.mission.paths[0]
     P = tcp_points(robot, app[0].joint_path)
@@ -68,7 +68,7 @@ def test_sample_mission_is_one_verified_trajectory(plan, planner, scenario, robo
     assert d.max() < 1e-4
     assert np.allclose(app[0].target.T_base_tool[:3, 2], [0, 0, -1], atol=1e-6)
     # gripper closes on arrival at P7 (before the line), opens after it
-    k = labels.index("P7-P8")
+    k = labels.index("SEAM")
     before = traj.motions[k - 1]
     assert [a.kind for a in before.actions_after] == [ToolActionKind.GRIPPER_CLOSE]
     assert before.target.name == "P7"
@@ -81,8 +81,8 @@ def test_sample_mission_is_one_verified_trajectory(plan, planner, scenario, robo
     tcp = tcp_points(robot, dense)
     assert rep.tcp_length == pytest.approx(np.linalg.norm(np.diff(tcp, axis=0), axis=1).sum())
     assert rep.min_clearance is not None and rep.min_clearance > 0
-    assert [p.label for p in rep.pieces if p.kind == "transfer"] == ["P1 -> P7-P8",
-                                                                     "P7-P8 -> P10"]
+    assert [p.label for p in rep.pieces if p.kind == "transfer"] == ["P1 -> SEAM",
+                                                                     "SEAM -> P10"]
     assert "mission plan ok" in rep.describe()
 
 
@@ -145,7 +145,7 @@ def test_no_path_through_a_wall(scenario, robot):
             box("wall top", [0.0, 0.0, 0.7], [0.2, 0.02, 0.6])]
     planner = make_planner(robot, scenario.known_obstacles() + wall)
     plan = planner.plan_mission(scenario.mission, np.eye(4), np.zeros(5))
-    assert not plan.ok and plan.report.failed_piece == "P7-P8"  # the line crosses the wall
+    assert not plan.ok and plan.report.failed_piece == "SEAM"  # the line crosses the wall
     mission = replace(scenario.mission, paths=[])
     plan = planner.plan_mission(mission, np.eye(4), np.zeros(5))
     assert not plan.ok and plan.report.failed_piece == "P1 -> P10"
@@ -157,7 +157,7 @@ def test_search_budget_ends_the_plan_with_a_reason(scenario, robot):
     tight = make_planner(robot, scenario.known_obstacles(),
                          roadmap=RoadmapConfig(budget=SearchBudget(max_expansions=2)))
     plan = tight.plan_mission(scenario.mission, np.eye(4), np.zeros(5), exploring=True)
-    assert not plan.ok and plan.report.failed_piece == "P1 -> P7-P8"
+    assert not plan.ok and plan.report.failed_piece == "P1 -> SEAM"
     assert "budget exhausted" in plan.reason
 
 

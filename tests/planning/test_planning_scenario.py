@@ -37,7 +37,7 @@ def test_sample_cell_holds_the_thesis_experiment(scenario):
     assert [o.name for o in scenario.hidden] == ["O3"]
     assert mission.start.name == "P1" and mission.goal.name == "P10"
     (path,) = mission.paths
-    assert path.name == "P7-P8" and path.segments[0].kind == SegmentKind.LINE
+    assert path.name == "SEAM" and path.segments[0].kind == SegmentKind.LINE
     assert [a.kind for a in path.actions_before] == [ToolActionKind.GRIPPER_CLOSE]
     assert [a.kind for a in path.actions_after] == [ToolActionKind.GRIPPER_OPEN]
     # thesis layout: P1 on one side, P10 on the other, the line in front

@@ -2,8 +2,9 @@
 script up to the plan, then a hidden obstacle where the planned TCP passes (on a transfer,
 as far as it gets from the application paths and the transfers' ends, so the work itself
 stays free), execution (the simulated robot meets it: at least one collision indication, the
-rest re-planned round it, the final trajectory validated on the robot and free of it), and
-the program exported."""
+rest re-planned round it, the run ending at the goal with the final trajectory planned, then
+driven once as the operator's own step: validated on the robot and free of it), and the
+program exported."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ import pytest
 from assistant.collision.checker import CollisionChecker
 from assistant.collision.reports import Obstacle
 from assistant.robots.model import CollisionShape, ShapeKind
-from assistant.session import Session
+from assistant.session import Session, SessionError
 from assistant.session.script import parse_script, run_action
 from assistant.session.types import HiddenObstacle
 from assistant.transforms import inv_T, pose_from_mm_deg
@@ -78,7 +79,16 @@ def test_plan_execute_with_a_hidden_obstacle_and_export(name, tmp_path):
     rep = s.execute()
     print(name, rep)
     assert rep["ok"] and rep["collision_indications"] >= 1, rep
+    assert "not driven" in rep["reason"] and s.final_driven() is False, rep
+    # the operator drives the final program once (again if it met something new)
+    for _ in range(4):
+        try:
+            rep = s.drive_final()
+            break
+        except SessionError as exc:
+            assert "drive it again" in str(exc), exc
     assert rep["reason"].endswith("final trajectory validated on the robot"), rep
+    assert s.final_driven() is True
     # the final trajectory was re-planned round what the robot met: free of the hidden box
     hidden = Obstacle("hidden", inv_T(s.T_world_base()) @ pose_from_mm_deg(pose),
                       (CollisionShape(ShapeKind.BOX, tuple(v / 1000 for v in size)),))

@@ -17,5 +17,5 @@ def thesis_session() -> Session:
 
 @pytest.fixture(scope="session")
 def thesis_problem(thesis_session: Session) -> StudyProblem:
-    """The thesis cell (RV-2AJ at the origin, O1/O2, P1 -> P7-P8 -> P10) as a study."""
+    """The thesis cell (RV-2AJ at the origin, O1/O2, P1 -> SEAM (P7 to P8) -> P10) as a study."""
     return thesis_session.study_problem()

@@ -23,7 +23,8 @@ GOLDEN = Path(__file__).resolve().parents[1] / "export" / "golden"
 TAG = re.compile(r"<[^>]+>")
 #: The first motion instruction of each dialect's thesis program, and its target's name.
 FIRST_MOTION = {"melfa": ("MOV", "P1"), "krl": ("PTP", "XP1"), "rapid": ("MoveJ", "P1"),
-                "urscript": ("movej", "P1_q")}
+                "urscript": ("movej", "P1_q"), "fanuc": ("J", "P1"),
+                "yaskawa": ("MOVJ", "C00000")}
 
 
 def plain(markup: str) -> str:

@@ -132,7 +132,9 @@ def test_collision_key_stops_the_moving_robot(serve_session, open_ui):
     from assistant.links.settings import LinkSettings
 
     session = Session()
-    session.set_link(LinkSettings(time_scale=0.3))  # slow: the press lands mid-move
+    # slow (the move takes ~15 s): the press lands mid-move even when a loaded machine
+    # delays the page by seconds; the press stops it at once
+    session.set_link(LinkSettings(time_scale=0.05))
     app = serve_session(session)
     ui = open_ui(app.url)
     ui.expand("Jog the robot", ui.button("Move to the slider values"))

@@ -66,7 +66,7 @@ def test_dwell_progress_and_keyboard(serve_session, open_ui, tmp_path):
     ui.shot("dwell")
     ui.wait_cell("P7")
     ui.wait_enabled("Teach by pointer dwell")
-    assert not ui.page.get_by_text(re.compile(r"Hold still")).first.is_visible()
+    ui.page.get_by_text(re.compile(r"Hold still")).first.wait_for(state="hidden", timeout=15_000)
     app.wait_idle(10)
     assert any(drawn), "the ball was not drawn while the dwell ran"
     assert drawn[-1] is False  # gone once the point is taught

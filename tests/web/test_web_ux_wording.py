@@ -60,5 +60,5 @@ def test_typed_angles_are_shown_as_typed_when_they_are_the_same_rotation():
 def test_the_end_of_a_run_names_the_goal():
     assert goal_reached("P10", {"collision_indications": 3, "replans": 3}) == \
         "Goal reached: the robot is at P10. 3 collisions learnt, 3 re-plans; the final path " \
-        "is verified."
+        "is planned round what was learnt."
     assert goal_reached("P10", {}) == "Goal reached: the robot is at P10."

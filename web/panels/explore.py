@@ -26,9 +26,7 @@ class ExplorePanel(Panel):
             self.mode = g.add_dropdown("How", tuple(EXPLORE_MODES))
             self.moves = g.add_number("Moves", 5, min=1, max=200, step=1)
             self.explore = g.add_button("Explore")
-        self.collision = g.add_button("Collision!", color="red", icon=viser.Icon.ALERT_OCTAGON,
-                                      disabled=True, hint="Space key. Stops the robot and "
-                                                          "remembers this posture as blocked")
+        # Collision! and Stop are the toolbar's (one of each on the page, and the Space key)
         self.why = g.add_markdown("")
         with g.add_folder("Advanced", expand_by_default=False):
             ws = self.session.world_settings
@@ -53,7 +51,6 @@ class ExplorePanel(Panel):
             clearance_mm=float(self.clearance.value)))
         self.bind(self.explore, lambda e: self.session.start_explore(
             EXPLORE_MODES[self.mode.value], int(self.moves.value), seed=0), motion=True)
-        self.bind(self.collision, lambda e: self.session.fire("collision"))
 
     def on_enter(self) -> None:
         """Entering the step builds the world model when there is none (progress and Cancel
@@ -77,12 +74,9 @@ class ExplorePanel(Panel):
                                   (self.clearance, ws.clearance_mm)):
                 handle.value = value
         reasons = {"Build world model": wait,
-                   "Explore": wait or ("" if s.world_ready else "build the world model first"),
-                   "Collision!": "" if mode == "moving" else "only while the robot moves"}
+                   "Explore": wait or ("" if s.world_ready else "build the world model first")}
         gate(self.explore, reasons["Explore"])
-        gate(self.collision, reasons["Collision!"],
-             "Space key. Stops the robot and remembers this posture as blocked")
-        why = why_greyed(reasons)
+        why = "" if mode == "moving" else why_greyed(reasons)  # the heading says it then
         if self.why.content != why:
             self.why.content = why
         if s.world_ready:

@@ -22,7 +22,8 @@ from web.panels.base import Panel, busy_reason, gate, why_greyed
 from web.program_view import program_html
 
 DIALECT_LABELS = {"melfa": "Mitsubishi MELFA BASIC IV", "krl": "KUKA KRL",
-                  "rapid": "ABB RAPID", "urscript": "Universal Robots URScript"}
+                  "rapid": "ABB RAPID", "urscript": "Universal Robots URScript",
+                  "fanuc": "FANUC TP (ASCII .LS)", "yaskawa": "Yaskawa INFORM (.JBI)"}
 BASE = "robot base"
 WRITE_HINT = "Write the program again in the chosen language and frame (it is written by " \
     "itself when this step opens and when either changes)"
@@ -58,7 +59,8 @@ class ExportPanel(Panel):
                                            "you choose")
         self.frame = g.add_dropdown("Positions in", (BASE,),
                                     hint="The robot base, or a calibrated frame (KRL $BASE, "
-                                         "RAPID wobj, URScript pose_trans, ...)")
+                                         "RAPID wobj, URScript pose_trans, FANUC UFRAME, "
+                                         "...)")
         self.summary = g.add_markdown("")
         self.download = g.add_button("Download", icon=viser.Icon.DOWNLOAD, disabled=True,
                                      color="green")
@@ -229,6 +231,8 @@ def summary_markdown(result: Any) -> str:
     counts = ", ".join(f"{n} {k}" for k, n in sorted(result.primitive_counts.items()))
     ct = getattr(result, "cycle_time", None)
     cycle = "" if ct is None else f" Predicted cycle time **{ct.total_s:.1f} s**."
+    # what the controller's rules changed (a split, joint values, blends), said as written
+    notes = "".join(f"\n\n*Note:* {n}." for n in getattr(result, "notes", ()))
     return (f"**{DIALECT_LABELS.get(result.dialect, result.dialect)}**, {result.primitives} "
             f"motions as written, the move to the start included ({counts}).{cycle} "
-            f"Download gives **{result.download.name}**.")
+            f"Download gives **{result.download.name}**.{notes}")

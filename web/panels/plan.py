@@ -19,6 +19,7 @@ from assistant.session.events import (
     SceneChanged,
     StateChanged,
 )
+from assistant.session.run_state import RunPhase
 from web.panels.base import Panel, busy_reason, gate, why_greyed
 from web.scene.plan import KIND_COLORS
 from web.wording import goal_reached, moves_words, report_rows
@@ -52,7 +53,6 @@ def _cell(text: str) -> str:
     return str(text).replace("|", "/").replace("\n", " ").replace("<", "&lt;")
 
 
-COLLISION_HINT = "Space key. Stops the robot, remembers the posture, re-plans"
 SPEED_HINT = "How fast the simulated robot moves: 1x is as fast as the real robot, slow " \
     "enough to watch it and press Collision! in time"
 
@@ -61,8 +61,8 @@ SPEEDS = {"0.5x real time": 0.5, "1x real time": 1.0, "2x real time": 2.0,
           "5x real time": 5.0, "20x real time": 20.0}
 
 
-HALTED = ("**Halted against something the model does not know: press Collision! (Space) "
-          "to teach it.**")
+DRIVE_FINAL_HINT = ("Drives the robot from where it stands to the start, then through the "
+                    "final program once (drawn in the scene) - to check it on the robot")
 
 
 def speed_label(time_scale: float) -> str:
@@ -81,15 +81,13 @@ class PlanPanel(Panel):
         self.plan = g.add_button("Plan", icon=viser.Icon.ROUTE)
         self.execute = g.add_button("Execute on the robot", icon=viser.Icon.PLAYER_PLAY,
                                     disabled=True)
-        self.collision = g.add_button("Collision!", color="red", icon=viser.Icon.ALERT_OCTAGON,
-                                      disabled=True, hint=COLLISION_HINT)
-        self.stop = g.add_button("Stop", color="orange", icon=viser.Icon.PLAYER_STOP,
-                                 disabled=True)
+        # Collision! and Stop are the toolbar's (one of each on the page, and the Space key)
         self.resume = g.add_button("Resume", icon=viser.Icon.PLAYER_TRACK_NEXT, disabled=True,
                                    hint="Continue a stopped mission from where the robot is")
+        self.drive_final = g.add_button("Drive the final program once",
+                                        icon=viser.Icon.PLAYER_PLAY, visible=False,
+                                        hint=DRIVE_FINAL_HINT)
         self.why = g.add_markdown("")
-        #: Shown only while the simulated robot stands against something unknown.
-        self.halted = g.add_markdown(HALTED, visible=False)
         self.speed = g.add_dropdown(
             "Simulation speed", tuple(SPEEDS), initial_value="1x real time",
             hint=SPEED_HINT)
@@ -100,14 +98,10 @@ class PlanPanel(Panel):
         self.bind(self.plan, lambda e: self.session.start_plan())
         self.bind(self.execute, lambda e: self.session.start_execute(),
                   motion=True)
-        self.bind(self.collision, lambda e: self.session.fire("collision"))
         self.bind(self.speed, lambda e: self._set_speed())
-        self.bind(self.stop, lambda e: self.session.fire("stop"))
         self.bind(self.resume, lambda e: self.session.resume_execution(),
                   motion=True)
-        self._resumable = False
-        #: "Goal reached: ..." after a good run, until the mission is planned again.
-        self._outcome = ""
+        self.bind(self.drive_final, lambda e: self.session.start_drive_final(), motion=True)
 
     def on_enter(self) -> None:
         """Entering the step plans the mission when there is no plan yet (progress and Cancel
@@ -127,24 +121,30 @@ class PlanPanel(Panel):
     def refresh(self) -> None:
         s = self.session
         mode = s.machine.mode.value
+        run = s.run_state()
         has_plan = s.trajectory is not None
         wait = busy_reason(mode)
         label = "Re-plan" if has_plan else "Plan"
         if self.plan.label != label:
             self.plan.label = label
-        not_moving = "" if mode == "moving" else "only while the robot moves"
+        stopped = run.phase == RunPhase.STOPPED
         reasons = {
             label: wait,
             "Execute": wait or ("" if has_plan else "plan the mission first"),
-            "Collision! / Stop": not_moving,
-            "Resume": wait or ("" if self._resumable else "only after a stopped run"),
+            "Resume": wait or ("" if stopped else "only after a stopped run"),
         }
+        shown = {label, "Execute"} | ({"Resume"} if stopped else set())
         gate(self.plan, reasons[label], "Plan the mission in the known world")
         gate(self.execute, reasons["Execute"], "Run the planned mission on the robot")
-        gate(self.collision, not_moving, COLLISION_HINT)
-        gate(self.stop, not_moving, "Halt the robot")
         gate(self.resume, reasons["Resume"], "Continue a stopped mission from where it stopped")
-        _content(self.why, why_greyed(reasons))
+        self.resume.visible = stopped  # a control of a stopped run only
+        offer = run.phase == RunPhase.DONE and run.final_driven is False
+        self.drive_final.visible = offer
+        gate(self.drive_final, wait, DRIVE_FINAL_HINT)
+        # While a run has the robot the heading says what to do; greyed reasons would only
+        # repeat "the robot is moving" under it.
+        _content(self.why, "" if run.robot_in_run else
+                 why_greyed({k: v for k, v in reasons.items() if k in shown}))
         ls = s.link_settings
         self.speed.visible = ls.kind == "simulated"
         gate(self.speed, wait, SPEED_HINT)
@@ -162,31 +162,18 @@ class PlanPanel(Panel):
             plan_text = "Mission not planned yet."
         learnt = "" if not c.collision_indications else \
             f" Collisions learnt: {c.collision_indications}, re-plans: {c.replans}."
-        self.summary.content = (f"**{self._outcome}**\n\n" if self._outcome else "") + \
-            plan_text + learnt
+        outcome = ""
+        if run.phase in (RunPhase.DONE, RunPhase.STOPPED):
+            goal = s.mission.goal
+            head = goal_reached(goal and goal.name, s.last_run) \
+                if run.phase == RunPhase.DONE else ""
+            outcome = "\n\n".join(x for x in (f"**{head}**" if head else "", run.sentence)
+                                  if x) + "\n\n"
+        self.summary.content = outcome + plan_text + learnt
         self.report.content = report_markdown(s.plan_report)
 
     def on_event(self, ev: Event) -> None:
-        if isinstance(ev, RobotHalted):
-            self._halts = getattr(self, "_halts", 0) + 1  # numbered: each wants its press
-            self.halted.content = f"{HALTED} (halt {self._halts} of this run)"
-            self.halted.visible = True
-        elif isinstance(ev, (CollisionRecorded, ExecutionFinished, ErrorRaised)) or \
-                isinstance(ev, StateChanged) and self.session.machine.mode.value != "moving":
-            self.halted.visible = False
-            if not isinstance(ev, CollisionRecorded):
-                self._halts = 0
-        if isinstance(ev, ErrorRaised):
-            self._resumable = "Resume" in ev.message
-        elif isinstance(ev, ExecutionFinished):
-            goal = self.session.mission.goal
-            self._outcome = goal_reached(goal and goal.name, ev.summary) if ev.ok else ""
-            self._after_run = ev.ok
-        elif isinstance(ev, PlanReady):
-            self._resumable = False
-            if not getattr(self, "_after_run", False):
-                self._outcome = ""  # planned again: the last run's outcome is history
-            self._after_run = False
-        if isinstance(ev, (StateChanged, PlanReady, CollisionRecorded, ErrorRaised)) or \
+        if isinstance(ev, (StateChanged, PlanReady, CollisionRecorded, ErrorRaised,
+                           ExecutionFinished, RobotHalted)) or \
                 isinstance(ev, SceneChanged) and ev.what in ("all", "mission", "plan", "world"):
             self.refresh()

@@ -2,18 +2,23 @@
 
 from __future__ import annotations
 
+import threading
+
 from assistant.links.settings import KINDS, LinkSettings
-from assistant.robots.catalog import RobotSpec, ToolSpec
+from assistant.robots.catalog import CATALOG, RobotSpec, ToolSpec
 from assistant.session.events import Event, SceneChanged, StateChanged
 from web.panels.base import Panel
 
-ROBOTS = {"Mitsubishi RV-2AJ (built in)": "rv2aj", "URDF file": "urdf"}
+ROBOTS = {"Mitsubishi RV-2AJ (built in)": "rv2aj",
+          **{arm.label: key for key, arm in CATALOG.items()}, "URDF file": "urdf"}
 LINK_LABELS = {"simulated": "Simulated robot", "melfa": "Mitsubishi CR1 (MELFA, TCP)",
                "kuka_rest": "KUKA via REST bridge",
                "ur": "Universal Robots (RTDE + URScript)",
-               "abb": "ABB IRC5 (Robot Web Services)"}
+               "abb": "ABB IRC5 (Robot Web Services 1.0)",
+               "omnicore": "ABB OmniCore (Robot Web Services 2.0, HTTPS)"}
 #: The port a link kind usually listens on, offered when the operator picks the kind.
-DEFAULT_PORTS = {"melfa": 10001, "kuka_rest": 8000, "abb": 80}
+DEFAULT_PORTS = {"melfa": 10001, "kuka_rest": 8000, "abb": 80, "omnicore": 443}
+RWS_KINDS = frozenset({"abb", "omnicore"})
 #: Links whose ports are fixed by the controller (UR: 30002, 30004, 29999): address only.
 FIXED_PORTS = frozenset({"ur"})
 
@@ -47,12 +52,18 @@ class SetupPanel(Panel):
                 "Simulation speed (x real time)", 1.0, min=0.1, max=50.0, step=0.1,
                 hint="1 = as fast as the real robot; 20 runs a minute's motion in 3 s")
             self.apply_link = g.add_button("Use this link")
+            self.test_link = g.add_button("Test connection",
+                                          hint="Checks the controller before anything moves: "
+                                               "reachable, version, mode, write access, "
+                                               "kinematics, a harmless read")
+            self.check_result = g.add_markdown("")
             self.connect = g.add_button("Connect now")
         self.robot.on_update(lambda e: self._robot_kind_changed())
         self.link_kind.on_update(lambda e: self._link_kind_picked())
         self.bind(self.apply_robot, lambda e: self._choose_robot())
         self.bind(self.apply_link, lambda e: self._set_link())
         self.bind(self.connect, lambda e: self._connect(e.client))
+        self.bind(self.test_link, lambda e: self._test_link())
 
     def _robot_kind_changed(self) -> None:
         self.urdf.visible = ROBOTS[self.robot.value] == "urdf"
@@ -68,7 +79,7 @@ class SetupPanel(Panel):
 
     def _link_kind_changed(self) -> None:
         kind = self._link_kind()
-        self.rws_user.visible = self.rws_password.visible = kind == "abb"
+        self.rws_user.visible = self.rws_password.visible = kind in RWS_KINDS
         sim = kind == "simulated"
         self.host.visible = not sim
         self.port.visible = not sim and kind not in FIXED_PORTS
@@ -91,10 +102,32 @@ class SetupPanel(Panel):
             kw["host"] = self.host.value.strip()
             if kind not in FIXED_PORTS:
                 kw["port"] = int(self.port.value)
-        if kind == "abb":
+        if kind in RWS_KINDS:
             kw["rws_user"] = self.rws_user.value.strip()
             kw["rws_password"] = self.rws_password.value
         self.session.set_link(LinkSettings(**kw))
+
+    def _test_link(self) -> None:
+        """Run the session's checklist off the UI thread; the result is shown on it, one
+        line per item."""
+        self.test_link.disabled = True
+        self.check_result.content = "*Testing the connection...*"
+
+        def show(text: str) -> None:
+            self.check_result.content = text
+            self.test_link.disabled = False
+
+        def work() -> None:
+            try:
+                result = self.session.check_link()
+                head = ("**Connection test: all checks passed**" if result.passed else
+                        "**Connection test: some checks failed**")
+                text = "\n".join([head] + [f"- `{i.line()}`" for i in result.items])
+            except Exception as exc:  # noqa: BLE001 - shown to the operator, page stays up
+                text = f"**Connection test could not run:** {exc}"
+            self.app.pump.post(lambda: show(text))
+
+        threading.Thread(target=work, name="cellteach-link-check", daemon=True).start()
 
     def _connect(self, client) -> None:  # noqa: ANN001
         self.session.link()

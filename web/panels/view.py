@@ -14,8 +14,9 @@ from assistant.session.events import Event, StateChanged
 from web.panels.base import Panel
 from workflow.states import leaves
 
-#: Main steps that show the world model's occupied cells by default.
-OCCUPANCY_STEPS = ("explore",)
+#: Main steps that show the world model's occupied cells by default: none - over a whole
+#: table they hide the cell; the layer is the operator's to turn on (Scene layers).
+OCCUPANCY_STEPS: tuple[str, ...] = ()
 
 #: Panels of the steps come first (10, 20), the layers before the session box (1000).
 VIEW_ORDER = 900.0

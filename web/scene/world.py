@@ -43,7 +43,7 @@ class WorldLayer(Layer):
 
     def __init__(self, app) -> None:  # noqa: ANN001
         super().__init__(app)
-        self.show_occupancy = True
+        self.show_occupancy = False  # a layer the operator turns on (View panel)
         self.show_roads = False
         self.show_learnt = True
         self.show_labels = True
@@ -108,13 +108,14 @@ class WorldLayer(Layer):
         self.occupancy_style = "sprites"
 
     def draw_learnt(self) -> None:
-        """The obstacle the collision indications taught: its occupied cells (those no CAD
-        part explains) as one translucent solid, with a label above it."""
+        """The obstacle the collision indications taught: the part of its occupied cells
+        (those no CAD part explains) outside the arm where it stands (`Session.learnt_view`),
+        as one translucent solid, with a label above it."""
         self.learnt_drawn = 0
-        learnt = self.session.learnt_cells()
-        if learnt is None or not len(learnt.centres):
+        view = self.session.learnt_view()
+        if view is None or not len(view.centres):
             return
-        centres, _p, leaf, R = learnt
+        centres, leaf, R = view.centres, view.edge, view.R_world_grid
         self.learnt_drawn = len(centres)
         surface = voxel_surface(centres, leaf, R, 1.0)
         colors = np.tile(np.array(LEARNT_COLOR, np.uint8), (len(centres), 1))

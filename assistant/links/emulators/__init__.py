@@ -1,8 +1,11 @@
-"""Localhost peers for the links, driven by our kinematic model: a MELFA CR controller
-(TCP text protocol + data link), the 002 KUKA REST bridge (HTTP), a Universal Robots
-controller (RTDE v2, secondary interface with a URScript subset, dashboard) and an ABB IRC5
-speaking RWS 1.0 (HTTP, digest login, mastership; RAPID modules run by
-`abb_rapid_program`). They move in time, answer in the real formats, own hidden obstacles,
-and produce faults on request (`faults.Faults`). Test and demo tools; the product never
-needs them at run time.
+"""Localhost peers for the links, driven by our kinematic model, each in its controller's
+factory state: a MELFA CR controller (TCP text protocol + data link), the 002 KUKA REST
+bridge (HTTP, RV-2AJ) and a KUKA KR C4 running the shipped bridge's own KRL program
+(`kuka_krc_emulator`, KR 6 R900 sixx), a Universal Robots e-Series (RTDE v2, primary and
+secondary interfaces with a URScript subset, dashboard; Local control until switched) and an
+ABB IRC5 / OmniCore speaking RWS 1.0 / 2.0 (digest or Basic over TLS, mastership,
+subscriptions; RAPID modules run by `abb_rapid_program`). They move in time, answer in the
+real formats, own hidden obstacles, and produce faults on request (`faults.Faults`).
+`launch.start` starts one on the vendor's usual ports (``cellteach emulate``). Test and
+demo tools; the product's links never need them.
 """

@@ -1,7 +1,11 @@
 """The RAPID side of the emulated IRC5: files, loaded modules, program pointer, execution
 and the event log, driving an `EmulatedArm`.
 
-``start`` runs main (flattened by `abb_rapid_program`) in a thread from the program pointer;
+The task starts as a shipped controller's does: with a ``MainModule`` holding the cell's own
+``PROC main()`` (`FACTORY_MAIN`), so a second module with a main cannot be loaded (RAPID:
+one main per task). ``resetpp`` puts the program pointer at main, "set PP to routine" at
+any routine without parameters. ``start`` runs from the program pointer (flattened by
+`abb_rapid_program`) in a thread;
 ``stop`` halts the arm and leaves the pointer at the interrupted instruction (a new start
 re-runs it, as RAPID does); ``loadmod``/``unloadmod`` lose the pointer until ``resetpp``. A
 hidden obstacle stops the program with event 50204 (motion supervision); a joint target
@@ -37,6 +41,16 @@ from assistant.links.emulators.cartesian import arc_poses, line_poses
 from assistant.robots.model import Robot
 
 Array = np.ndarray
+
+
+#: The cell's own program a task holds when it ships (RobotStudio's new-controller template).
+FACTORY_MAIN = """MODULE MainModule
+    PROC main()
+        WaitTime 0.1;
+    ENDPROC
+ENDMODULE
+"""
+FACTORY_MAIN_PATH = "$HOME/MainModule.mod"
 
 
 class RwsError(Exception):
@@ -93,6 +107,7 @@ class RapidController:
         self.names: dict[str, str] = {}  # KEY -> the path as written
         self.modules: dict[str, tuple[Module, str]] = {}  # NAME -> (module, file key)
         self.pp: int | None = None
+        self.entry = "MAIN"  # the routine the program pointer was set to
         self.cycle = "once"
         self.motors_on = True
         self.running = False
@@ -104,6 +119,11 @@ class RapidController:
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
         self._tools: dict[bytes, Robot] = {}
+        #: Called with "running" / "stopped" on every change (RWS subscriptions).
+        self.on_exec_change = lambda state: None
+        self.on_log = lambda seqnum: None
+        self.put_file(FACTORY_MAIN_PATH, FACTORY_MAIN.encode())
+        self.modules["MAINMODULE"] = (parse_module(FACTORY_MAIN), self.key(FACTORY_MAIN_PATH))
 
     # ------------------------------------------------------------------ event log
     def log(self, msgtype: int, code: int, title: str, desc: str = "") -> None:
@@ -112,6 +132,8 @@ class RapidController:
             now = datetime.datetime.now().strftime("%Y-%m-%d T  %H:%M:%S")
             self.elog.append(ElogRecord(self._seq, msgtype, code, title, desc, now))
             del self.elog[:-200]  # the controller keeps a bounded log too
+            seq = self._seq
+        self.on_log(seq)
 
     # ------------------------------------------------------------------ files and modules
     @staticmethod
@@ -166,8 +188,23 @@ class RapidController:
                 self._program().steps()  # refuses a task without main
             except RapidError as exc:
                 raise RwsError(400, rp.RC_LOAD_ERROR, str(exc)) from None
-            self.pp = 0
+            self.pp, self.entry = 0, "MAIN"
             self.log(rp.ELOG_INFO, rp.ELOG_PP_RESET, "Program pointer has been reset")
+
+    def set_pp_routine(self, module: str, routine: str) -> None:
+        """The program pointer to the first instruction of `routine` in `module`."""
+        with self.lock:
+            self._idle("move the program pointer")
+            mod = self.modules.get(module.upper())
+            if mod is None:
+                raise RwsError(400, rp.RC_NOT_FOUND, f"module {module} is not loaded")
+            if routine.upper() not in mod[0].procs:
+                raise RwsError(400, rp.RC_NOT_FOUND, f"no routine {routine} in {module}")
+            try:
+                self._program().steps(routine)
+            except RapidError as exc:
+                raise RwsError(400, rp.RC_LOAD_ERROR, str(exc)) from None
+            self.pp, self.entry = 0, routine.upper()
 
     def _program(self) -> Program:
         try:
@@ -183,16 +220,17 @@ class RapidController:
             if self.pp is None:
                 raise RwsError(400, rp.RC_PP_LOST, "program pointer lost: reset it (resetpp)")
             try:
-                steps = self._program().steps()
+                steps = self._program().steps(self.entry)
             except RapidError as exc:
                 raise RwsError(400, rp.RC_LOAD_ERROR, str(exc)) from None
             if cycle != "asis":
                 self.cycle = cycle
-            main = self._program().procs["MAIN"][0]
+            main = self._program().procs[self.entry][0]
             self.runs.append(main)
             self.arm.clear_fault()  # the last collision was reported; start = regain
             self._stop.clear()
             self.running = True
+            self.on_exec_change("running")
             self.log(rp.ELOG_INFO, rp.ELOG_PROGRAM_STARTED, "Program started", main)
             self._thread = threading.Thread(target=self._run, args=(steps,), daemon=True,
                                             name="rapid-T_ROB1")
@@ -225,6 +263,7 @@ class RapidController:
             with self.lock:
                 self.running = False
             self.log(rp.ELOG_INFO, rp.ELOG_PROGRAM_STOPPED, "Program stopped")
+            self.on_exec_change("stopped")
 
     def _execute(self, s: Step) -> None:
         if s.kind == "SETDO":

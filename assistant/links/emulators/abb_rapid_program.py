@@ -119,11 +119,14 @@ class Program:
                                      f"{mod.name}")
                 self.procs[k] = (mod.name, body)
 
-    def steps(self) -> list[Step]:
-        if "MAIN" not in self.procs:
-            raise RapidError("no PROC main() in the loaded modules")
+    def steps(self, entry: str = "MAIN") -> list[Step]:
+        """The instructions from routine `entry` (main unless the PP was set to another)."""
+        entry = entry.upper()
+        if entry not in self.procs:
+            raise RapidError("no PROC main() in the loaded modules" if entry == "MAIN"
+                             else f"no PROC {entry.lower()}() in the loaded modules")
         out: list[Step] = []
-        self._flatten("MAIN", out, ())
+        self._flatten(entry, out, ())
         return out
 
     def _flatten(self, proc: str, out: list[Step], stack: tuple[str, ...]) -> None:

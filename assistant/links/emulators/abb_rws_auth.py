@@ -1,5 +1,5 @@
-"""The IRC5's login for the RWS emulator: HTTP digest (RFC 2617, MD5, qop=auth), then a
-session cookie, and single mastership per session.
+"""The controller's login for the RWS emulator: HTTP digest (RFC 2617, MD5, qop=auth) on an
+IRC5, HTTP Basic on an OmniCore, then a session cookie, and single mastership per session.
 
 A request without a valid session cookie gets ``401`` with a ``WWW-Authenticate: Digest``
 challenge (realm ``validusers@robapi.abb`` as on the controller); a valid digest answer opens
@@ -10,6 +10,7 @@ which relies on the cookie) get through; a wrong password never does.
 
 from __future__ import annotations
 
+import base64
 import hashlib
 import secrets
 import threading
@@ -35,8 +36,10 @@ class Session:
 class DigestSessions:
     """Users, issued nonces, open sessions and the mastership holder (all under one lock)."""
 
-    def __init__(self, users: dict[str, str]):
+    def __init__(self, users: dict[str, str], *, basic: bool = False):
         self.users = dict(users)
+        #: RWS 2.0 (OmniCore) logins are HTTP Basic (over TLS); 1.0 ones digest.
+        self.basic = basic
         self._nonces: set[str] = set()
         self._sessions: dict[str, Session] = {}
         self._lock = threading.Lock()
@@ -44,6 +47,8 @@ class DigestSessions:
         self.master: str | None = None  # session id holding mastership
 
     def challenge(self) -> str:
+        if self.basic:
+            return f'Basic realm="{REALM}"'
         nonce = secrets.token_hex(16)
         with self._lock:
             self._nonces.add(nonce)
@@ -62,13 +67,25 @@ class DigestSessions:
                 s = self._sessions.get(cookie[SESSION_COOKIE].value)
             if s is not None:
                 return s, False
-        user = self._digest_user(method, path, headers.get("Authorization", ""))
+        header = headers.get("Authorization", "")
+        user = self._basic_user(header) if self.basic else \
+            self._digest_user(method, path, header)
         if user is None:
             return None, False
         s = Session(secrets.token_hex(12), user, secrets.token_hex(8))
         with self._lock:
             self._sessions[s.sid] = s
         return s, True
+
+    def _basic_user(self, header: str) -> str | None:
+        if not header.lower().startswith("basic "):
+            return None
+        try:
+            user, _, pw = base64.b64decode(header[6:].strip()).decode("utf-8").partition(":")
+        except (ValueError, UnicodeDecodeError):
+            return None
+        ok = user in self.users and secrets.compare_digest(pw, self.users[user])
+        return user if ok else None
 
     def _digest_user(self, method: str, path: str, header: str) -> str | None:
         if not header.lower().startswith("digest "):

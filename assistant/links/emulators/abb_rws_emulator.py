@@ -23,24 +23,31 @@ from __future__ import annotations
 import argparse
 import contextlib
 import socket
+import ssl
 import threading
 import time
 from collections.abc import Iterable
 from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+from pathlib import Path
 from urllib.parse import parse_qs, unquote, urlsplit
 
 import numpy as np
 
 from assistant.collision.reports import ObstacleView
 from assistant.links import abb_rws_protocol as rp
+from assistant.links.abb_rws_dialect import Rws, v2_to_v1
 from assistant.links.emulators.abb_controller import RapidController, RwsError, confdata
 from assistant.links.emulators.abb_rws_auth import DigestSessions, Session
+from assistant.links.emulators.abb_rws_events import SubscriptionHub, elog_event, exec_event
 from assistant.links.emulators.arm import EmulatedArm
 from assistant.links.emulators.faults import Faults, Received
 from assistant.links.emulators.until_stopped import wait_until_stopped
 from assistant.robots.model import Robot
 
 Array = np.ndarray
+#: The OmniCore emulator's self-signed certificate and key (test only; a controller ships its
+#: own self-signed one too).
+CERTFILE = Path(__file__).with_name("omnicore_selfsigned.pem")
 TASK = "T_ROB1"
 MECHUNIT = "ROB_1"
 CYCLES = ("asis", "once", "forever", "oncedone")
@@ -70,15 +77,24 @@ class AbbRwsEmulator:
         start_q: Array | None = None,
         faults: Faults | None = None,
         unplug_s: float = 0.3,
+        rws_version: int = 1,
+        certfile: str | Path | None = None,
     ):
         self.robot = robot
         self.host = host
+        self.rws = Rws(rws_version)
+        self.certfile = Path(certfile) if certfile else CERTFILE
         self.faults = faults or Faults()
-        self.sessions = DigestSessions(users or {"Default User": "robotics"})
+        self.sessions = DigestSessions(users or {"Default User": "robotics"},
+                                       basic=rws_version == 2)
+        self.events = SubscriptionHub(self.rws.subprotocol)
         self.arm = EmulatedArm(robot, hidden_obstacles=hidden_obstacles, time_scale=time_scale,
                                tick_s=tick_s, start_q=start_q, faults=self.faults,
                                on_drop=self._on_drop)
         self.rapid = RapidController(robot, self.arm, time_scale)
+        self.rapid.on_exec_change = lambda st: self.events.publish(
+            "/rw/rapid/execution;ctrlexecstate", exec_event(st))
+        self.rapid.on_log = lambda n: self.events.publish("/rw/elog/0", elog_event(n))
         self.unplug_s = float(unplug_s)
         self._unplugged_until = 0.0
         self.received: list[Received] = []
@@ -115,6 +131,11 @@ class AbbRwsEmulator:
             allow_reuse_address = True
 
         self._server = Server((self.host, self._port_req), Handler)
+        if self.rws.version == 2:  # OmniCore: HTTPS with the controller's own certificate
+            ctx = ssl.SSLContext(ssl.PROTOCOL_TLS_SERVER)
+            ctx.load_cert_chain(self.certfile)
+            self._server.socket = ctx.wrap_socket(self._server.socket, server_side=True,
+                                                  do_handshake_on_connect=False)
         self._thread = threading.Thread(target=self._server.serve_forever,
                                         kwargs={"poll_interval": 0.05}, name="abb-rws",
                                         daemon=True)
@@ -123,6 +144,7 @@ class AbbRwsEmulator:
         return self
 
     def close(self) -> None:
+        self.events.closing.set()
         self.rapid.stop()
         self.arm.close()
         if self._server is not None:
@@ -144,7 +166,7 @@ class AbbRwsEmulator:
 
     @property
     def base_url(self) -> str:
-        return f"http://{self.host}:{self.port}"
+        return f"{self.rws.scheme}://{self.host}:{self.port}"
 
     def received_paths(self) -> list[str]:
         with self._recv_lock:
@@ -174,18 +196,59 @@ class AbbRwsEmulator:
         form = {k: v[-1] for k, v in parse_qs(body.decode("utf-8", errors="replace")).items()} \
             if method == "POST" else {}
         path = unquote(url.path)
-        base = f"http://{self.host}:{self.port}{path.rsplit('/', 1)[0]}/"
+        v = self.rws.version
+        base = f"{self.base_url}{path.rsplit('/', 1)[0]}/"
+        if path.startswith("/poll/") and method == "GET":
+            self.events.serve(h, int(path.rsplit("/", 1)[-1] or 0))
+            return
         try:
+            if path == "/subscription" and method == "POST":
+                self._subscription(h, body, cookies)
+                return
+            if v == 2:
+                path, query = self._v2(h, method, path, query)
             status, out, ctype = self._route(method, path, query, form, body, session)
         except RwsError as exc:
-            status, out, ctype = exc.http, rp.error_body(base, exc.code, exc.msg), \
+            status, out, ctype = exc.http, rp.error_body(base, exc.code, exc.msg, v), \
                 "application/json"
         except (ValueError, KeyError) as exc:
-            status, out, ctype = 400, rp.error_body(base, rp.RC_BAD_REQUEST, str(exc)), \
+            status, out, ctype = 400, rp.error_body(base, rp.RC_BAD_REQUEST, str(exc), v), \
                 "application/json"
         if isinstance(out, list):
-            out = rp.envelope(base, out)
+            out = rp.envelope(base, out, v)
+        if v == 2 and ctype == "application/json":
+            ctype = "application/hal+json;v=2.0"
         self._send(h, status, out, ctype, extra=cookies)
+
+    def _v2(self, h: BaseHTTPRequestHandler, method: str, path: str, query: dict[str, str],
+            ) -> tuple[str, dict[str, str]]:
+        """An RWS 2.0 request as the 1.0 resource and action it means (`v2_to_v1`)."""
+        if not path.startswith("/rw/"):
+            return path, query
+        if "action" in query:
+            raise RwsError(405, rp.RC_BAD_REQUEST, f"{method} {path}?action=... is RWS 1.0; "
+                           "RWS 2.0 puts the action in the path")
+        if "application/hal+json" not in h.headers.get("Accept", ""):
+            raise RwsError(406, rp.RC_BAD_REQUEST, "Server cannot generate response for given "
+                           "accept header (application/hal+json;v=2.0)")
+        res, action = v2_to_v1(path)
+        query = {**query, "json": "1"}
+        if action is not None:
+            query["action"] = action
+        elif res == "/rw/panel/ctrlstate" and method == "POST":
+            query["action"] = "setctrlstate"
+        return res, query
+
+    def _subscription(self, h: BaseHTTPRequestHandler, body: bytes,
+                      cookies: list[tuple[str, str]]) -> None:
+        n = self.events.create(body.decode("utf-8", errors="replace"))
+        scheme = "wss" if self.rws.version == 2 else "ws"
+        url = f"{scheme}://{self.host}:{self.port}/poll/{n}"
+        page = (f'<?xml version="1.0" encoding="utf-8"?><html xmlns="http://www.w3.org/1999/'
+                f'xhtml"><body><div class="state"><a href="{url}" rel="self">'
+                f'</a></div></body></html>')
+        self._send(h, 201, page, "application/xhtml+xml",
+                   extra=cookies + [("Location", url)])
 
     def _cut(self, h: BaseHTTPRequestHandler) -> None:
         """The cable is out: the connection dies without an answer."""
@@ -260,7 +323,7 @@ class AbbRwsEmulator:
             return [{"_type": "rap-task-li", "_title": TASK, "name": TASK, "type": "norm",
                      "taskstate": "link", "excstate": "started" if c.running else "ready",
                      "active": "On", "motiontask": "TRUE"}]
-        if res == "rapid/modules":
+        if res in ("rapid/modules", f"rapid/tasks/{TASK}/modules"):
             if q.get("task", TASK) != TASK:
                 raise RwsError(400, rp.RC_BAD_REQUEST, f"no task {q.get('task')}")
             with c.lock:
@@ -336,6 +399,13 @@ class AbbRwsEmulator:
                 return
             if action in ("activate", "deactivate"):
                 return
+        elif res == f"rapid/tasks/{TASK}/pcp" and action == "set-pp-routine":
+            self._writable(s, need_master=False)
+            if "routine" not in form:
+                raise RwsError(400, rp.RC_BAD_REQUEST, "set-pp-routine needs routine")
+            module = form.get("module") or self._module_of(form["routine"])
+            c.set_pp_routine(module, form["routine"])
+            return
         elif res == "panel/ctrlstate" and action == "setctrlstate":
             st = form.get("ctrl-state")
             if st not in ("motoron", "motoroff"):
@@ -348,6 +418,13 @@ class AbbRwsEmulator:
         else:
             raise RwsError(404, rp.RC_NOT_FOUND, f"no resource /rw/{res}")
         raise RwsError(400, rp.RC_BAD_REQUEST, f"/rw/{res} has no action {action!r}")
+
+    def _module_of(self, routine: str) -> str:
+        with self.rapid.lock:
+            for name, (mod, _) in self.rapid.modules.items():
+                if routine.upper() in mod.procs:
+                    return name
+        raise RwsError(400, rp.RC_NOT_FOUND, f"no routine {routine} in the task")
 
     def _writable(self, s: Session, *, need_master: bool) -> None:
         if self.sessions.held_by_other(s):

@@ -2,9 +2,22 @@
 example-robot-data in the tests).
 
 Ports, as on a real controller (each 0 = any free port here): RTDE (30004,
-`ur_rtde_server`), the secondary client interface (30002: URScript in, robot messages out,
-`ur_primary`), and the dashboard server (29999: text commands such as ``unlock protective
-stop``, ``power on``, ``brake release``, ``robotmode``, ``safetystatus``). A received program
+`ur_rtde_server`), the primary client interface (30001: URScript in; robot state at 10 Hz -
+robot mode, the calibrated kinematics - and robot messages out, `ur_primary`), the secondary
+interface (30002: URScript in, robot state out, no messages), and the dashboard server
+(29999: ``is in remote control``, ``unlock protective stop``, ``power on``, ``brake
+release``, ``robotmode``, ``safetystatus``, ``get serial number``, ...). The state stream
+carries a sub-package and, now and then, a package of types no client knows, as newer
+controllers do.
+
+Factory state (an e-Series, software 5.11, as it ships): *Local control* - the primary and
+secondary interfaces close every connection and the dashboard refuses ``power on``,
+``brake release``, ``unlock protective stop`` and program commands with UR's sentence -
+until `set_remote_control(True)` (the pendant's toggle; ``--remote`` on the command line).
+A CB3 (software 3.x) has no such mode and streams RTDE at 125 Hz at most. The arm is
+calibrated: `calibration` (default `ur_kinematics.factory_calibration`, a few mm from
+nominal) is published on the primary interface and is what the controller computes its TCP
+and solves ``movel`` with; collisions are checked on the nominal model. A received program
 is compiled first (`ur_script_interp`; anything outside the subset is a compile error
 reported as a runtime-exception message, and nothing moves), then run on a thread; a new
 program replaces the running one, as on a UR. Motions run on `EmulatedArm` at infinite
@@ -33,6 +46,7 @@ from collections.abc import Iterable
 import numpy as np
 
 from assistant.collision.reports import ObstacleView
+from assistant.links import ur_kinematics as uk
 from assistant.links import ur_primary as up
 from assistant.links import ur_rtde_wire as w
 from assistant.links.emulators.arm import CollisionInfo, EmulatedArm
@@ -46,6 +60,15 @@ from assistant.robots.model import Robot
 Array = np.ndarray
 UNLOCK_REFUSED = ("Cannot unlock protective stop until 5s after occurrence. Always inspect "
                   "cause of protective stop before unlocking")
+#: The dashboard's answer to a command an e-Series in Local control does not take.
+NOT_REMOTE = ("Command is not allowed due to safety reasons, please switch robot to Remote "
+              "Control mode and reconnect to port 29999")
+#: Dashboard commands an e-Series takes in Local control too (reading, not acting).
+LOCAL_ALLOWED = ("robotmode", "safetystatus", "safetymode", "is in remote control",
+                 "polyscopeversion", "get serial number", "get robot model", "programstate",
+                 "running", "get loaded program", "is program saved", "get operational mode",
+                 "quit")
+STATE_PERIOD_S = 0.1  # robot state packages on 30001/30002: 10 Hz
 
 
 class UREmulator:
@@ -53,13 +76,26 @@ class UREmulator:
 
     def __init__(self, robot: Robot, *, hidden_obstacles: Iterable[ObstacleView] = (),
                  host: str = "127.0.0.1", rtde_port: int = 0, script_port: int = 0,
-                 dashboard_port: int = 0, time_scale: float = 1.0, tick_s: float = 0.004,
-                 start_q: Array | None = None, faults: Faults | None = None,
-                 unlock_delay_s: float = 5.0,
-                 version: tuple[int, int, int, int] = (5, 11, 1, 108318)):
-        self.base_robot = robot
-        self.robot = robot  # with the TCP of the running program
+                 dashboard_port: int = 0, primary_port: int = 0, time_scale: float = 1.0,
+                 tick_s: float = 0.004, start_q: Array | None = None,
+                 faults: Faults | None = None, unlock_delay_s: float = 5.0,
+                 version: tuple[int, int, int, int] = (5, 11, 1, 108318),
+                 local_mode: bool | None = None, realtime_port: int = 0,
+                 calibration: up.KinematicsInfo | None | bool = True,
+                 serial: str = "20235500001"):
+        self.model_name, _, _ = uk.identify(robot)
+        if calibration is True:
+            calibration = uk.factory_calibration(self.model_name) if self.model_name else None
+        self.calibration: up.KinematicsInfo | None = calibration or None
+        #: The controller's own arm: base = its base frame, flange = tool0, calibrated.
+        self.base_robot = robot if self.calibration is None else \
+            uk.calibrated_robot(self.calibration, robot)
+        self.robot = self.base_robot.with_tool(robot.T_flange_tool)  # the installation TCP
         self.host, self.version = host, version
+        self.serial = serial
+        e_series = version[0] >= 5
+        self.remote_control = not e_series if local_mode is None else \
+            (not local_mode or not e_series)
         self.faults = faults or Faults()
         self.time_scale = float(time_scale)
         self.unlock_delay_s = float(unlock_delay_s)
@@ -81,10 +117,13 @@ class UREmulator:
         self.runner = ScriptRunner(self)
         self.rtde = RtdeServer(self.snapshot, self.faults, host=host, port=rtde_port,
                                version=version)
+        self._primary_srv = socket.create_server((host, primary_port))
         self._script_srv = socket.create_server((host, script_port))
+        self._realtime_srv = socket.create_server((host, realtime_port))
         self._dash_srv = socket.create_server((host, dashboard_port))
         self._conns: set[socket.socket] = set()
-        self._script_conns: set[socket.socket] = set()
+        self._script_conns: set[socket.socket] = set()  # 30002: robot state only
+        self._primary_conns: set[socket.socket] = set()  # 30001: state and messages
         self._stop = threading.Event()
         self._threads: list[threading.Thread] = []
 
@@ -92,13 +131,18 @@ class UREmulator:
     def start(self) -> UREmulator:
         self.arm.start()
         self.rtde.start()
-        for srv, fn in ((self._script_srv, self._serve_script),
+        for srv, fn in ((self._primary_srv, self._serve_primary),
+                        (self._script_srv, self._serve_script),
+                        (self._realtime_srv, self._serve_realtime),
                         (self._dash_srv, self._serve_dashboard)):
             srv.settimeout(0.05)
             th = threading.Thread(target=self._accept, args=(srv, fn), daemon=True,
                                   name="ur-emulator-accept")
             th.start()
             self._threads.append(th)
+        th = threading.Thread(target=self._state_loop, daemon=True, name="ur-emulator-state")
+        th.start()
+        self._threads.append(th)
         return self
 
     def close(self) -> None:
@@ -109,7 +153,7 @@ class UREmulator:
         self.drop_connections()
         for th in self._threads:
             th.join(timeout=2.0)
-        for srv in (self._script_srv, self._dash_srv):
+        for srv in (self._primary_srv, self._script_srv, self._realtime_srv, self._dash_srv):
             srv.close()
 
     def __enter__(self) -> UREmulator:
@@ -127,6 +171,24 @@ class UREmulator:
         return self._script_srv.getsockname()[1]
 
     @property
+    def primary_port(self) -> int:
+        return self._primary_srv.getsockname()[1]
+
+    @property
+    def realtime_port(self) -> int:
+        return self._realtime_srv.getsockname()[1]
+
+    def set_remote_control(self, on: bool) -> None:
+        """The pendant's Local / Remote toggle; leaving Remote drops 30001-30003 clients."""
+        with self._lock:
+            self.remote_control = bool(on) or self.version[0] < 5
+            conns = [] if self.remote_control else \
+                list(self._primary_conns | self._script_conns)
+        for c in conns:
+            with contextlib.suppress(OSError):
+                c.shutdown(socket.SHUT_RDWR)
+
+    @property
     def dashboard_port(self) -> int:
         return self._dash_srv.getsockname()[1]
 
@@ -135,7 +197,8 @@ class UREmulator:
         (in that order, so no client reads the stopped program before the wire goes)."""
         self.rtde.drop_clients()
         with self._lock:
-            conns, self._conns, self._script_conns = list(self._conns), set(), set()
+            conns, self._conns = list(self._conns), set()
+            self._script_conns, self._primary_conns = set(), set()
         for c in conns:
             with contextlib.suppress(OSError):
                 c.shutdown(socket.SHUT_RDWR)
@@ -179,6 +242,34 @@ class UREmulator:
             snap[f"output_int_register_{i}"] = int(v)
         return snap
 
+    def mode_data(self) -> up.RobotModeData:
+        with self._lock:
+            mode, smode = self.robot_mode, self.safety_mode
+        return up.RobotModeData(
+            power_on=mode in (w.RobotMode.POWER_ON, w.RobotMode.IDLE, w.RobotMode.RUNNING),
+            emergency_stopped=smode in w.EMERGENCY_STOPS,
+            protective_stopped=smode == w.SafetyMode.PROTECTIVE_STOP,
+            program_running=self.runner.running, robot_mode=int(mode))
+
+    def _state_loop(self) -> None:
+        """Robot state packages at 10 Hz to 30001 and 30002 clients; every tenth also a
+        package type no client knows (clients must skip it by its length)."""
+        k = 0
+        while not self._stop.wait(STATE_PERIOD_S):
+            subs = [up.robot_mode_sub(self.mode_data())]
+            if self.calibration is not None:
+                subs.append(up.kinematics_sub(self.calibration))
+            subs.append(up.unknown_package(99, b"\x00" * 12))  # a sub-package of the future
+            pkg = up.robot_state(*subs)
+            if k % 10 == 0:
+                pkg = up.unknown_package(24, b"\x01" * 40) + pkg  # e.g. safety compliance
+            k += 1
+            with self._lock:
+                conns = list(self._primary_conns | self._script_conns)
+            for c in conns:
+                with contextlib.suppress(OSError):
+                    c.sendall(pkg)
+
     def set_tcp(self, T_flange_tool: Array | None) -> None:
         with self._lock:
             self.robot = self.base_robot if T_flange_tool is None \
@@ -193,7 +284,8 @@ class UREmulator:
             self._pstop_at = time.monotonic()
         self.runner.abort()
         self.arm.stop_all("stopped")
-        self.broadcast(up.pack_robot_message(up.MSG_SAFETY_MODE, why.encode()), why)
+        self.broadcast(up.safety_mode_message(153, 1, int(w.SafetyMode.PROTECTIVE_STOP), why),
+                       why)
 
     def press_emergency_stop(self) -> None:
         with self._lock:
@@ -208,10 +300,11 @@ class UREmulator:
                 self.safety_mode = w.SafetyMode.NORMAL
 
     def broadcast(self, package: bytes, text: str) -> None:
-        """Send a robot message to every secondary-interface client."""
+        """Send a robot message to every primary-interface client (the secondary interface
+        carries no messages)."""
         with self._lock:
             self.messages.append(text)
-            conns = list(self._script_conns)
+            conns = list(self._primary_conns)
         for c in conns:
             with contextlib.suppress(OSError):
                 c.sendall(package)
@@ -240,6 +333,7 @@ class UREmulator:
             with self._lock:
                 self._conns.discard(sock)
                 self._script_conns.discard(sock)
+                self._primary_conns.discard(sock)
             with contextlib.suppress(OSError):
                 sock.close()
 
@@ -255,11 +349,24 @@ class UREmulator:
                 return
             yield data.decode("utf-8", errors="replace")
 
-    def _serve_script(self, sock: socket.socket) -> None:
-        major, minor, bugfix, build = self.version
-        sock.sendall(up.version_message("URControl", major, minor, bugfix, build))
+    def _serve_primary(self, sock: socket.socket) -> None:
+        self._serve_script(sock, primary=True)
+
+    def _serve_realtime(self, sock: socket.socket) -> None:
+        """30003 takes URScript too (its 500 Hz state stream is not emulated)."""
+        self._serve_script(sock, realtime=True)
+
+    def _serve_script(self, sock: socket.socket, primary: bool = False,
+                      realtime: bool = False) -> None:
         with self._lock:
-            self._script_conns.add(sock)
+            if not self.remote_control:
+                return  # Local control: the connection is dropped at once
+        major, minor, bugfix, build = self.version
+        if primary:
+            sock.sendall(up.version_message("URControl", major, minor, bugfix, build))
+        with self._lock:
+            if not realtime:
+                (self._primary_conns if primary else self._script_conns).add(sock)
         buf = ""
         for chunk in self._lines(sock):
             if chunk is None:
@@ -321,10 +428,38 @@ class UREmulator:
                 if delay > 0:
                     time.sleep(delay)
                 sock.sendall((reply + "\n").encode())
+                if reply == "Disconnected":
+                    return
 
     def _dashboard(self, cmd: str) -> str:
-        c = cmd.lower()
+        c = " ".join(cmd.lower().split())
         with self._lock:
+            if not self.remote_control and not c.startswith(LOCAL_ALLOWED):
+                return NOT_REMOTE
+            if c == "is in remote control":
+                if self.version[0] < 5:
+                    return f"could not understand: '{cmd}'"
+                return "true" if self.remote_control else "false"
+            if c == "get serial number":
+                return self.serial
+            if c == "get robot model":
+                return (self.model_name or "UR5").rstrip("e")
+            if c == "get operational mode":
+                return "NONE"  # no operational-mode password set: as shipped
+            if c == "running":
+                return f"Program running: {str(self.runner.running).lower()}"
+            if c == "get loaded program":
+                return "No program loaded"
+            if c == "is program saved":
+                return "true <unnamed>"
+            if c == "quit":
+                return "Disconnected"
+            if c.startswith("popup "):
+                return "showing popup"
+            if c == "close popup":
+                return "closing popup"
+            if c.startswith("addtolog "):
+                return "Added log message"
             if c == "robotmode":
                 return f"Robotmode: {self.robot_mode.name}"
             if c in ("safetystatus", "safetymode"):
@@ -357,6 +492,10 @@ class UREmulator:
                 return f"{'PLAYING' if self.runner.running else 'STOPPED'} {name}"
             if c == "polyscopeversion":
                 return "URSoftware {}.{}.{}.{} (emulated)".format(*self.version)
+            if c == "power off":
+                self.runner.abort()
+                self.robot_mode = w.RobotMode.POWER_OFF
+                return "Powering off"
         return f"could not understand: '{cmd}'"
 
 
@@ -369,22 +508,28 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--rtde-port", type=int, default=30004)
     ap.add_argument("--script-port", type=int, default=30002)
     ap.add_argument("--dashboard-port", type=int, default=29999)
+    ap.add_argument("--primary-port", type=int, default=30001)
+    ap.add_argument("--remote", action="store_true",
+                    help="start in Remote control (a shipped e-Series starts in Local)")
     ap.add_argument("--time-scale", type=float, default=1.0)
     ap.add_argument("--reply-delay-ms", type=float, default=0.0)
     args = ap.parse_args(argv)
     urdf, share = installed_robot_urdf(
         "example-robot-data/robots/ur_description/urdf/ur5_robot.urdf")
-    robot = URDFRobot.from_file(urdf, package_dirs=[share], load_visual=False)
+    robot = URDFRobot.from_file(urdf, package_dirs=[share], load_visual=False,
+                                tool_link="tool0")
     faults = Faults(reply_delay_s=args.reply_delay_ms / 1000.0)
     q0 = np.array([0.0, -1.57, 1.57, -1.57, -1.57, 0.0])
     emu = UREmulator(robot, host=args.host, rtde_port=args.rtde_port,
                      script_port=args.script_port, dashboard_port=args.dashboard_port,
-                     time_scale=args.time_scale, start_q=q0, faults=faults)
+                     primary_port=args.primary_port, time_scale=args.time_scale, start_q=q0,
+                     faults=faults, local_mode=not args.remote)
     from assistant.links.emulators.until_stopped import wait_until_stopped
 
     with emu:
-        print(f"UR emulator on {args.host}: rtde :{emu.rtde_port} script :{emu.script_port} "
-              f"dashboard :{emu.dashboard_port}; Ctrl-C to stop", flush=True)
+        print(f"UR emulator on {args.host}: rtde :{emu.rtde_port} primary :{emu.primary_port} "
+              f"script :{emu.script_port} dashboard :{emu.dashboard_port}; Ctrl-C to stop",
+              flush=True)
         wait_until_stopped()
 
 

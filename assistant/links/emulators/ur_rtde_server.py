@@ -3,7 +3,8 @@
 One thread per client: it answers control packages (protocol version, controller version,
 output setup, start, pause; input setup is answered ``NOT_FOUND``-free only for nothing -
 this controller model takes no RTDE inputs, and says so) and, once started, sends one data
-package per period of the recipe's frequency (at most 500 Hz, as an e-Series). Faults: a
+package per period of the recipe's frequency (at most 500 Hz on an e-Series, 125 Hz on a
+CB3: software 3.x). Faults: a
 reply delay stalls every package by that long; a garbled reply replaces one package's bytes.
 """
 
@@ -32,6 +33,7 @@ class RtdeServer:
         self.snapshot = snapshot
         self.faults = faults
         self.version = version
+        self.max_hz = 125.0 if version[0] < 5 else MAX_HZ
         self._srv = socket.create_server((host, port))
         self._srv.settimeout(0.05)
         self._stop = threading.Event()
@@ -127,8 +129,9 @@ class RtdeServer:
                 return w.text_message("output setup without frequency", level=2), recipe, None
             (hz,) = struct.unpack_from(">d", body)
             names = [n for n in body[8:].decode("ascii", errors="replace").split(",") if n]
-            if not 0.0 < hz <= MAX_HZ:
-                return (w.text_message(f"Requested frequency {hz} Hz is outside 0-{MAX_HZ:g}",
+            if not 0.0 < hz <= self.max_hz:
+                return (w.text_message(f"Requested frequency {hz} Hz is outside "
+                                       f"0-{self.max_hz:g}",
                                        level=2), recipe, None)
             types = [w.OUTPUTS.get(n, "NOT_FOUND") for n in names]
             reply = w.pack(cmd, bytes([1]) + ",".join(types).encode())

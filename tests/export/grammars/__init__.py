@@ -1,23 +1,24 @@
-"""Independent readers of the four exported dialects: a lark grammar of each controller's
-documented syntax (`melfa.lark`, `krl.lark`, `rapid.lark`, `urscript.lark`) and a small
-checker on its parse tree for what a grammar cannot say (declarations, names, number
-formats, line lengths, argument shapes). Written from the vendors' manuals, never from our
-writers: nothing here imports `assistant` (a test checks it), so a writer's mistake cannot
-hide in a reader that shares its code.
+"""Independent readers of the exported dialects: a lark grammar of each controller's
+documented syntax (`melfa.lark`, `krl.lark`, `rapid.lark`, `urscript.lark`, `fanuc.lark`,
+`yaskawa.lark`) and a small checker on its parse tree for what a grammar cannot say
+(declarations, names, number formats, line lengths, argument shapes). Written from the
+vendors' manuals, never from our writers: nothing here imports `assistant` (a test checks
+it), so a writer's mistake cannot hide in a reader that shares its code.
 
     check_text("melfa", {"THESIS.MB4": text, "THESIS.POS": text}) -> ["THESIS.MB4 line 7: ..."]
 
-`check_report` also gives the motion and position counts. Tests import this package as
+`check_report` also gives the motion and position counts (and, for FANUC and Yaskawa, the
+positions' values as written: `Report.targets`). Tests import this package as
 `grammars` (pytest puts tests/export on the path); a script adds tests/export to sys.path.
 """
 
 from __future__ import annotations
 
-from grammars import krl, melfa, rapid, urscript
+from grammars import fanuc, krl, melfa, rapid, urscript, yaskawa
 from grammars._base import Report
 
 CHECKERS = {"melfa": melfa.check, "krl": krl.check, "rapid": rapid.check,
-            "urscript": urscript.check}
+            "urscript": urscript.check, "fanuc": fanuc.check, "yaskawa": yaskawa.check}
 
 __all__ = ["CHECKERS", "Report", "check_report", "check_text"]
 

@@ -1,4 +1,4 @@
-"""What the four independent readers share: loading a grammar, turning a lark error into one
+"""What the independent readers share: loading a grammar, turning a lark error into one
 line of text that names the file and line, and the report a checker returns.
 
 Nothing here (or anywhere in this package) imports `assistant`: the readers are written from
@@ -26,6 +26,9 @@ class Report:
     problems: list[str] = field(default_factory=list)
     motions: int = 0
     positions: int = 0
+    #: The positions as written, for a round trip through the kinematics (the readers that
+    #: collect them: FANUC, Yaskawa): file, number, name, frame numbers, values, flags.
+    targets: list[dict] = field(default_factory=list)
 
     def add(self, fname: str, line: int | None, message: str) -> None:
         where = f"{fname} line {line}" if line else fname
