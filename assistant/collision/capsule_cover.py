@@ -222,9 +222,11 @@ def capsule_along(P: Array, axis: Array, iterations: int = 20,
     t = P @ axis
     Y = P - np.outer(t, axis)  # projections onto the plane through 0 across the axis
     c = 0.5 * (Y.min(axis=0) + Y.max(axis=0))
+    c -= (c @ axis) * axis  # in the plane (a box's middle need not be): the line's point
     for i in range(2, iterations + 2):
         far = Y[int(np.argmax(((Y - c) ** 2).sum(axis=1)))]
         c = c + (far - c) / (i + 1)
+    c -= (c @ axis) * axis  # rounding: the ends below are measured from the plane
     d2 = ((Y - c) ** 2).sum(axis=1)
     r = float(np.sqrt(d2.max()))
     slack = np.sqrt(np.maximum(r * r - d2, 0.0))

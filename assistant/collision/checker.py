@@ -13,6 +13,7 @@ sampled sweep of the joint space, computed once per robot description.
 
 from __future__ import annotations
 
+import copy
 import threading
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -206,11 +207,28 @@ class CollisionChecker(MotionChecks):
         #: Mesh robots (URDF arms) ask the fast model first (`fast_prefilter`).
         self._has_mesh = any(rs.shape.kind == ShapeKind.MESH for rs in self._rshapes)
         self._frame_fix: tuple[Array, Array] | None = None  # `_link_frames`
+        #: False in the view `exact_only` returns: FCL and the robot's own kinematics only.
+        self._use_fast = True
+
+    def exact_only(self) -> CollisionChecker:
+        """This checker without the fast model: its own broad phase and FCL on the shapes
+        posed by the robot's own kinematics (not the fast model's compiled chain). What
+        certifies a finished path, so a fault of the fast model cannot pass one; the
+        same as this checker for a robot of primitive shapes (it asks no fast model)."""
+        if not self._has_mesh:
+            return self
+        view = copy.copy(self)
+        view._use_fast = False
+        view._fast_model = None
+        view._frame_fix = None
+        return view
 
     @property
     def fast(self) -> CollisionChecker | None:
         """The fast conservative model of this checker's robot and obstacles
         (`fast_checker.FastChecker`), built on first use; None for a robot it cannot pose."""
+        if not self._use_fast:
+            return None
         if self._fast_model is False:
             from assistant.collision.fast_checker import FastChecker
             from assistant.collision.fast_model import fast_robot
@@ -390,7 +408,7 @@ class CollisionChecker(MotionChecks):
         """The fast model, asked first by a mesh robot's checks (`fast_prefilter`): what
         it calls free is free, only the rest reaches this checker's own passes and FCL.
         Robots of primitive shapes (the RV-2AJ) are answered as fast without it."""
-        return self.fast if self._has_mesh else None
+        return self.fast if self._has_mesh and self._use_fast else None
 
     def _fast_scale(self) -> float:
         """Factor that turns the fast model's margins into this checker's: its arm radii
@@ -598,7 +616,7 @@ class CollisionChecker(MotionChecks):
         compiled chain (`fast_model.FastRobot`: its frames turned back into the robot's,
         L_k = G L'_k to_fast_k), where numpy's batch FK costs ~1 ms a call; else the
         robot's own."""
-        if not self._has_mesh or len(Q) == 0:
+        if not self._has_mesh or not self._use_fast or len(Q) == 0:
             return self.robot.batch_link_poses(Q)
         fast = self.fast
         if fast is None:

@@ -22,6 +22,7 @@ cannot pose).
 
 from __future__ import annotations
 
+import hashlib
 import threading
 
 import fcl
@@ -42,7 +43,7 @@ from assistant.robots.model import CollisionShape
 Array = np.ndarray
 
 #: A self pair is close when its capsules overlap, with the real shapes apart, in more
-#: than this share of uniform postures.
+#: than this share of the uniform postures the real pair is apart in.
 CLOSE_SHARE = 0.05
 _CLOSE_CACHE: dict[str, frozenset[int]] = {}
 _CLOSE_LOCK = threading.Lock()
@@ -118,6 +119,8 @@ class FastChecker(CollisionChecker):
         A = np.eye(4) if la == 0 else F[la - 1]
         caps_a = [(c.a, c.b, c.r) for c in (rob.capsules[f] for f in self._caps_of[a])]
         caps_b = [(c.a, c.b, c.r) for c in (rob.capsules[f] for f in self._caps_of[b])]
+        # a node holds distances of these capsules: a table kept for others is not theirs
+        key += (_digest(caps_a + caps_b),)
         if gap == 2:
             C = np.eye(4)
             pieces = [(rb.shape, rob.to_fast[rb.link] @ rb.shape.T_link_shape)]
@@ -365,9 +368,18 @@ class FastChecker(CollisionChecker):
         return obj
 
 
+def _digest(caps: list[tuple[Array, Array, float]]) -> str:
+    """A short hash of capsules' numbers (a table key's part)."""
+    h = hashlib.sha256()
+    for a, b, r in caps:
+        h.update(np.concatenate([a, b, [r]]).astype(float).tobytes())
+    return h.hexdigest()[:16]
+
+
 def close_pairs(fast: FastChecker, n: int = 600, seed: int = 7) -> frozenset[int]:
     """The exact checker's self pairs (indices) whose capsules overlap while the real
-    shapes are apart in more than `CLOSE_SHARE` of `n` uniform postures (cached per robot
+    shapes are apart in more than `CLOSE_SHARE` of the pair's free postures among `n`
+    uniform ones (cached per robot
     description: one sweep per robot and tool)."""
     key = fast.robot.description_hash()
     with _CLOSE_LOCK:
@@ -388,10 +400,16 @@ def close_pairs(fast: FastChecker, n: int = 600, seed: int = 7) -> frozenset[int
     for p in range(self_c.shape[1]):
         overlap[:, fast.exact_pair[p]] |= self_c[:, p]
     false = np.zeros(n_exact)
+    apart = np.full(n_exact, float(n))  # postures with the real pair apart
     for e in range(n_exact):
         rows = np.flatnonzero(overlap[:, e])
-        false[e] = sum(not fast._exact_collide(frames[k], e) for k in rows.tolist())
-    out = frozenset(int(e) for e in np.flatnonzero(false / n > CLOSE_SHARE))
+        touch = sum(fast._exact_collide(frames[k], e) for k in rows.tolist())
+        false[e] = len(rows) - touch
+        apart[e] -= touch
+    # a share of the postures the pair is apart in: a pair that folds onto itself in most
+    # of its range (a KUKA's upper arm and forearm) is close all the same where it is not
+    out = frozenset(int(e) for e in np.flatnonzero(false / np.maximum(apart, 1.0)
+                                                   > CLOSE_SHARE))
     with _CLOSE_LOCK:
         _CLOSE_CACHE[key] = out
     return out

@@ -209,7 +209,7 @@ class FastRobot(Robot):
 
 
 #: Bump when the capsule fitting changes: cached fits of the old one are not reused.
-FIT_VERSION = 2
+FIT_VERSION = 3
 _FITS: dict[str, dict[tuple[int, int], list[Capsule]]] = {}
 
 
