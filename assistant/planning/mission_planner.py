@@ -42,6 +42,7 @@ from assistant.collision.checker import CollisionChecker
 from assistant.collision.reports import ObstacleView
 from assistant.mission.model import Location, Mission
 from assistant.mission.motion import Trajectory
+from assistant.planning.certify import all_exact, certificate_refusal, needs_certificate
 from assistant.planning.config import MissionPlannerConfig
 from assistant.planning.joint_moves import prefer_joint_moves
 from assistant.planning.joint_rrt import joint_space_plan
@@ -159,7 +160,36 @@ class MissionPlanner:
     def plan_transfer(self, q_start: Array, q_goal: Array, *, exploring: bool = False,
                       label: str = "transfer", progress: Progress | None = None,
                       roadmap_plan: RoadmapPlan | None = None) -> TransferResult:
-        """Roadmap query + smoothing + verification of one transfer q_start -> q_goal."""
+        """Roadmap query + smoothing + verification of one transfer q_start -> q_goal; on a
+        mesh arm certified by the exact check alone, planned again with every check exact
+        if that refuses (`certify`)."""
+        res = self._plan_transfer(q_start, q_goal, exploring=exploring, label=label,
+                                  progress=progress, roadmap_plan=roadmap_plan)
+        if not res.ok or res.piece is None or not needs_certificate(self):
+            return res
+        t0 = time.perf_counter()
+        refusal = certificate_refusal(self, res.piece.trajectory)
+        if not refusal:
+            return replace(res, smoothing_seconds=res.smoothing_seconds
+                           + time.perf_counter() - t0)
+        with all_exact(self):  # the repair: the fast model is not asked again
+            again = self._plan_transfer(q_start, q_goal, exploring=exploring, label=label,
+                                        progress=progress)
+        why = again.report.reason
+        if again.ok and again.piece is not None:
+            why = certificate_refusal(self, again.piece.trajectory)
+            if not why:
+                rep = replace(again.report, notes=again.report.notes + (
+                    f"planned again with exact checks only ({refusal})",))
+                return replace(again, report=rep)
+        rep = PieceReport(label, "transfer", False, f"{refusal}; planned again with exact "
+                          f"checks only: {why}", seconds=time.perf_counter() - t0)
+        return TransferResult(False, None, rep, None, res.roadmap_seconds)
+
+    def _plan_transfer(self, q_start: Array, q_goal: Array, *, exploring: bool = False,
+                       label: str = "transfer", progress: Progress | None = None,
+                       roadmap_plan: RoadmapPlan | None = None) -> TransferResult:
+        """`plan_transfer` without the certificate."""
         q_s = np.asarray(q_start, dtype=float)
         q_g = np.asarray(q_goal, dtype=float)
         t0 = time.perf_counter()
@@ -175,27 +205,25 @@ class MissionPlanner:
                 rep = PieceReport(label, "transfer", True, "", asm.report, t1 - t0, "direct",
                                   notes)
                 return TransferResult(True, piece, rep, None, t1 - t0, 0.0)
-            if True:
-                # one via round what is in the way; else on a 6- or 7-axis arm - where the
-                # straight move is free but closer than the clearance - that move, as the
-                # roads' direct answer always was there
-                asm = via_move(self.robot, self.world, q_s, q_g,
-                               **self._form_args(q_s, label))
-                how, searched = ("two joint moves through a valid posture, keeping the "
-                                 "clearance"), "one via"
-                if asm is None and direct_c >= 0.0 and self.world.sampled:
-                    traj = _joint_moves(self.robot, [q_s, q_g], label, self.config.assembly)
-                    checked = verify(self.robot, traj, self.verifier,
-                                     clearance_step=self.config.assembly.clearance_step)
-                    if checked.ok:
-                        asm, searched = checked, "direct"
-                        how = "one joint move: the straight joint motion is free"
-                if asm is not None:
-                    t1 = time.perf_counter()
-                    piece = PlanPiece(PieceKind.TRANSFER, label, asm.trajectory, asm.report)
-                    rep = PieceReport(label, "transfer", True, "", asm.report, t1 - t0,
-                                      searched, (how,))
-                    return TransferResult(True, piece, rep, None, t1 - t0, 0.0)
+            # one via round what is in the way; else on a 6- or 7-axis arm - where the
+            # straight move is free but closer than the clearance - that move, as the
+            # roads' direct answer always was there
+            asm = via_move(self.robot, self.world, q_s, q_g, **self._form_args(q_s, label))
+            how, searched = ("two joint moves through a valid posture, keeping the "
+                             "clearance"), "one via"
+            if asm is None and direct_c >= 0.0 and self.world.sampled:
+                traj = _joint_moves(self.robot, [q_s, q_g], label, self.config.assembly)
+                checked = verify(self.robot, traj, self.verifier,
+                                 clearance_step=self.config.assembly.clearance_step)
+                if checked.ok:
+                    asm, searched = checked, "direct"
+                    how = "one joint move: the straight joint motion is free"
+            if asm is not None:
+                t1 = time.perf_counter()
+                piece = PlanPiece(PieceKind.TRANSFER, label, asm.trajectory, asm.report)
+                rep = PieceReport(label, "transfer", True, "", asm.report, t1 - t0,
+                                  searched, (how,))
+                return TransferResult(True, piece, rep, None, t1 - t0, 0.0)
         plan = roadmap_plan if roadmap_plan is not None else self.roadmap.plan(
             q_s, q_g, progress.sub(0.0, 0.2) if progress else None,
             direct=direct_c < 0.0)  # free but too close: look for a way round first
