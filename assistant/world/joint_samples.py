@@ -24,7 +24,7 @@ from __future__ import annotations
 import hashlib
 import json
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -51,6 +51,8 @@ class SampledTable(JointStore):
     """Joint positions per reachable leaf from a fixed sample budget (module docstring)."""
 
     index: Array | None = None  # (S, dof) int32 per-joint grid indices; ids are its rows
+    #: (joint, ids sorted by its grid index, those indices): `prepare_box_queries`.
+    _by_joint: tuple[int, Array, Array] | None = field(default=None, repr=False)
 
     kind = "samples"
     extra_arrays = ("index",)
@@ -64,14 +66,34 @@ class SampledTable(JointStore):
         assert self.index is not None
         return self.lower + self.index[np.asarray(ids, dtype=np.int64)] * self.step
 
-    def ids_in_box(self, q: Array, half_steps: float) -> Array:
-        """Ids within `half_steps` steps of q in every varying joint (a scan: ~10 ms for 2 M)."""
+    def prepare_box_queries(self) -> None:
+        """Sort the ids by the joint with the most grid values once (`ids_in_box`)."""
         assert self.index is not None
-        inside = np.ones(len(self.index), dtype=bool)
+        if self._by_joint is None:
+            varying = np.flatnonzero(self.counts > 1)
+            j = int(varying[np.argmax(self.counts[varying])]) if len(varying) else 0
+            order = np.argsort(self.index[:, j], kind="stable")
+            self._by_joint = (j, order, self.index[order, j])
+
+    def ids_in_box(self, q: Array, half_steps: float) -> Array:
+        """Ids within `half_steps` steps of q in every varying joint, ascending: the ids in
+        that range of the most selective joint (a binary search in its sorted order), then
+        the other joints (a scan of every id cost 0.15-0.3 s a collision indication on a
+        UR with 2-4 M samples, the bulk of a re-plan)."""
+        assert self.index is not None
+        self.prepare_box_queries()
+        assert self._by_joint is not None
+        j0, order, col = self._by_joint
+        tol = half_steps + 1e-9
+        x0 = (float(q[j0]) - self.lower[j0]) / self.step[j0] if self.counts[j0] > 1 else 0.0
+        lo = int(np.searchsorted(col, np.floor(x0 - tol), side="left"))
+        hi = int(np.searchsorted(col, np.ceil(x0 + tol), side="right"))
+        cand = np.sort(order[lo:hi])
+        inside = np.ones(len(cand), dtype=bool)
         for j in np.flatnonzero(self.counts > 1):
             x = (float(q[j]) - self.lower[j]) / self.step[j]
-            inside &= np.abs(self.index[:, j] - x) <= half_steps + 1e-9
-        return np.flatnonzero(inside)
+            inside &= np.abs(self.index[cand, j] - x) <= tol
+        return cand[inside]
 
     def prefix_space(self, n_joints: int) -> int:
         space = int(np.prod(self.counts[:n_joints].astype(float)))
