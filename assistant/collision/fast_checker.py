@@ -381,7 +381,9 @@ def close_pairs(fast: FastChecker, n: int = 600, seed: int = 7) -> frozenset[int
     shapes are apart in more than `CLOSE_SHARE` of the pair's free postures among `n`
     uniform ones (cached per robot
     description: one sweep per robot and tool)."""
-    key = fast.robot.description_hash()
+    # the answer is indices into the exact checker's self pairs: another checker of the
+    # same robot may check other pairs (none, or a link subset's)
+    key = f"{fast.robot.description_hash()}:{fast.exact._self_pairs}"
     with _CLOSE_LOCK:
         if key in _CLOSE_CACHE:
             return _CLOSE_CACHE[key]

@@ -19,7 +19,8 @@ def exact(request):
 def test_link_radii_bound_every_point_and_agree_with_the_arm_radii(exact):
     robot = exact.robot
     R = link_radii(robot)
-    # the arm's radius per joint is the largest over the links it moves
+    # the arm's radius per joint is the largest over the links it moves (both are sums of
+    # the same few metre-sized norms, in another order: rounding ~1e-16 m, allowed 1e-12)
     assert np.allclose(R.max(axis=1), robot.arm_radii(), rtol=1e-12, atol=1e-12)
     rng = np.random.default_rng(2)
     for q in rng.uniform(robot.limits.lower, robot.limits.upper, size=(20, robot.dof)):
