@@ -15,9 +15,9 @@ broad phase (covering spheres and the mesh capsules of `CollisionChecker`) and F
 checker's own. The samples are `MotionChecks.check_path`'s (every `max_step` of arm
 travel along each segment), each either measured or within a measured distance's travel.
 
-The travel bound of a pair: a point of link k moves by at most sum_i |dq_i| R[i, k] for the
-joints i that move it (R: `link_radii`, the triangle inequality along the chain, as
-`Robot.arm_radii` per link); relative to link a, a point of link b moves by at most the same
+The travel bound of a pair: a point of a shape on link k moves by at most sum_i |dq_i| R[i]
+for the joints i that move it (R: `shape_radii`, the triangle inequality along the chain, as
+`Robot.arm_radii` per shape); relative to link a, a point of link b moves by at most the same
 sum over the joints between them.
 """
 
@@ -38,25 +38,43 @@ def link_radii(robot: Robot) -> Array:
     of link k (0 where joint i does not move link k); link k (k >= 1) is moved by joints
     0..k-1, the TCP counts as a point of the last link (as `Robot.arm_radii`)."""
     n = robot.dof
-    frames = robot.link_poses(np.zeros(n))
-    origins = frames[1 : n + 1, :3, 3]
-    T_last_tool = np.linalg.inv(frames[n]) @ robot.fk(np.zeros(n))
-    L = len(robot.links)
-    R = np.zeros((n, L))
-    for k in range(1, L):
-        link = robot.links[k]
-        e = max((float(np.linalg.norm(s.T_link_shape[:3, 3])) + s.bounding_radius()
-                 for s in link.collision), default=0.0)
+    T_last_tool = np.linalg.inv(robot.link_poses(np.zeros(n))[n]) @ robot.fk(np.zeros(n))
+    R = np.zeros((n, len(robot.links)))
+    for k, link in enumerate(robot.links):
+        if k == 0:
+            continue
+        e = max((_extent(s) for s in link.collision), default=0.0)
         if k == n:
             e = max(e, float(np.linalg.norm(T_last_tool[:3, 3])))
-        j = min(k, n) - 1  # the last joint that moves this link
-        if k > n:  # a link fixed beyond the last joint: its frame's offset from that axis
-            e += float(np.linalg.norm(frames[k, :3, 3] - origins[j]))
-        for i in range(0, j + 1):
-            acc = sum(float(np.linalg.norm(origins[m] - origins[m - 1]))
-                      for m in range(i + 1, j + 1))
-            R[i, k] = acc + e
+        R[:, k] = _radii_to(robot, k, e)
     return R
+
+
+def shape_radii(robot: Robot, link: int, shape) -> Array:
+    """(dof,): an upper bound (m) on the distance from each joint's axis to any point of one
+    shape of `link` (0 for the joints that do not move it): `link_radii` for that shape
+    alone (a UR's wrist housing, not the tool on the same link)."""
+    return _radii_to(robot, link, _extent(shape))
+
+
+def _extent(shape) -> float:
+    """How far the shape reaches from its link's frame origin (m)."""
+    return float(np.linalg.norm(shape.T_link_shape[:3, 3])) + shape.bounding_radius()
+
+
+def _radii_to(robot: Robot, k: int, e: float) -> Array:
+    """Per joint, the chain's length from its axis to link k's frame plus `e`."""
+    n = robot.dof
+    frames = robot.link_poses(np.zeros(n))
+    origins = frames[1 : n + 1, :3, 3]
+    j = min(k, n) - 1  # the last joint that moves link k
+    if k > n:  # a link fixed beyond the last joint: its frame's offset from that axis
+        e += float(np.linalg.norm(frames[k, :3, 3] - origins[j]))
+    out = np.zeros(n)
+    for i in range(0, j + 1):
+        out[i] = sum(float(np.linalg.norm(origins[m] - origins[m - 1]))
+                     for m in range(i + 1, j + 1)) + e
+    return out
 
 
 def first_contact(checker, path: Array, max_step: float | None = None) -> int | None:
@@ -80,12 +98,12 @@ def first_contact(checker, path: Array, max_step: float | None = None) -> int | 
                           checker._seg_b, checker._seg_r, checker._env_R, checker._env_c,
                           checker._env_h, checker._pair_a, checker._pair_b,
                           checker.PRUNE_APART)
-    R = _radii(checker)
+    R = _radii(checker)  # (dof, robot shapes)
     dq = np.abs(np.diff(Q, axis=0))  # (n - 1, dof)
     first = len(Q)
     for s, e in zip(*np.nonzero(env_c.any(axis=0)), strict=True):
         rs = checker._rshapes[int(s)]
-        w = R[:, rs.link]  # the joints that move it
+        w = R[:, int(s)]  # the joints that move it, by its reach from their axes
         ob = checker._env[int(e)].obj
         hit = _advance(np.flatnonzero(env_c[:, s, e]), np.r_[0.0, np.cumsum(dq @ w)], first,
                        lambda k, rs=rs, ob=ob: _distance(checker, frames[k], rs, ob, None),
@@ -93,10 +111,10 @@ def first_contact(checker, path: Array, max_step: float | None = None) -> int | 
         first = min(first, hit)
     for p in np.flatnonzero(self_c.any(axis=0)).tolist():
         a, b = checker._self_pairs[p]
+        if checker._rshapes[a].link > checker._rshapes[b].link:
+            a, b = b, a
         ra, rb = checker._rshapes[a], checker._rshapes[b]
-        if ra.link > rb.link:
-            ra, rb = rb, ra
-        w = R[:, rb.link].copy()
+        w = R[:, b].copy()
         w[: ra.link] = 0.0  # joints below link a move both links alike
         hit = _advance(np.flatnonzero(self_c[:, p]), np.r_[0.0, np.cumsum(dq @ w)], first,
                        lambda k, ra=ra, rb=rb: _distance(checker, frames[k], ra, None, rb),
@@ -160,8 +178,10 @@ def _touches(checker, frames_k: Array, ra, env_obj, rb) -> bool:
 
 
 def _radii(checker) -> Array:
-    R = checker.__dict__.get("_link_radii")
+    """(dof, shapes): `shape_radii` of every robot shape of the checker, kept on it."""
+    R = checker.__dict__.get("_shape_radii")
     if R is None:
-        R = link_radii(checker.robot)
-        checker.__dict__["_link_radii"] = R
+        R = np.stack([shape_radii(checker.robot, rs.link, rs.shape)
+                      for rs in checker._rshapes], axis=1).reshape(checker.robot.dof, -1)
+        checker.__dict__["_shape_radii"] = R
     return R

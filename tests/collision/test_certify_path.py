@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from test_fast_model import _arm, _cell
 
-from assistant.collision.certify_path import first_contact, link_radii
+from assistant.collision.certify_path import first_contact, link_radii, shape_radii
 from assistant.collision.checker import CollisionChecker
 
 
@@ -16,7 +16,7 @@ def exact(request):
     return CollisionChecker(arm, _cell(arm)).exact_only()
 
 
-def test_link_radii_bound_every_point_and_agree_with_the_arm_radii(exact):
+def test_link_and_shape_radii_bound_every_shape_and_agree_with_the_arm_radii(exact):
     robot = exact.robot
     R = link_radii(robot)
     # the arm's radius per joint is the largest over the links it moves (both are sums of
@@ -35,9 +35,12 @@ def test_link_radii_bound_every_point_and_agree_with_the_arm_radii(exact):
                     z /= np.linalg.norm(z)
                     v = c - o
                     off = float(np.linalg.norm(v - (v @ z) * z))
-                    # the shape's origin within its link's bound of the axis (its points
-                    # within its bounding radius of it); rounding of metre-sized poses only
-                    assert off <= R[i, k] - s.bounding_radius() + 1e-9
+                    # the shape's origin within its link's bound of the axis and its own
+                    # (its points within its bounding radius of it); rounding of
+                    # metre-sized poses only
+                    Rs = shape_radii(robot, k, s)
+                    assert Rs[i] <= R[i, k] + 1e-12
+                    assert off <= Rs[i] - s.bounding_radius() + 1e-9
 
 
 def test_first_contact_finds_what_brute_force_fcl_finds(exact):
