@@ -22,6 +22,9 @@ import time
 from pathlib import Path
 
 DEFAULT_PORT = 8080
+#: web.uploads.DEFAULT_MAX_UPLOAD_MB, written again: importing `web` here would load viser
+#: for every command.
+DEFAULT_MAX_UPLOAD_MB = 200.0
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -53,12 +56,14 @@ def _serve_args(p: argparse.ArgumentParser) -> None:
                         "everything yourself")
     p.add_argument("--host", default="127.0.0.1",
                    help="interface to listen on (default 127.0.0.1: this computer only, no "
-                        "login); any other address needs the printed access link")
+                        "login); any other address asks for the printed access code")
     p.add_argument("--port", type=int, default=DEFAULT_PORT)
-    p.add_argument("--max-upload-mb", type=float, default=50.0)
+    p.add_argument("--max-upload-mb", type=float, default=DEFAULT_MAX_UPLOAD_MB,
+                   help="largest upload (default %(default)s MB: a binary STL of the "
+                        "4 M triangles a CAD import takes)")
     p.add_argument("--token-file", type=Path, default=None,
-                   help="keep the access tokens here (operator, then viewer; created if "
-                        "missing) so the links survive a restart")
+                   help="keep the access codes here (operator, then viewer; created if "
+                        "missing, mode 0600) so they survive a restart")
     p.add_argument("--certfile", type=Path, default=None, help="serve HTTPS with this "
                    "certificate (PEM)")
     p.add_argument("--keyfile", type=Path, default=None,
@@ -264,14 +269,16 @@ def cmd_serve(args: argparse.Namespace) -> int:
         return 2
     print(f"cellteach: serving {session.sample or 'a session'} at {app.url}", file=sys.stderr)
     if app.access is not None:
-        # The links carry the tokens: printed here once, never logged.
-        print(f"cellteach: operator link (can move the robot): "
-              f"{app.access.link(Role.OPERATOR)}", file=sys.stderr)
-        print(f"cellteach: viewer link (watch only):           "
-              f"{app.access.link(Role.VIEWER)}", file=sys.stderr)
+        # The codes: printed here once, never logged, never put in an address (a browser
+        # keeps every address in its history): the page asks for them.
+        print(f"cellteach: open {app.url}/ and enter an access code:", file=sys.stderr)
+        print(f"cellteach: operator code (can move the robot): "
+              f"{app.access.code(Role.OPERATOR)}", file=sys.stderr)
+        print(f"cellteach: viewer code (watch only):           "
+              f"{app.access.code(Role.VIEWER)}", file=sys.stderr)
         if gate is not None and gate.exposed and not gate.tls:
             print("cellteach: WARNING: the connection is not encrypted: anyone on this network "
-                  "can read the page and the links; use --certfile/--keyfile", file=sys.stderr)
+                  "can read the page and the codes; use --certfile/--keyfile", file=sys.stderr)
     print(f"cellteach: session folder {session.folder} (autosaved)", file=sys.stderr)
     try:
         while True:
@@ -307,6 +314,8 @@ def cmd_run(script_path: Path, out: Path) -> int:
         for f in session.program.files:
             (out / f.name).write_bytes(f.data)
             files.append(f.name)
+    if session.save_error and error is None:
+        error = f"the session could not be saved to {folder}: {session.save_error}"
     report = session_report(session, wall_time_s=time.perf_counter() - t0, error=error,
                             program_files=files)
     (out / "report.json").write_text(json.dumps(report, indent=1), encoding="utf-8")

@@ -16,6 +16,7 @@ ROOT = Path(__file__).resolve().parents[1]
 #: Function-level imports count too (a cycle through a late import is still a cycle).
 RANK = {
     "assistant.transforms": 0, "assistant.progress": 0, "assistant.kernels": 0,
+    "assistant.file_guard": 0,  # reading files we did not write: every reader's rules
     "assistant": 0.5,  # the package itself: points numba at its cache folder (kernels.cache)
     "workflow": 0, "vision": 0,
     "assistant.robots": 1,

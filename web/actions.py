@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 import viser
 
 from assistant.session import hint_for
+from assistant.session.motion_hold import MotionHold
 from workflow.machine import TransitionRefused
 
 if TYPE_CHECKING:
@@ -95,7 +96,9 @@ class Actions:
             return None
         notifier.clear_errors()  # acting again: what failed before is stale
         try:
-            return fn()
+            # The session checks who starts motion (`MotionHold`): this page acts.
+            with MotionHold.acting(getattr(client, "client_id", None)):
+                return fn()
         except TransitionRefused as exc:
             if not notifier.already_shown(str(exc)):
                 notifier.error(str(exc), client=client)

@@ -24,11 +24,15 @@ from assistant.session.events import (
     Notice,
     PlanReady,
     ProgramReady,
+    SaveStateChanged,
     StateChanged,
 )
 from web.actions import Actions
+from web.authority import PageAuthority
 from web.gate import Access, GateConfig
+from web.heartbeat import Heartbeat
 from web.notify import Notifier
+from web.pages import Pages
 from web.panels.base import Panel
 from web.panels.cad import CadPanel
 from web.panels.cameras import CamerasPanel
@@ -45,12 +49,11 @@ from web.panels.view import ViewPanel
 from web.pump import EventPump
 from web.scene.layers import SceneLayers
 from web.toolbar import Toolbar
-from web.uploads import install_early_limit
+from web.uploads import DEFAULT_MAX_UPLOAD_MB, install_early_limit
 from web.wording import goal_reached
 
 log = logging.getLogger(__name__)
 
-DEFAULT_MAX_UPLOAD_MB = 50
 #: The simulated robot in the page runs at most this fast (x real time): a person watches it
 #: and presses Collision! in time. Scripts keep the sample's faster pace.
 OPERATOR_PACE = 1.0
@@ -66,10 +69,14 @@ class App:
     #: The gate in front of the page (None on loopback: open, as before).
     access: Access | None = None
     notifier: Notifier = field(init=False)
+    pages: Pages = field(init=False)
     actions: Actions = field(init=False)
     pump: EventPump = field(init=False)
     scene_layers: SceneLayers = field(init=False)
     toolbar: Toolbar = field(init=False)
+    #: Which operator page holds motion authority (`web.authority`).
+    authority: PageAuthority = field(init=False)
+    heartbeat: Heartbeat = field(init=False)
     panels: dict[str, Panel] = field(init=False)
     #: The workflow step the page shows (a step change makes earlier errors stale).
     _shown_state: str = field(init=False, default="")
@@ -83,10 +90,12 @@ class App:
                                         brand_color=(40, 110, 200))
         # viser's widest preset is ~350 px: the tables and the program preview need room.
         self.server.gui.main_panel.set_width(PANEL_WIDTH_PX)
-        self.notifier = Notifier(self.server)
+        self.pages = Pages(self)
+        self.notifier = Notifier(self.server, audience=self.pages.role, redact=self.redact)
         self._shown_state = self._session.machine.state
         self.actions = Actions(self)
-        self.pump = EventPump(self._dispatch, on_queue=self._on_emit)
+        self.pump = EventPump(self._dispatch, on_queue=self._on_emit,
+                              settled=lambda: self._session.settled())
         self.scene_layers = SceneLayers(self)
         self.toolbar = Toolbar(self)
         self.panels = {p.title: p for p in (
@@ -94,8 +103,16 @@ class App:
             TeachPanel(self), PathsPanel(self), ExplorePanel(self), PlanPanel(self),
             ExportPanel(self), JogPanel(self), ViewPanel(self), SessionPanel(self))}
         install_early_limit(self)
+        # The enabling switch: only the present holder's page moves the robot (the session's
+        # rule); the pages tell it who comes and goes, the heartbeat who falls silent.
         if self.access is not None:
-            self.access.attach(self)
+            self.authority = self.access.attach(self)
+        else:
+            self.authority = PageAuthority(self._session.hold)
+            self.authority.attach(self.server)
+        self._session.hold.enforce()
+        self.heartbeat = Heartbeat(self.server, self._session.hold)
+        self.heartbeat.start()
         self.pump.attach(self._session.bus)
         self.refresh()
 
@@ -110,10 +127,21 @@ class App:
             old = self._session
             self.pump.detach()
             old.close()  # its robot, link and cameras stop with it
+            new.adopt_hold(old.hold)  # the pages' motion authority carries over
             self._session = new
             operator_pace(new)
             self.pump.attach(new.bus)
         self.refresh()
+
+    def redact(self, text: str) -> str:
+        """Text every page sees, without the session folder's path (a viewer's page gets what
+        watching needs, not where the files are)."""
+        folder = self._session.folder
+        if folder is not None:
+            for form in sorted({str(folder), str(folder.expanduser().resolve())}, key=len,
+                               reverse=True):
+                text = text.replace(form, "the session folder")
+        return text
 
     # ------------------------------------------------------------------ redraw
     def refresh(self) -> None:
@@ -135,6 +163,8 @@ class App:
 
     def _dispatch(self, ev: Event) -> None:
         """Apply one event on the UI thread: scene first, then panels, then the toolbar."""
+        if isinstance(ev, SaveStateChanged):
+            self.toolbar.saved(ev.saved, ev.reason)
         self.scene_layers.on_event(ev)
         if isinstance(ev, StateChanged) and ev.mode == "moving":
             self.notifier.clear_done()  # a run starts: "planned" and the like are history
@@ -188,6 +218,7 @@ class App:
 
     def stop(self) -> None:
         """Stop the page; the robot, link and cameras of the session stop too."""
+        self.heartbeat.stop()
         if self.access is not None:
             self.access.stop()
         self.pump.stop()

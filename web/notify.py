@@ -5,6 +5,15 @@ exception it raised; the notifier remembers recent messages so the operator read
 An error stays on screen until the operator acts again or the step changes (`clear_errors`):
 a failure that later actions have moved past is stale, and a stale error beside a success
 reads as a contradiction.
+
+Who reads what (behind the gate a page is an operator's or a viewer's, `audience`):
+- a message for one page (`client=`: a refusal, "Session saved to ...") shows on that page
+  only - as its notification and in its own status line, never in the shared one;
+- a message for everyone (what the session announced) shows on every operator page and in
+  the shared status line; viewers get its notices and successes but no error notification
+  (they cannot act on one; the status line tells them what happened);
+- text every page sees goes through `redact` first (the app takes the session folder's path
+  out: viewers get what watching needs, not paths).
 """
 
 from __future__ import annotations
@@ -23,9 +32,16 @@ log = logging.getLogger(__name__)
 DEDUP_S = 5.0
 
 
+OPERATOR, VIEWER = "operator", "viewer"
+
+
 class Notifier:
-    def __init__(self, server: viser.ViserServer):
+    def __init__(self, server: viser.ViserServer, *,
+                 audience: Callable[[viser.ClientHandle], str] | None = None,
+                 redact: Callable[[str], str] | None = None):
         self._server = server
+        self._audience = audience or (lambda c: OPERATOR)
+        self._redact = redact or (lambda text: text)
         self._lock = threading.Lock()
         self._recent: deque[tuple[float, str]] = deque(maxlen=32)
         #: The notice on screen per (key, client): a burst (26 collisions) replaces it
@@ -36,9 +52,10 @@ class Notifier:
         #: "Done" notifications on screen, until a new phase begins (`clear_done`).
         self._done: list[viser.NotificationHandle] = []
         self._status_kind = ""
-        #: Called with (kind, text) for every message (the toolbar's status line); kind
-        #: "clear" with "" when a shown error is superseded.
-        self.on_message: Callable[[str, str], None] | None = None
+        #: Called with (kind, text, client) for every message (the toolbar's status lines:
+        #: client None is the shared one); kind "clear" with "" and client None when shown
+        #: messages are superseded (every status line forgets them).
+        self.on_message: Callable[[str, str, viser.ClientHandle | None], None] | None = None
 
     # ------------------------------------------------------------------ dedup
     def remember(self, message: str) -> None:
@@ -56,7 +73,7 @@ class Notifier:
             was_error, self._status_kind = self._status_kind == "error", ""
         _remove(errors)
         if was_error and self.on_message is not None:
-            self.on_message("clear", "")
+            self.on_message("clear", "", None)
 
     def already_shown(self, message: str) -> bool:
         now = time.monotonic()
@@ -70,22 +87,22 @@ class Notifier:
         parts = [_sentence(message)] + ([f"What to do: {_sentence(hint)}"] if hint else [])
         body = " ".join(parts + ["Nothing you did was lost."])
         shown = self._show("Could not do that", body, color="red", auto_close=None,
-                           client=client)
+                           client=client, viewers=False)
         with self._lock:
             self._errors.extend(shown)
-        self._status("error", message + (f" - {hint}" if hint else ""))
+        self._status("error", message + (f" - {hint}" if hint else ""), client)
 
     def notice(self, message: str, *, client: viser.ClientHandle | None = None,
                key: str | None = None) -> None:
         """Information; with a `key`, it replaces the previous notice of that key."""
         self._show("Note", message, color="blue", auto_close=10.0, client=client, key=key)
-        self._status("notice", message)
+        self._status("notice", message, client)
 
     def success(self, message: str, *, client: viser.ClientHandle | None = None) -> None:
         shown = self._show("Done", message, color="green", auto_close=6.0, client=client)
         with self._lock:
             self._done.extend(shown)
-        self._status("ok", message)
+        self._status("ok", message, client)
 
     def clear_done(self) -> None:
         """A new phase begins (a run starts): what the last one finished is history - its
@@ -97,17 +114,24 @@ class Notifier:
                 self._status_kind = ""
         _remove(done)
         if was_ok and self.on_message is not None:
-            self.on_message("clear", "")
+            self.on_message("clear", "", None)
 
-    def _status(self, kind: str, text: str) -> None:
-        self._status_kind = kind
+    def _status(self, kind: str, text: str, client: viser.ClientHandle | None) -> None:
+        if client is None:
+            self._status_kind = kind
+            text = self._redact(text)
         if self.on_message is not None:
-            self.on_message(kind, text)
+            self.on_message(kind, text, client)
 
     def _show(self, title: str, body: str, *, color: str, auto_close: float | None,
               client: viser.ClientHandle | None, key: str | None = None,
-              ) -> list[viser.NotificationHandle]:
-        clients = [client] if client is not None else list(self._server.get_clients().values())
+              viewers: bool = True) -> list[viser.NotificationHandle]:
+        if client is not None:
+            clients = [client]
+        else:  # for everyone: redacted, and errors to operators only
+            body = self._redact(body)
+            clients = [c for c in self._server.get_clients().values()
+                       if viewers or self._audience(c) == OPERATOR]
         shown = []
         for c in clients:
             try:

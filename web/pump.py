@@ -3,15 +3,21 @@
 Session events arrive on worker, link and camera threads that must never wait for the page,
 so the subscriber only queues them; this thread applies them in order. Bursts of robot and
 pointer updates are coalesced to the newest, so a 50 Hz robot never floods the page.
+
+Each item is applied inside `settled()` (the session's `Session.settled`: its lock), so the
+page reads the session only between actions - an action saves before it lets go of the lock,
+so nothing the page shows can be lost by a crash (`assistant.session.saving`).
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import queue
 import threading
 import time
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 from typing import Any
 
 from assistant.session.events import Event, EventBus, PointerUpdated, RobotMoved
@@ -30,9 +36,11 @@ class EventPump:
     """Queues session events (and posted jobs) and runs them on one daemon thread."""
 
     def __init__(self, dispatch: Callable[[Event], None], *, on_queue: Callable[[Event], None]
-                 | None = None):
+                 | None = None,
+                 settled: Callable[[], AbstractContextManager[Any]] | None = None):
         self._dispatch = dispatch
         self._on_queue = on_queue
+        self._settled = settled or contextlib.nullcontext
         self._q: queue.Queue[Any] = queue.Queue()
         self._unsubscribe: Callable[[], None] | None = None
         self._idle = threading.Event()
@@ -95,10 +103,11 @@ class EventPump:
                 if self._halt.is_set():
                     return
                 try:
-                    if isinstance(item, Event):
-                        self._dispatch(item)
-                    else:
-                        item()
+                    with self._settled():
+                        if isinstance(item, Event):
+                            self._dispatch(item)
+                        else:
+                            item()
                 except Exception as exc:  # noqa: BLE001 - one bad redraw must not stop the page
                     log.exception("UI update failed")
                     self.errors.append(f"{type(item).__name__}: {exc!r}")

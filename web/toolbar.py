@@ -7,6 +7,7 @@ greyed out with its reason, so the operator always sees what to do first (SPEC Â
 
 from __future__ import annotations
 
+import contextlib
 from typing import TYPE_CHECKING, Any
 
 import viser
@@ -23,7 +24,7 @@ from assistant.session.events import (
     StateChanged,
 )
 from assistant.session.run_state import RunPhase, RunState
-from web.panels.base import busy_reason
+from web.panels.base import busy_reason, settled_view
 from web.wording import progress_words
 from workflow.states import NUMBER, STATES, leaves
 
@@ -60,7 +61,8 @@ class Toolbar:
         self.app = app
         gui = app.server.gui
         self._buttons: dict[str, viser.GuiButtonHandle] = {}
-        with gui.add_folder("Workflow", order=0):
+        self.folder = gui.add_folder("Workflow", order=0)
+        with self.folder:
             self.heading = gui.add_markdown("")
             self.progress = gui.add_progress_bar(0.0, visible=False, animated=True)
             self.progress_text = gui.add_markdown("", visible=False)
@@ -77,6 +79,8 @@ class Toolbar:
                 self.goto = gui.add_button("Go to that step")
                 self.exit = gui.add_button("Exit", icon=viser.Icon.LOGOUT)
             self.status = gui.add_markdown("")
+        #: Each page's own status line, under the shared one: what was said to it alone.
+        self.my_status = app.pages.add(self._my_status)
         # Keyboard: Space is the Collision! button, Escape stops / cancels.
         self.key_collision = gui.add_command(
             "Collision!", description="The robot would hit something: stop and remember it",
@@ -139,12 +143,27 @@ class Toolbar:
             self.app.notifier.notice("This session has no folder yet: save it under More > "
                                      "Session before closing the page.", client=client)
 
-    def _on_message(self, kind: str, text: str) -> None:
+    def _my_status(self, client: viser.ClientHandle) -> viser.GuiMarkdownHandle:
+        with self.folder:
+            return client.gui.add_markdown("", order=self.status.order + 0.5)
+
+    def _on_message(self, kind: str, text: str, client: viser.ClientHandle | None) -> None:
+        """A message into the shared status line (client None) or that page's own."""
         if kind == "clear":
             self.status.content = ""
+            for mine in self.my_status.all():
+                _set(mine, content="")
             return
         icon = {"error": "**Error:**", "notice": "Note:", "ok": "Done:"}.get(kind, "")
-        self.status.content = f"<small>{icon} {_md_escape(text)}</small>"
+        line = f"<small>{icon} {_md_escape(text)}</small>"
+        target = self.status if client is None else self.my_status.of(client)
+        if target is not None:
+            with contextlib.suppress(Exception):  # the page is closing
+                target.content = line
+
+    def saved(self, ok: bool, reason: str) -> None:
+        """Autosave failed (the heading says "Not saved" until it works again) or works."""
+        self.refresh()
 
     # ------------------------------------------------------------------ redraw
     def on_event(self, ev: Event) -> None:
@@ -168,12 +187,24 @@ class Toolbar:
         self.progress.visible = True
         self.progress_text.visible = True
 
+    @settled_view
     def refresh(self) -> None:
         s = self.app.session
         m = s.machine
         mode = m.mode.value
         run = s.run_state()
-        self.heading.content = step_heading(m.state, mode, run)
+        # The keys first: a page that reads "the robot is moving" already has Space armed.
+        moving = mode == "moving"
+        if self.key_collision.disabled != (not moving):
+            self.key_collision.disabled = not moving
+        stop_ok = mode in ("moving", "busy")
+        if self.key_stop.disabled != (not stop_ok):
+            self.key_stop.disabled = not stop_ok
+        heading = step_heading(m.state, mode, run)
+        if s.save_error:
+            heading += f"\n\n**Not saved:** {_md_escape(s.save_error)} - the last change is " \
+                "only in memory; every change tries again."
+        self.heading.content = heading
         transitions = s.transitions()
         by_event = {t.event: t for t in transitions}
         for name, btn in (("previous", self.prev), ("next", self.next), ("exit", self.exit)):
@@ -201,12 +232,6 @@ class Toolbar:
             t = by_event.get(event)
             _set(cmd, disabled=t is None or not t.allowed)
         _set(self.goto, disabled=not idle, hint=wait or "Jump to the step chosen above")
-        moving = mode == "moving"
-        if self.key_collision.disabled != (not moving):
-            self.key_collision.disabled = not moving
-        stop_ok = mode in ("moving", "busy")
-        if self.key_stop.disabled != (not stop_ok):
-            self.key_stop.disabled = not stop_ok
         if idle:
             self.progress.visible = False
             self.progress_text.visible = False

@@ -17,6 +17,10 @@ if TYPE_CHECKING:
 
 log = logging.getLogger(__name__)
 
+#: The upload limit unless the server is started with another (--max-upload-mb): a binary
+#: STL of the 4 000 000 triangles a CAD import takes is 191 MB.
+DEFAULT_MAX_UPLOAD_MB = 200
+
 
 class UploadTooLarge(ValueError):
     pass

@@ -171,10 +171,13 @@ class CellObject:
     display_mesh: trimesh.Trimesh
     collision: tuple[CollisionShape, ...]
     color: tuple[int, int, int] | None = None
-    #: How far the collision proxy deviates from the display mesh (0 when it is exact).
+    #: How far the collision proxy deviates from the part (0 when it is exact).
     proxy_deviation_m: float = 0.0
     primitive: PrimitiveSpec | None = None
     source: CadSource | None = None
+    #: The part at full resolution (picking, sizes, reports) when `display_mesh` is a
+    #: decimated copy of a big part; else `display_mesh` itself.
+    full_mesh: trimesh.Trimesh | None = None
 
     def __post_init__(self) -> None:
         _check_name(self.name)
@@ -190,6 +193,8 @@ class CellObject:
         T.setflags(write=False)  # shared between threads: a new pose is a new object
         object.__setattr__(self, "T_world_object", T)
         object.__setattr__(self, "collision", tuple(self.collision))
+        if self.full_mesh is None:
+            object.__setattr__(self, "full_mesh", self.display_mesh)
         if not self.collision:
             raise CellError(f"object {self.name!r} has no collision geometry")
 
@@ -234,12 +239,18 @@ class CellObject:
         """A part from `assistant.cell.cad.load_cad`; its frame is the CAD file's own origin."""
         return CellObject(name=name, role=role,  # type: ignore[arg-type]
                           T_world_object=np.eye(4) if T_world_object is None else T_world_object,
-                          display_mesh=cad_import.mesh, collision=cad_import.collision,
-                          color=color, proxy_deviation_m=cad_import.proxy.deviation_m,
-                          source=cad_import.source)
+                          display_mesh=cad_import.display_mesh,
+                          collision=cad_import.collision, color=color,
+                          proxy_deviation_m=cad_import.proxy.deviation_m,
+                          source=cad_import.source, full_mesh=cad_import.mesh)
 
     def with_pose(self, T_world_object: Array) -> CellObject:
         return replace(self, T_world_object=T_world_object)
+
+    @property
+    def collision_margin_m(self) -> float:
+        """How far around its collision shapes the part may reach (a big part's proxy)."""
+        return max((float(s.margin) for s in self.collision), default=0.0)
 
 
 @dataclass(frozen=True, eq=False)

@@ -27,6 +27,7 @@ import numpy as np
 from assistant.cell.cad import CadImportError, ImportOptions, import_with_options
 from assistant.cell.cad.importer import MAX_FILE_BYTES
 from assistant.cell.model import Cell, CellError, CellObject, PrimitiveSpec, check_transform
+from assistant.file_guard import FileRefused, check_archive, load_json, read_file
 from assistant.robots.catalog import RobotModelError, RobotSpec
 
 SCHEMA_VERSION = 1
@@ -203,20 +204,17 @@ class _Reader:
 
     def _check_zip(self) -> None:
         assert self.zip is not None
-        total = 0
         for info in self.zip.infolist():
             name = info.filename
             parts = PurePosixPath(name.replace("\\", "/")).parts
             if name.startswith(("/", "\\")) or ".." in parts or re.match(r"^[A-Za-z]:", name):
                 raise CellFileError(self.path, f"contains an unsafe member name {name!r}; "
                                     "refusing to open it")
-            total += info.file_size
-            if info.compress_size and info.file_size / info.compress_size > \
-                    MAX_COMPRESSION_RATIO and info.file_size > 1024 * 1024:
-                raise CellFileError(self.path, f"member {name!r} expands {info.file_size:,} "
-                                    "bytes from far fewer (a zip bomb?); refusing to open it")
-        if total > MAX_TOTAL_BYTES:
-            raise CellFileError(self.path, f"expands to {total:,} bytes, more than allowed")
+        try:  # expansion ratio and total size, judged before anything is inflated
+            check_archive(self.zip.infolist(), what="cell zip", max_total=MAX_TOTAL_BYTES,
+                          max_ratio=MAX_COMPRESSION_RATIO)
+        except FileRefused as exc:
+            raise CellFileError(self.path, f"{exc}; refusing to open it") from None
 
     def read(self, member: str, limit: int) -> bytes:
         if self.zip is not None:
@@ -239,7 +237,10 @@ class _Reader:
             if size > limit:
                 raise CellFileError(self.path, f"{member!r} is {size:,} bytes, more than the "
                                     f"{limit:,} allowed")
-            data = target.read_bytes()
+            try:  # a regular file only (not a device or a pipe planted in the folder)
+                data = read_file(target, limit=limit, what="file of a saved cell")
+            except FileRefused as exc:
+                raise CellFileError(self.path, f"{member!r}: {exc}") from None
         if len(data) > limit:
             raise CellFileError(self.path, f"{member!r} is larger than the {limit:,} allowed")
         return data
@@ -256,17 +257,14 @@ def load_cell(path: str | Path) -> Cell:
     reader = _Reader(path)
     try:
         raw = reader.read(CELL_JSON, MAX_JSON_BYTES)
-        try:
-            doc = json.loads(raw.decode("utf-8"), parse_constant=_reject_constant)
-        except (UnicodeDecodeError, json.JSONDecodeError, ValueError) as exc:
-            raise CellFileError(path, f"{CELL_JSON} is not valid JSON ({exc})") from exc
+        try:  # nesting depth bounded before the (recursive) parser runs
+            doc = load_json(raw, what=CELL_JSON, limit=MAX_JSON_BYTES)
+        except FileRefused as exc:
+            problem = exc.problem.replace(f"the {CELL_JSON} is", f"{CELL_JSON} is")
+            raise CellFileError(path, problem) from None
         return _cell_from_json(doc, reader)
     finally:
         reader.close()
-
-
-def _reject_constant(name: str) -> float:
-    raise ValueError(f"{name} is not a number a cell can hold")
 
 
 def _need(d: Any, key: str, kind: type | tuple[type, ...], where: str, path: Path) -> Any:

@@ -102,12 +102,11 @@ def first_contact(checker, path: Array, max_step: float | None = None) -> int | 
     dq = np.abs(np.diff(Q, axis=0))  # (n - 1, dof)
     first = len(Q)
     for s, e in zip(*np.nonzero(env_c.any(axis=0)), strict=True):
-        rs = checker._rshapes[int(s)]
         w = R[:, int(s)]  # the joints that move it, by its reach from their axes
-        ob = checker._env[int(e)].obj
+        es = checker._env[int(e)]
         hit = _advance(np.flatnonzero(env_c[:, s, e]), np.r_[0.0, np.cumsum(dq @ w)], first,
-                       lambda k, rs=rs, ob=ob: _distance(checker, frames[k], rs, ob, None),
-                       lambda k, rs=rs, ob=ob: _touches(checker, frames[k], rs, ob, None))
+                       lambda k, s=int(s), es=es: _env_distance(checker, frames[k], s, es),
+                       lambda k, s=int(s), es=es: _env_touches(checker, frames[k], s, es))
         first = min(first, hit)
     for p in np.flatnonzero(self_c.any(axis=0)).tolist():
         a, b = checker._self_pairs[p]
@@ -117,8 +116,8 @@ def first_contact(checker, path: Array, max_step: float | None = None) -> int | 
         w = R[:, b].copy()
         w[: ra.link] = 0.0  # joints below link a move both links alike
         hit = _advance(np.flatnonzero(self_c[:, p]), np.r_[0.0, np.cumsum(dq @ w)], first,
-                       lambda k, ra=ra, rb=rb: _distance(checker, frames[k], ra, None, rb),
-                       lambda k, ra=ra, rb=rb: _touches(checker, frames[k], ra, None, rb))
+                       lambda k, ra=ra, rb=rb: _distance(checker, frames[k], ra, rb),
+                       lambda k, ra=ra, rb=rb: _touches(checker, frames[k], ra, rb))
         first = min(first, hit)
     return None if first >= len(Q) else int(first)
 
@@ -154,27 +153,40 @@ def _advance(rows: Array, travel: Array, stop: int, distance, touches) -> int:
     return stop
 
 
-def _posed(frames_k: Array, ra, env_obj, rb):
-    ra.obj.setTransform(fcl_transform(frames_k[ra.link] @ ra.shape.T_link_shape))
-    if env_obj is not None:
-        return ra.obj, env_obj
-    rb.obj.setTransform(fcl_transform(frames_k[rb.link] @ rb.shape.T_link_shape))
-    return ra.obj, rb.obj
+def _pose(frames_k: Array, rs) -> None:
+    rs.obj.setTransform(fcl_transform(frames_k[rs.link] @ rs.shape.T_link_shape))
 
 
-def _distance(checker, frames_k: Array, ra, env_obj, rb) -> float:
-    """FCL distance (m) of robot shape ra posed at one sample to an obstacle's object or to
-    robot shape rb (<= 0: touching)."""
-    a, b = _posed(frames_k, ra, env_obj, rb)
-    d = float(fcl.distance(a, b, checker._dreq, fcl.DistanceResult()))
-    if d <= 0.0 and not fcl.collide(a, b, checker._req, fcl.CollisionResult()):
+def _env_distance(checker, frames_k: Array, i: int, es) -> float:
+    """FCL distance (m) of robot shape i posed at one sample to an obstacle shape, less the
+    obstacle's margin (<= 0: touching)."""
+    rs = checker._rshapes[i]
+    _pose(frames_k, rs)
+    d = float(fcl.distance(rs.obj, es.obj, checker._dreq, fcl.DistanceResult())) - es.margin
+    if d <= 0.0 and not checker._touches_env(i, es):
         d = 1e-9  # touching within FCL's tolerance, not overlapping: free, no cover
     return d
 
 
-def _touches(checker, frames_k: Array, ra, env_obj, rb) -> bool:
-    a, b = _posed(frames_k, ra, env_obj, rb)
-    return bool(fcl.collide(a, b, checker._req, fcl.CollisionResult()))
+def _env_touches(checker, frames_k: Array, i: int, es) -> bool:
+    _pose(frames_k, checker._rshapes[i])
+    return checker._touches_env(i, es)
+
+
+def _distance(checker, frames_k: Array, ra, rb) -> float:
+    """FCL distance (m) of robot shapes ra and rb posed at one sample (<= 0: touching)."""
+    _pose(frames_k, ra)
+    _pose(frames_k, rb)
+    d = float(fcl.distance(ra.obj, rb.obj, checker._dreq, fcl.DistanceResult()))
+    if d <= 0.0 and not fcl.collide(ra.obj, rb.obj, checker._req, fcl.CollisionResult()):
+        d = 1e-9  # touching within FCL's tolerance, not overlapping: free, no cover
+    return d
+
+
+def _touches(checker, frames_k: Array, ra, rb) -> bool:
+    _pose(frames_k, ra)
+    _pose(frames_k, rb)
+    return bool(fcl.collide(ra.obj, rb.obj, checker._req, fcl.CollisionResult()))
 
 
 def _radii(checker) -> Array:

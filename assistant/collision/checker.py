@@ -9,6 +9,11 @@ brute-force FCL answer (checked by the tests and `benchmarks/collision.py`).
 
 Self-collision skips adjacent links and the pairs that never touch (or always touch) over a
 sampled sweep of the joint space, computed once per robot description.
+
+An obstacle shape with a margin (`CollisionShape.margin`, a big CAD part's proxy) counts
+everything within the margin as the obstacle: its bounds grow by the margin, and FCL tests
+it against the robot shape grown by the margin (`fcl_shapes.inflated_geometry`), so the
+answer is still one FCL collision test; clearances to it are FCL's distance less the margin.
 """
 
 from __future__ import annotations
@@ -32,7 +37,13 @@ from assistant.collision.broad_phase import (
     prune_round_pairs,
     sphere_broad_phase,
 )
-from assistant.collision.fcl_shapes import covering_spheres, fcl_geometry, fcl_transform, world_aabb
+from assistant.collision.fcl_shapes import (
+    covering_spheres,
+    fcl_geometry,
+    fcl_transform,
+    inflated_geometry,
+    world_aabb,
+)
 from assistant.collision.motion_checks import MotionChecks
 from assistant.collision.motion_rows import (
     motion_marks,
@@ -45,7 +56,7 @@ from assistant.collision.reports import (
     Contact,
     ObstacleView,
 )
-from assistant.collision.segment_box import axis_segment, oriented_bounds
+from assistant.collision.segment_box import OrientedBox, axis_segment, oriented_bounds
 from assistant.collision.shape_poses import shape_poses
 from assistant.robots.model import CollisionShape, Robot, ShapeKind
 
@@ -63,6 +74,8 @@ class _RobotShape:
 class _EnvShape:
     owner: str
     obj: fcl.CollisionObject
+    #: Everything within this distance (m) of the shape counts as the obstacle.
+    margin: float = 0.0
 
 
 _SELF_PAIR_CACHE: dict[str, list[tuple[int, int]]] = {}
@@ -147,12 +160,17 @@ class CollisionChecker(MotionChecks):
             for shape in ob.collision:
                 T = np.asarray(ob.T_base_object, dtype=float) @ shape.T_link_shape
                 obj = fcl.CollisionObject(fcl_geometry(shape), fcl_transform(T))
-                self._env.append(_EnvShape(ob.name, obj))
+                margin = float(shape.margin)
+                if not (np.isfinite(margin) and margin >= 0.0):
+                    raise ValueError(f"obstacle {ob.name!r}: a collision margin must be a "
+                                     f"length >= 0, got {shape.margin!r}")
+                self._env.append(_EnvShape(ob.name, obj, margin))
                 a, b = world_aabb(shape, np.asarray(ob.T_base_object, dtype=float))
                 lo.append(a)
                 hi.append(b)
-                obb.append(oriented_bounds(shape, np.asarray(ob.T_base_object, dtype=float)))
-                env_box.append(shape.kind == ShapeKind.BOX)
+                box = oriented_bounds(shape, np.asarray(ob.T_base_object, dtype=float))
+                obb.append(OrientedBox(box.R, box.centre, box.half + margin))
+                env_box.append(shape.kind == ShapeKind.BOX and margin == 0.0)
         # Oriented boxes around the obstacles and the axis segments of the round robot
         # shapes: the clearance report's tight bounds (`segment_box`).
         self._env_R = np.array([o.R for o in obb]).reshape(-1, 3, 3)
@@ -209,6 +227,9 @@ class CollisionChecker(MotionChecks):
         self._frame_fix: tuple[Array, Array] | None = None  # `_link_frames`
         #: False in the view `exact_only` returns: FCL and the robot's own kinematics only.
         self._use_fast = True
+        #: Robot shapes grown by an obstacle's margin, by (shape index, margin), made when
+        #: first needed (`_grown`).
+        self._grown_objs: dict[tuple[int, float], fcl.CollisionObject] = {}
 
     def exact_only(self) -> CollisionChecker:
         """This checker without the fast model: its own broad phase and FCL on the shapes
@@ -236,6 +257,24 @@ class CollisionChecker(MotionChecks):
             robot = fast_robot(self.robot)
             self._fast_model = None if robot is None else FastChecker(self, robot)
         return self._fast_model  # type: ignore[return-value]
+
+    def _grown(self, i: int, margin: float) -> fcl.CollisionObject:
+        """Robot shape i grown by `margin` (unposed; see `fcl_shapes.inflated_geometry`)."""
+        key = (i, margin)
+        obj = self._grown_objs.get(key)
+        if obj is None:
+            obj = fcl.CollisionObject(inflated_geometry(self._rshapes[i].shape, margin))
+            self._grown_objs[key] = obj
+        return obj
+
+    def _touches_env(self, i: int, es: _EnvShape) -> bool:
+        """Robot shape i (posed) against an obstacle shape, the obstacle's margin counted."""
+        a = self._rshapes[i].obj
+        if es.margin > 0.0:
+            g = self._grown(i, es.margin)
+            g.setTransform(a.getTransform())
+            a = g
+        return bool(fcl.collide(a, es.obj, self._req, fcl.CollisionResult()))
 
     @property
     def self_pairs(self) -> list[tuple[str, str]]:
@@ -357,8 +396,7 @@ class CollisionChecker(MotionChecks):
         for s, e in zip(*np.nonzero(env_c), strict=True):
             rs, es = self._rshapes[s], self._env[e]
             key = (self._link_names[rs.link], es.owner)
-            if key not in seen and fcl.collide(rs.obj, es.obj, self._req,
-                                               fcl.CollisionResult()):
+            if key not in seen and self._touches_env(int(s), es):
                 seen.add(key)
                 contacts.append(Contact(*key))
         for p in np.nonzero(self_c)[0]:
@@ -702,13 +740,26 @@ class CollisionChecker(MotionChecks):
                            self._shape_T)
         objs = [rs.obj for rs in self._rshapes]
         env = [es.obj for es in self._env]
+        env_margin = [es.margin for es in self._env]
         posed_in = [-1] * len(objs)  # the row each shape is posed for now
+        grown_in: dict[tuple[int, float], int] = {}  # the same for grown shapes
 
         def posed(i: int, k: int) -> fcl.CollisionObject:
             if posed_in[i] != k:
                 posed_in[i] = k
                 objs[i].setTransform(fcl.Transform(R[k, i], t[k, i]))
             return objs[i]
+
+        def posed_for(i: int, k: int, e: int) -> fcl.CollisionObject:
+            """Robot shape i posed for row k, grown by obstacle e's margin if it has one."""
+            m = env_margin[e]
+            if m <= 0.0:
+                return posed(i, k)
+            g = self._grown(i, m)
+            if grown_in.get((i, m)) != k:
+                grown_in[(i, m)] = k
+                g.setTransform(fcl.Transform(R[k, i], t[k, i]))
+            return g
 
         def collide(a: fcl.CollisionObject, b: fcl.CollisionObject) -> bool:
             return bool(fcl.collide(a, b, self._req, fcl.CollisionResult()))
@@ -719,7 +770,7 @@ class CollisionChecker(MotionChecks):
             if stop is not None and stop[k] in stopped:
                 hit[k] = True
                 continue
-            hit[k] = (any(collide(posed(es_l[j], k), env[ee_l[j]])
+            hit[k] = (any(collide(posed_for(es_l[j], k, ee_l[j]), env[ee_l[j]])
                           for j in range(e_at[k], e_at[k + 1]))
                       or any(collide(posed(pairs[j][0], k), posed(pairs[j][1], k))
                              for j in range(p_at[k], p_at[k + 1])))
@@ -734,11 +785,11 @@ class CollisionChecker(MotionChecks):
         """
         frames = self.robot.link_poses(np.asarray(q, dtype=float))
         self._pose_robot(frames)
-        for rs in self._rshapes:
+        for i, rs in enumerate(self._rshapes):
             if rs.link == 0:
                 continue
             for es in self._env:
-                if fcl.collide(rs.obj, es.obj, self._req, fcl.CollisionResult()):
+                if self._touches_env(i, es):
                     return True
         for a, b in self._self_pairs:
             if fcl.collide(self._rshapes[a].obj, self._rshapes[b].obj, self._req,

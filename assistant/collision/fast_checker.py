@@ -316,7 +316,8 @@ class FastChecker(CollisionChecker):
         for j in order.tolist():
             rs = ex._rshapes[int(shapes[s_i[j]])]
             rs.obj.setTransform(fcl_transform(frames_x[r_i[j], rs.link] @ rs.shape.T_link_shape))
-            if ex._pair_distance(rs.obj, ex._env[int(e_i[j])].obj)[0] < target:
+            es = ex._env[int(e_i[j])]
+            if ex._pair_distance(rs.obj, es.obj)[0] - es.margin < target:
                 return False
         return True
 
@@ -467,11 +468,12 @@ def first_link_floor(fast: FastChecker) -> float:
         env = [fcl.CollisionObject(fcl_geometry(s), fcl.Transform(
                np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3])))
                for s, T in _exact_obstacles_in(fast)]
+        margin = [float(s.margin) for s, _ in _exact_obstacles_in(fast)]
         for k in range(n):
             for i in shapes:
                 a = fast._posed(frames[k], i)
                 for e in near.tolist():
-                    d = float(fcl.distance(a, env[e], dreq, fcl.DistanceResult()))
+                    d = float(fcl.distance(a, env[e], dreq, fcl.DistanceResult())) - margin[e]
                     floor = min(floor, d)
                     if floor <= SWEEP_TOL:
                         return 0.0

@@ -275,7 +275,8 @@ def fast_robot(robot: Robot, **params) -> FastRobot | None:
 
 def fast_obstacles(obstacles: list[ObstacleView], G: Array) -> list[Obstacle]:
     """The obstacles in the fast model's frame, every shape as the box around it
-    (`segment_box.oriented_bounds`: a box is itself)."""
+    (`segment_box.oriented_bounds`: a box is itself) grown by its margin
+    (`CollisionShape.margin`)."""
     Ginv = np.linalg.inv(G)
     out = []
     for ob in obstacles:
@@ -285,7 +286,8 @@ def fast_obstacles(obstacles: list[ObstacleView], G: Array) -> list[Obstacle]:
             o = oriented_bounds(s, T_ob)
             T = np.eye(4)
             T[:3, :3], T[:3, 3] = o.R, o.centre
-            boxes.append(CollisionShape(ShapeKind.BOX, tuple(float(v) for v in 2.0 * o.half),
+            half = o.half + float(s.margin)  # within its margin is the obstacle
+            boxes.append(CollisionShape(ShapeKind.BOX, tuple(float(v) for v in 2.0 * half),
                                         Ginv @ T))
         out.append(Obstacle(ob.name, np.eye(4), tuple(boxes)))
     return out

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import fcl
 import numpy as np
+import trimesh
 
 from assistant.robots.model import CollisionShape, ShapeKind
 
@@ -55,6 +56,52 @@ def fcl_geometry(shape: CollisionShape) -> fcl.CollisionGeometry:
     return m
 
 
+def inflated_geometry(shape: CollisionShape, margin: float) -> fcl.CollisionGeometry:
+    """FCL geometry holding every point within `margin` of the shape (its frame unchanged).
+
+    What lets an obstacle's margin (`CollisionShape.margin`) cost one FCL collision test
+    instead of a distance query (about 30 times slower on a 20 000-triangle proxy): a robot
+    shape grown by the margin touches the obstacle exactly when the shape comes within the
+    margin of it. Exact for spheres and capsules (their radius grows); a cylinder or box
+    grows by the margin along every axis and a mesh becomes its convex hull with every face
+    pushed out by the margin (an FCL convex solid) - both hold the exact grown shape, so they
+    may only answer "touching" up to ~0.4 margin early at corners, never late."""
+    m = float(margin)
+    if m <= 0.0:
+        return fcl_geometry(shape)
+    if shape.kind == ShapeKind.SPHERE:
+        return fcl.Sphere(float(shape.size[0]) + m)
+    if shape.kind == ShapeKind.CAPSULE:
+        return fcl.Capsule(float(shape.size[0]) + m, float(shape.size[1]))
+    if shape.kind == ShapeKind.CYLINDER:
+        return fcl.Cylinder(float(shape.size[0]) + m, float(shape.size[1]) + 2.0 * m)
+    if shape.kind == ShapeKind.BOX:
+        return fcl.Box(*(float(v) + 2.0 * m for v in shape.size))
+    assert shape.mesh is not None
+    corners = _grown_hull_corners(np.asarray(shape.mesh.vertices, dtype=np.float64), m)
+    hull = trimesh.convex.convex_hull(corners)
+    _check_finite(hull.vertices, "a grown collision mesh")
+    faces = np.column_stack([np.full(len(hull.faces), 3), hull.faces]).ravel()
+    return fcl.Convex(np.asarray(hull.vertices, dtype=np.float64), len(hull.faces), faces)
+
+
+def _grown_hull_corners(v: Array, margin: float) -> Array:
+    """Corners of the convex hull of `v` with each facet plane moved out by `margin`; a flat
+    or degenerate point set falls back to its bounding box grown by the margin."""
+    from scipy.spatial import ConvexHull, HalfspaceIntersection, QhullError
+
+    try:
+        hull = ConvexHull(v)
+        eq = hull.equations.copy()  # n . x + d <= 0 inside, |n| = 1
+        eq[:, 3] -= margin
+        inner = v[hull.vertices].mean(axis=0)
+        return HalfspaceIntersection(eq, inner).intersections
+    except (QhullError, ValueError):
+        lo, hi = v.min(axis=0) - margin, v.max(axis=0) + margin
+        return np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
+                         for z in (lo[2], hi[2])])
+
+
 def fcl_transform(T: Array) -> fcl.Transform:
     return fcl.Transform(np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]))
 
@@ -89,14 +136,16 @@ def covering_spheres(shape: CollisionShape, max_count: int = 6) -> tuple[Array, 
 
 
 def world_aabb(shape: CollisionShape, T_base_owner: Array) -> tuple[Array, Array]:
-    """Axis-aligned box (in the base frame) that contains the shape placed by T_base_owner."""
+    """Axis-aligned box (in the base frame) that contains the shape placed by T_base_owner,
+    grown by the shape's margin."""
     T = T_base_owner @ shape.T_link_shape
+    m = float(shape.margin)
     if shape.kind == ShapeKind.MESH:
         assert shape.mesh is not None
         v = np.asarray(shape.mesh.vertices) @ T[:3, :3].T + T[:3, 3]
-        return v.min(axis=0), v.max(axis=0)
+        return v.min(axis=0) - m, v.max(axis=0) + m
     if shape.kind == ShapeKind.SPHERE:
-        r = float(shape.size[0])
+        r = float(shape.size[0]) + m
         return T[:3, 3] - r, T[:3, 3] + r
     if shape.kind == ShapeKind.BOX:
         half = np.asarray(shape.size, dtype=float) / 2
@@ -106,5 +155,5 @@ def world_aabb(shape: CollisionShape, T_base_owner: Array) -> tuple[Array, Array
     else:  # capsule
         r, length = shape.size
         half = np.array([r, r, length / 2 + r])
-    ext = np.abs(T[:3, :3]) @ half
+    ext = np.abs(T[:3, :3]) @ half + m
     return T[:3, 3] - ext, T[:3, 3] + ext

@@ -110,13 +110,17 @@ class MotionChecks:
         frames = self.robot.link_poses(np.asarray(q, dtype=float))
         self._pose_robot(frames)
         best: Clearance | None = None
-        pairs = [(rs, es.obj, es.owner) for rs in self._rshapes if rs.link > 0
+        # (robot shape, other object, its name, its margin): the distance to an obstacle with
+        # a margin is measured to everything within the margin of it
+        pairs = [(rs, es.obj, es.owner, es.margin) for rs in self._rshapes if rs.link > 0
                  for es in self._env]
         if include_self:
             pairs += [(self._rshapes[a], self._rshapes[b].obj,
-                       self._link_names[self._rshapes[b].link]) for a, b in self._self_pairs]
-        for rs, obj, owner in pairs:
+                       self._link_names[self._rshapes[b].link], 0.0)
+                      for a, b in self._self_pairs]
+        for rs, obj, owner, margin in pairs:
             d, res = self._pair_distance(rs.obj, obj)
+            d -= margin
             if best is None or d < best.distance:
                 best = Clearance(d, self._link_names[rs.link], owner,
                                  np.array(res.nearest_points[0]), np.array(res.nearest_points[1]))
@@ -168,7 +172,7 @@ class MotionChecks:
             k, r, e = j // (n_mov * n_env), (j // n_env) % n_mov, j % n_env
             rs, es = self._rshapes[int(movable[r])], self._env[e]
             rs.obj.setTransform(fcl_transform(frames[k][rs.link] @ rs.shape.T_link_shape))
-            best = min(best, self._pair_distance(rs.obj, es.obj)[0])
+            best = min(best, self._pair_distance(rs.obj, es.obj)[0] - es.margin)
         return float(best)
 
     def _pair_distance(self, a: fcl.CollisionObject, b: fcl.CollisionObject,

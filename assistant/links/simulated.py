@@ -28,6 +28,10 @@ from assistant.robots.model import Robot
 
 Array = np.ndarray
 
+#: Wall seconds per step of the motion loop at most: how soon a stop takes (and how often the
+#: pose is told) however slow the simulation runs.
+MAX_WALL_STEP_S = 0.02
+
 
 class SimulatedRobot(RobotLink):
     """The robot model moving in time, with hidden obstacles that trigger collision indications.
@@ -188,7 +192,7 @@ class SimulatedRobot(RobotLink):
             if self._indicate.is_set():
                 return self._finish(LinkEventKind.COLLISION_INDICATED, index(follower.segment),
                                     self._indicate_msg, {"source": "operator"})
-            adv = follower.advance(self.event_period_s)
+            adv = follower.advance(self._step_s())
             self.clock.sleep(adv.used_s)
             self._q = adv.q
             if adv.collision is not None:
@@ -200,6 +204,14 @@ class SimulatedRobot(RobotLink):
                 return self._finish(LinkEventKind.REACHED, len(path) - 1, "reached")
             self._emit(LinkEvent(LinkEventKind.MOVED, adv.q, self.clock.now(), "",
                                  index(adv.segment)))
+
+    def _step_s(self) -> float:
+        """Robot seconds per step of the motion loop: the event period, but never more than
+        `MAX_WALL_STEP_S` of wall time - a slowed-down simulation (0.05x) still answers a stop
+        and reports its pose at a human rate, as a real controller does."""
+        scale = getattr(self.clock, "time_scale", None)
+        return self.event_period_s if scale is None else \
+            min(self.event_period_s, MAX_WALL_STEP_S * scale)
 
     def _halt_for_operator(self, q: Array, path_index: int, report) -> LinkEvent:
         """Halted against something: wait for the operator's Collision! (recorded here, where

@@ -28,7 +28,7 @@ class CatalogArm:
     urdf: str  # file name in arms/
     base_link: str  # the controller's robot base frame
     tool_link: str  # the flange, z out of it (tools run along z)
-    vendor: str  # the link kind that drives it
+    vendor: str  # the link kind that drives it ("": none yet - export only)
     source: str  # the public document its numbers come from
 
 
@@ -37,6 +37,16 @@ CATALOG: dict[str, CatalogArm] = {
         label="KUKA KR 6 R900 sixx (KR AGILUS)", urdf="kuka_kr6_r900_sixx.urdf",
         base_link="base_link", tool_link="tool0", vendor="kuka_rest",
         source="KUKA specification 'KR AGILUS sixx', technical data of the KR 6 R900 sixx"),
+    "abb_irb1200_5_09": CatalogArm(
+        label="ABB IRB 1200-5/0.9", urdf="abb_irb1200_5_09.urdf",
+        base_link="base_link", tool_link="tool0", vendor="abb",
+        source="ABB product specification 'IRB 1200' (3HAC046982-001), technical data of the "
+               "IRB 1200-5/0.9"),
+    "fanuc_lrmate200id": CatalogArm(
+        label="FANUC LR Mate 200iD", urdf="fanuc_lrmate200id.urdf",
+        base_link="base_link", tool_link="tool0", vendor="",
+        source="FANUC data sheet 'LR Mate 200iD' (motion ranges, speeds, operating space); "
+               "the serial J3 range as ROS-Industrial's fanuc_lrmate200id_support states it"),
 }
 
 

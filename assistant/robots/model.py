@@ -57,12 +57,18 @@ class ShapeKind(str, Enum):
 
 @dataclass(frozen=True)
 class CollisionShape:
-    """One primitive or mesh fixed to a link, placed by ``T_link_shape``."""
+    """One primitive or mesh fixed to a link, placed by ``T_link_shape``.
+
+    `margin` (m): everything within this distance of the shape counts as the shape. A
+    simplified collision proxy of a big CAD part carries the measured distance by which the
+    part itself may lie outside the proxy, so the proxy plus its margin holds all of the
+    part. The collision checks honour it for obstacles (robot shapes keep 0)."""
 
     kind: ShapeKind
     size: tuple[float, ...] = ()
     T_link_shape: Array = field(default_factory=lambda: np.eye(4))
     mesh: trimesh.Trimesh | None = None
+    margin: float = 0.0
 
     def bounding_radius(self) -> float:
         """Radius of a sphere around the shape's origin that contains it (for broad phases)."""
@@ -111,7 +117,8 @@ class CollisionShape:
 
     def transformed(self, T_new_link: Array) -> CollisionShape:
         """The same shape expressed in another frame (T_new_link @ T_link_shape)."""
-        return CollisionShape(self.kind, self.size, T_new_link @ self.T_link_shape, self.mesh)
+        return CollisionShape(self.kind, self.size, T_new_link @ self.T_link_shape, self.mesh,
+                              self.margin)
 
 
 @dataclass(frozen=True)

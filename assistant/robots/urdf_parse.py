@@ -16,6 +16,7 @@ import pinocchio as pin
 import trimesh
 from lxml import etree
 
+from assistant.file_guard import FileRefused, read_file, xml_parser
 from assistant.robots.batch_chain import JointKind
 from assistant.robots.catalog import RobotModelError
 from assistant.robots.model import (
@@ -28,6 +29,9 @@ Array = np.ndarray
 #: grows with the triangle count and the planner checks millions of poses; a hull is a safe
 #: (conservative) proxy for a link. Visual meshes are never simplified.
 COLLISION_FACE_LIMIT = 3000
+#: A URDF's text and each mesh file it names may be at most this large (`file_guard`).
+MAX_URDF_BYTES = 64 * 2**20
+MAX_MESH_BYTES = 256 * 2**20
 #: Default speed (rad/s or m/s) for a chain joint whose URDF <limit> gives none.
 DEFAULT_VELOCITY = 1.0
 #: Range given to continuous (unbounded) joints: one turn each way.
@@ -105,8 +109,9 @@ class URDFDocument:
 
 def parse_urdf(text: str, source: str, base_dir: Path, package_dirs: Sequence[str | Path]
            ) -> URDFDocument:
-    try:
-        root_el = etree.fromstring(text.encode() if isinstance(text, str) else text)
+    try:  # no entities, DTDs or network; libxml2 refuses nesting deeper than 256
+        root_el = etree.fromstring(text.encode() if isinstance(text, str) else text,
+                                   xml_parser())
     except etree.XMLSyntaxError as e:
         raise RobotModelError(f"{source}:{e.lineno}: malformed XML: {e.msg}") from None
     if root_el.tag != "robot":
@@ -255,7 +260,8 @@ def _geometry(el: etree._Element, tag: str, link: str, source: str, base_dir: Pa
         path = resolve_mesh_path(filename, base_dir, package_dirs,
                                  where=f"{source}:{shape.sourceline}: link {link!r} <{tag}>")
         if filename not in digests:
-            digests[filename] = hashlib.sha256(path.read_bytes()).hexdigest()
+            digests[filename] = hashlib.sha256(read_mesh_bytes(
+                path, f"{source}:{shape.sourceline}: link {link!r} <{tag}>")).hexdigest()
         return URDFGeometry(ShapeKind.MESH, (), T, el.sourceline, filename, path,
                          tuple(float(v) for v in scale), rgba)
     raise RobotModelError(f"{source}:{shape.sourceline}: link {link!r}: unknown geometry "
@@ -298,6 +304,11 @@ def resolve_mesh_path(filename: str, base_dir: Path, package_dirs: Sequence[str 
         tried.append(cand)
         if cand.is_file():
             return cand.resolve()
+        if cand.exists():  # a device, a pipe, a folder: say what it is
+            try:
+                read_file(cand, limit=0, what="mesh file")
+            except FileRefused as exc:
+                raise RobotModelError(f"{where}: {exc}") from None
     shown = ", ".join(str(t) for t in tried[:8]) + (" ..." if len(tried) > 8 else "")
     raise RobotModelError(f"{where}: mesh file not found: {filename!r} (tried: {shown})")
 
@@ -347,3 +358,12 @@ def _joint(el: etree._Element, source: str, links: dict[str, URDFLink]) -> URDFJ
                   velocity)
 
 
+
+
+def read_mesh_bytes(path: Path, where: str) -> bytes:
+    """A mesh file a URDF names, read through `file_guard` (a regular file of at most
+    `MAX_MESH_BYTES`): a device or a pipe is refused by name, never read."""
+    try:
+        return read_file(path, limit=MAX_MESH_BYTES, what="mesh file")
+    except FileRefused as exc:
+        raise RobotModelError(f"{where}: {exc}") from None

@@ -14,6 +14,7 @@ primitives, not as pinocchio geometry objects.
 from __future__ import annotations
 
 import hashlib
+import io
 import json
 import threading
 from collections.abc import Mapping, Sequence
@@ -25,6 +26,7 @@ import pinocchio as pin
 import trimesh
 from lxml import etree
 
+from assistant.file_guard import FileRefused, check_archive, read_file, xml_parser
 from assistant.robots.batch_chain import BatchChain, ChainJoint
 from assistant.robots.catalog import RobotModelError
 from assistant.robots.model import (
@@ -41,12 +43,15 @@ from assistant.robots.urdf_parse import (
     _ACTUATED,
     COLLISION_FACE_LIMIT,
     CONTINUOUS_RANGE,
+    MAX_MESH_BYTES,
+    MAX_URDF_BYTES,
     TCP_FRAME,
     URDFDocument,
     URDFGeometry,
     URDFJoint,
     URDFLink,
     parse_urdf,
+    read_mesh_bytes,
     resolve_mesh_path,
 )
 from assistant.transforms import inv_T
@@ -156,8 +161,8 @@ class URDFRobot(DLSInverseKinematics, Robot):
         """
         path = Path(path)
         try:
-            text = path.read_text(encoding="utf-8")
-        except (OSError, UnicodeDecodeError) as e:
+            text = read_file(path, limit=MAX_URDF_BYTES, what="URDF file").decode("utf-8")
+        except (FileRefused, UnicodeDecodeError) as e:
             raise RobotModelError(f"{path}: cannot read the URDF: {e}") from None
         doc = parse_urdf(text, str(path), path.resolve().parent, package_dirs)
         return cls(doc, base_link=base_link, tool_link=tool_link, tool=tool,
@@ -356,8 +361,13 @@ class URDFRobot(DLSInverseKinematics, Robot):
         if cached is not None:
             return cached
         where = f"{doc.where(g.line)}: link {link.name!r}"
+        data = read_mesh_bytes(g.path, where)
+        suffix = g.path.suffix.lower().lstrip(".")
         try:
-            mesh = trimesh.load(str(g.path), force="mesh")
+            if suffix == "dae":
+                _check_collada(data)
+            mesh = trimesh.load(io.BytesIO(data), file_type=suffix, force="mesh",
+                                resolver=trimesh.resolvers.FilePathResolver(g.path))
         except Exception as e:  # trimesh raises many types for broken files
             raise RobotModelError(f"{where}: cannot load mesh {str(g.path)!r}: {e}") from None
         if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
@@ -553,3 +563,18 @@ def _default_tool_link(doc: URDFDocument, base: str) -> str:
 
 
 __all__ = ["COLLISION_FACE_LIMIT", "IKSettings", "TCP_FRAME", "URDFRobot", "resolve_mesh_path"]
+
+
+def _check_collada(data: bytes) -> None:
+    """A COLLADA mesh through `file_guard`'s rules before pycollada reads it (which parses
+    in libxml2's huge-tree mode and inflates zipped .dae files whole): a zip's directory
+    within limits, the XML nested at most 256 deep, without entities or DTDs."""
+    import zipfile
+
+    if data[:2] == b"PK":
+        with zipfile.ZipFile(io.BytesIO(data)) as zf:
+            members = check_archive(zf.infolist(), what="zipped COLLADA file",
+                                    max_total=MAX_MESH_BYTES)
+            dae = [m for m in members if m.filename.lower().endswith(".dae")]
+            data = zf.read(dae[0]) if dae else b""
+    etree.fromstring(data, xml_parser())

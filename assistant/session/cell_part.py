@@ -11,8 +11,8 @@ from typing import Any
 
 import numpy as np
 
-from assistant.cell.cad import CadImport, load_cad
-from assistant.cell.cad.importer import MAX_PART_SIZE_M
+from assistant.cell.cad import CadImport, CadImportError, load_cad
+from assistant.cell.cad.importer import MAX_PART_SIZE_M, read_cad_file
 from assistant.cell.model import CellObject, ObjectRole, PrimitiveKind, PrimitiveSpec
 from assistant.cell.placement import PoseFit, fit_pose
 from assistant.progress import Cancelled, Progress
@@ -133,7 +133,7 @@ class CellActions:
         except Exception:  # noqa: BLE001 - a robot without a world config: nothing to say
             return
         T = np.linalg.inv(self.T_world_base()) @ np.asarray(obj.T_world_object, dtype=float)
-        lo, hi = obj.display_mesh.bounds
+        lo, hi = obj.full_mesh.bounds
         corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
                             for z in (lo[2], hi[2])]) @ T[:3, :3].T + T[:3, 3]
         half = size / 2.0
@@ -151,11 +151,14 @@ class CellActions:
                 "part inside the cube"))
 
     def import_cad_path(self, path: str | Path, **kw: Any) -> tuple[CellObject, CadImport]:
+        """`import_cad` of a file on disk: a regular file within the size limit
+        (`read_cad_file`), never a device or a pipe."""
         p = Path(path)
         try:
-            data = p.read_bytes()
-        except OSError as exc:
-            raise SessionError(f"cannot read {p}: {exc.strerror}") from None
+            data = read_cad_file(p)
+        except CadImportError as exc:
+            raise SessionError(f"cannot import {p}: {exc.problem}"
+                               + (f" — {exc.advice}" if exc.advice else "")) from None
         return self.import_cad(data, p.name, **kw)
 
     def add_primitive(self, kind: str, size: tuple[float, ...], *, name: str | None = None,

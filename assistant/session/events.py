@@ -99,6 +99,15 @@ class Notice(Event):
 
 
 @dataclass(frozen=True)
+class SaveStateChanged(Event):
+    """Autosave started failing (`saved` False, `reason` says why without a path) or works
+    again: until it does, the page marks the session as not saved."""
+
+    saved: bool
+    reason: str = ""
+
+
+@dataclass(frozen=True)
 class PointerUpdated(Event):
     position: np.ndarray | None = field(repr=False, default=None)
     std_m: float = 0.0

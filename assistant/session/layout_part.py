@@ -12,7 +12,8 @@ from pathlib import Path
 
 import numpy as np
 
-from assistant.cell.cad import CadImport, load_cad
+from assistant.cell.cad import CadImport, CadImportError, load_cad
+from assistant.cell.cad.importer import read_cad_file
 from assistant.cell.cad.layout import CellLayout, read_layout
 from assistant.cell.model import CellObject, ObjectRole
 from assistant.mission.model import LocationSource
@@ -99,7 +100,8 @@ class LayoutActions:
     def import_layout_path(self, path: str | Path, **kw) -> list[CellObject]:
         p = Path(path)
         try:
-            data = p.read_bytes()
-        except OSError as exc:
-            raise SessionError(f"cannot read {p}: {exc.strerror}") from None
+            data = read_cad_file(p)
+        except CadImportError as exc:
+            raise SessionError(f"cannot import {p}: {exc.problem}"
+                               + (f" — {exc.advice}" if exc.advice else "")) from None
         return self.import_layout(data, p.name, **kw)

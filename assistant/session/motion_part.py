@@ -63,6 +63,7 @@ class MotionActions:
         return self.jog_joints(res.best(self.current_joints()), wait=wait)
 
     def _run_motion(self, task: str, fn: Callable[[Progress], Any]) -> Future:
+        self.hold.check_start()
         with self._lock:
             self.machine.begin_moving()
         self._emit_state()
@@ -80,6 +81,20 @@ class MotionActions:
 
     def _known_checker(self) -> CollisionChecker:
         return CollisionChecker(self.robot, self.cell.collision_objects_in_base())
+
+    def adopt_hold(self, hold: Any) -> None:
+        """Take over the page's motion authority (a session loaded into a running page)."""
+        self.hold = hold
+        hold.on_lost(self._holder_gone)
+
+    def _holder_gone(self, why: str) -> None:
+        """The enabling switch was let go (`MotionHold`): the robot stops now and waits;
+        a run is left resumable for the next holder."""
+        if self.machine.mode != Mode.MOVING:
+            return
+        self.stop()
+        self.bus.emit(Notice(f"The robot stopped: {why}. It waits for the page that holds "
+                             "motion authority to resume."))
 
     def stop(self) -> None:
         """Stop the robot now (from any thread)."""

@@ -1,4 +1,9 @@
-"""Sample cells, saving, autosave and loading.
+"""Sample cells, saving and loading (autosave and the page's settled view: `saving.py`).
+
+A save writes the cell, then the link passwords (`link_secrets.py`, 0600), then
+`session.json` (never a password); each file atomically and fsynced with its folder. A load
+bounds the JSON (`store.py`), range-checks every field (`load_checks.py`), opens a session
+saved mid-task idle, and reports what it changed in `load_notes`.
 
 A part mixed into `Session`."""
 
@@ -18,12 +23,15 @@ from assistant.mission.model import (
     Mission,
 )
 from assistant.mission.motion import trajectory_from_json, trajectory_to_json
+from assistant.session import link_secrets
+from assistant.session.load_checks import check_session, reset_transient
 from assistant.session.store import (
     CELL_DIR,
     SESSION_JSON,
     SESSION_SCHEMA,
     SessionFileError,
     check_session_keys,
+    fsync_folder,
     read_session_json,
     write_json_atomic,
 )
@@ -42,7 +50,10 @@ Array = np.ndarray
 
 
 class Persistence:
-    """Sample cells, saving, autosave and loading."""
+    """Sample cells, saving and loading."""
+
+    #: (folder, secrets) last written to `secrets.json`: autosave rewrites it only on change.
+    _secrets_written: tuple[Path, dict[str, str]] | None = None
 
     # ================================================================== samples
     @classmethod
@@ -90,22 +101,25 @@ class Persistence:
         return s
 
     # ================================================================== persistence
-    def _autosave(self) -> None:
-        if self.autosave_enabled and self.folder is not None:
-            self.save(self.folder)
-
     def save(self, folder: str | Path) -> Path:
-        """Write the whole session (cell with CAD files, mission, world observations, plan)."""
+        """Write the whole session (cell with CAD files, mission, world observations, plan);
+        on disk (fsynced) when this returns."""
         folder = Path(folder)
         with self._lock:
             save_cell(self.cell, folder / CELL_DIR)
+            fsync_folder(folder / CELL_DIR)
+            link, secret = link_secrets.split(self.link_settings.to_json(),
+                                              LinkSettings().to_json())
+            if self._secrets_written != (folder, secret):
+                link_secrets.write(folder, secret)
+                self._secrets_written = (folder, secret)
             doc = {
                 "schema_version": SESSION_SCHEMA,
                 "saved_at": time.time(),
                 "machine": self.machine.to_json(),
                 "locations": [loc.to_json() for loc in self.locations.values()],
                 "mission": self.mission.to_json(),
-                "link": self.link_settings.to_json(),
+                "link": link,
                 "hidden_obstacles": [h.to_json() for h in self.hidden],
                 "pointer": self.pointer_config,
                 "counters": self.counters.to_json(),
@@ -132,18 +146,29 @@ class Persistence:
     def load(cls, folder: str | Path, *, autosave: bool = True) -> Session:
         """Restore a saved session: scene, mission, world observations and plan."""
         folder = Path(folder)
+        path = folder / SESSION_JSON
         doc = read_session_json(folder)
-        notes = check_session_keys(doc, folder / SESSION_JSON)
+        notes = check_session_keys(doc, path)
+        secret, secret_notes = link_secrets.read(folder)
+        notes += secret_notes
         try:
             cell = load_cell(folder / CELL_DIR)
             s = cls(folder, autosave=False)
             s.cell = cell
             s.machine = Machine.from_json(doc.get("machine", {}))
+            notes += reset_transient(s, path)
             for d in doc.get("locations", []):
                 loc = Location.from_json(d)
                 s.locations[loc.name] = loc
             s.mission = Mission.from_json(doc.get("mission", {}))
-            s.link_settings = LinkSettings.from_json(doc.get("link", {}))
+            link = dict(doc.get("link", {}))
+            in_clear = sorted(k for k in link if link_secrets.is_secret(k))
+            if in_clear:
+                notes.append(f"{path}: the link's {', '.join(in_clear)} was stored in clear; "
+                             f"it moves to {link_secrets.SECRETS_JSON} (readable by you only)")
+            # A password in session.json is newer than secrets.json (only an older cellteach
+            # or a hand edit puts one there, after secrets.json was written).
+            s.link_settings = LinkSettings.from_json({**secret, **link})
             s.hidden = [HiddenObstacle.from_json(h) for h in doc.get("hidden_obstacles", [])]
             s.pointer_config = dict(doc.get("pointer", {}))
             s.counters = Counters.from_json(doc.get("counters", {}))
@@ -151,19 +176,21 @@ class Persistence:
                                      doc.get("recorded_collisions", [])]
             q = doc.get("robot_joints")
             if q is not None:
-                qa = np.asarray(q, float)
-                if qa.shape == (s.robot.dof,) and np.all(np.isfinite(qa)):
-                    s._q_sim = qa
+                s._q_sim = np.asarray(q, float)
             t = doc.get("trajectory")
             s.trajectory = trajectory_from_json(t) if t else None
             s.plan_report = doc.get("plan_report")
             s.export_dialect = str(doc.get("export_dialect", "melfa"))
             s.sample = doc.get("sample")
             s.world_settings = WorldSettings.from_json(doc.get("world_settings", {}))
+            notes += check_session(s, path)
         except SessionFileError:
             raise
-        except (KeyError, TypeError, ValueError) as exc:
-            raise SessionFileError(f"{folder / SESSION_JSON}: {exc}") from None
+        except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
+            raise SessionFileError(f"{path}: {exc}") from None
         s.autosave_enabled = autosave
         s.load_notes = notes
+        if in_clear and autosave:
+            with s._lock:
+                s._autosave()  # the password leaves session.json now, not at the next edit
         return s

@@ -40,6 +40,8 @@ class PlanningActions:
     def _run_busy(self, task: str, fn: Callable[[Progress], Any],
                   steps: tuple[str, ...] | None = None, *, moving: bool = False) -> Future:
         """Run long work on the worker: the machine is busy (or moving) until it ends."""
+        if moving:
+            self.hold.check_start()  # only the present holder of motion authority
         with self._lock:
             if steps is not None:
                 self.machine.require(steps, task)
@@ -83,7 +85,7 @@ class PlanningActions:
             raise SessionError(str(exc)) from None
         with self._lock:
             self.world_settings = settings
-        self._autosave()
+            self._autosave()
         self._emit_state()
         return settings.to_json()
 
@@ -198,6 +200,7 @@ class PlanningActions:
             if short:
                 self.plan_report["description"] += "\n  clearance: " + "; ".join(short)
             self.program = None
+            self._autosave()  # saved before PlanReady shows it
         for line in short:
             self.bus.emit(Notice(f"Closer than the required clearance: {line}"))
         self.bus.emit(PlanReady(dict(self.plan_report)))
@@ -301,6 +304,7 @@ class PlanningActions:
                 self.trajectory = final.trajectory
                 self.plan_report = _report_json(final.report)
                 self.program = None
+            self._autosave()  # saved before ExecutionFinished / PlanReady show it
         self.last_run = summary = {
             "ok": report.ok, "end": report.end.value if report.end else None,
             "reason": report.reason, "collision_indications": report.collision_indications,

@@ -29,6 +29,16 @@ def all_obstacles(session: Session) -> list[Any]:
     return [*session.cell.collision_objects_in_base(), *hidden]
 
 
+def object_summary(obj: Any) -> dict[str, Any]:
+    """A cell object as the report lists it: the part at full resolution, what the page
+    draws, and the collision margin its proxy carries (0 when it collides as itself)."""
+    return {"name": obj.name, "role": obj.role.value,
+            "triangles": int(len(obj.full_mesh.faces)),
+            "drawn_triangles": int(len(obj.display_mesh.faces)),
+            "collision_shapes": len(obj.collision),
+            "collision_margin_mm": round(obj.collision_margin_m * 1000.0, 3)}
+
+
 def session_report(session: Session, *, wall_time_s: float, error: str | None = None,
                    program_files: list[str] | None = None) -> dict[str, Any]:
     traj = session.trajectory
@@ -53,6 +63,7 @@ def session_report(session: Session, *, wall_time_s: float, error: str | None = 
         "operator_actions": session.counters.operator_actions,
         "workflow_step": session.machine.state,
     }
+    rep["objects"] = [object_summary(o) for o in session.cell.objects.values()]
     if session.program is not None:
         # as written: the move to the start included, what the operator counts in the file
         rep["program_motions"] = session.program.primitives

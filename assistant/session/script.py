@@ -26,7 +26,9 @@ from typing import Any
 import numpy as np
 import yaml
 
+from assistant.cell.cad.importer import read_cad_file
 from assistant.cell.model import ObjectRole
+from assistant.file_guard import FileRefused, read_file
 from assistant.links.settings import LinkSettings
 from assistant.mission.motion import ToolAction, ToolActionKind
 from assistant.robots.catalog import RobotSpec, ToolSpec
@@ -127,7 +129,7 @@ def _hidden(s: Session, a: dict) -> Any:
 def _import_cad(s: Session, a: dict, base: Path) -> Any:
     path = base / a["file"]
     if path.suffix.lower() == ".dxf" and path.is_file() and \
-            s.read_layout(path.read_bytes(), path.name) is not None:
+            s.read_layout(read_cad_file(path), path.name) is not None:
         if "pose" in a or "name" in a:
             raise ValueError(f"{a['file']} is a cell layout: its parts are placed and named as "
                              "drawn (no pose or name)")
@@ -296,6 +298,8 @@ REQUIRED: dict[str, set[str]] = {
     "add_path": {"name"}, "remove_path": {"name"}, "move_path": {"name", "index"},
     "hidden_obstacle": {"name", "size"},
 }
+#: A script longer than this is not one an operator wrote.
+MAX_SCRIPT_BYTES = 16 * 2**20
 #: Verbs whose single scalar argument may be written inline: `- set_start: P1`.
 SCALAR_ARG = {"set_start": "name", "set_goal": "name", "goto": "step", "export": "dialect",
               "teach_robot": "name", "remove_object": "name", "remove_location": "name",
@@ -306,9 +310,11 @@ SCALAR_ARG = {"set_start": "name", "set_goal": "name", "goto": "step", "export":
 def parse_script(path: str | Path) -> Script:
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ScriptError(f"{path}: cannot read ({exc.strerror})") from None
+        text = read_file(path, limit=MAX_SCRIPT_BYTES, what="script").decode("utf-8")
+    except FileRefused as exc:
+        raise ScriptError(str(exc)) from None
+    except UnicodeDecodeError as exc:
+        raise ScriptError(f"{path}: not UTF-8 text ({exc.reason})") from None
     try:
         root = yaml.compose(text, Loader=yaml.SafeLoader)
     except yaml.YAMLError as exc:
@@ -405,5 +411,7 @@ def run_script(script: Script, folder: Path | None, *,
         except ScriptError as exc:
             return session, str(exc)
         except Exception as exc:  # noqa: BLE001 - reported in one line, never a traceback
-            return session, f"{script.path}:{action.line}: {action.verb} failed: {exc}"
+            why = str(exc) or ("ran out of memory" if isinstance(exc, MemoryError)
+                               else type(exc).__name__)
+            return session, f"{script.path}:{action.line}: {action.verb} failed: {why}"
     return session, None

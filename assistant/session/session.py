@@ -2,10 +2,11 @@
 
 Each action is checked by the workflow machine (a refused action raises `TransitionRefused`
 with the sentence to show and changes nothing), applied under the session lock, recorded for
-undo if it edits the document, counted, autosaved, and announced on the event bus. An action
-that fails half-way is rolled back to the snapshot taken before it. Long work (world model,
-planning, execution, exploration) runs on the worker thread with progress and Cancel; the
-machine's busy/moving modes keep edits out meanwhile.
+undo if it edits the document, counted, autosaved before the lock is let go (a page reads the
+session under the same lock: what it shows is saved, `saving.py`), and announced on the event
+bus. An action that fails half-way is rolled back to the snapshot taken before it. Long work
+(world model, planning, execution, exploration) runs on the worker thread with progress and
+Cancel; the machine's busy/moving modes keep edits out meanwhile.
 
 The actions live in parts by concern (`*_part.py`), mixed into `Session`: their methods run
 on the Session's state, under its lock and workflow, exactly as if written here.
@@ -41,9 +42,11 @@ from assistant.session.events import (
 from assistant.session.export_part import ExportActions
 from assistant.session.history import History
 from assistant.session.layout_part import LayoutActions
+from assistant.session.motion_hold import MotionHold
 from assistant.session.motion_part import MotionActions
 from assistant.session.persistence_part import Persistence
 from assistant.session.planning_part import PlanningActions
+from assistant.session.saving import Saving
 from assistant.session.scene_part import SceneQueries
 from assistant.session.setup_part import SetupActions
 from assistant.session.study_part import StudyActions
@@ -61,7 +64,7 @@ Array = np.ndarray
 
 
 class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActions,
-              PlanningActions, SceneQueries, ExportActions, Persistence, StudyActions):
+              PlanningActions, SceneQueries, ExportActions, Persistence, Saving, StudyActions):
     """Everything the operator does, headless or behind the web page: the state, the action
     plumbing and the workflow here; the actions by concern in the parts it mixes in."""
 
@@ -85,6 +88,9 @@ class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActi
         self.plan_report: dict[str, Any] | None = None
         self.program: Any = None
         self.recorded_collisions: list[Array] = []
+        #: The enabling switch: who may move the robot (enforced once pages serve this).
+        self.hold = MotionHold()
+        self.hold.on_lost(self._holder_gone)
         self._lock = threading.RLock()
         self._link: RobotLink | None = None
         self._q_sim: Array | None = None  # joints of the robot when no link is connected

@@ -135,6 +135,7 @@ class SetupActions:
             with self._lock:
                 self.recorded_collisions.append(np.asarray(ev.q, float).copy())
                 self.counters.collision_indications += 1
+                self._autosave()  # saved before the page says "Collision #n recorded"
             self.bus.emit(CollisionRecorded(np.asarray(ev.q, float).copy(),
                                             self.counters.collision_indications,
                                             "operator" if "operator" in ev.message else "robot"))

@@ -1,9 +1,15 @@
 """The session folder: `session.json` (schema-versioned JSON) beside the cell folder `cell/`.
 
 Written after every accepted action. Each file is replaced atomically (temporary name, fsync,
-rename), the cell first and `session.json` last, so a crash or kill at any moment leaves a
-folder that loads: at worst without the action that was in flight. Loading never unpickles
-or evaluates anything; unknown versions and malformed content fail with `SessionFileError`.
+rename, fsync of the folder so the rename itself is on disk), the cell first and
+`session.json` last, so a crash or kill at any moment leaves a folder that loads: at worst
+without the action that was in flight. Link passwords are kept out of it (`link_secrets.py`).
+
+Loading never unpickles or evaluates anything. The JSON is bounded before anything reads it:
+at most `MAX_SESSION_BYTES`, nested at most `MAX_DEPTH` deep (a deeper file would exhaust
+the parser's recursion), no NaN or infinity (`1e999` included), no integer beyond 18 digits;
+`load_checks.py` then range-checks every field. Unknown versions and malformed content fail
+with `SessionFileError`, one sentence naming the file and the field.
 """
 
 from __future__ import annotations
@@ -19,6 +25,11 @@ SESSION_SCHEMA = 1
 SESSION_JSON = "session.json"
 CELL_DIR = "cell"
 MAX_SESSION_BYTES = 256 * 1024 * 1024
+#: A session file is at most ~8 levels deep (mission > paths > segments > points); 32 is
+#: generous and far below the parser's recursion limit.
+MAX_DEPTH = 32
+#: Integers the session holds are counts and seeds: 18 digits fit an int64.
+MAX_INT_DIGITS = 18
 
 
 class SessionFileError(ValueError):
@@ -54,19 +65,45 @@ def check_session_keys(doc: dict[str, Any], path: Path) -> list[str]:
     return [f"{path}: unknown key {key!r} ignored" for key in doc if key not in SESSION_KEYS]
 
 
-def write_json_atomic(path: Path, doc: dict[str, Any]) -> None:
-    data = json.dumps(doc, indent=1, allow_nan=False).encode("utf-8")
+def write_json_atomic(path: Path, doc: dict[str, Any], *, mode: int = 0o644) -> None:
+    """Replace `path` with `doc` so that a crash leaves either the old or the new file, and
+    the new one is on disk when this returns (file and folder fsynced). `mode`: the new
+    file's permissions from its creation on (0600 for secrets: never readable by others,
+    not even for a moment)."""
+    write_bytes_atomic(path, json.dumps(doc, indent=1, allow_nan=False).encode("utf-8"),
+                       mode=mode)
+
+
+def write_bytes_atomic(path: Path, data: bytes, *, mode: int = 0o644) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}-{secrets.token_hex(4)}")
     try:
-        with open(tmp, "wb") as f:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, mode)
+        with os.fdopen(fd, "wb") as f:
             f.write(data)
             f.flush()
             os.fsync(f.fileno())
+        os.chmod(tmp, mode)  # the umask may have taken bits away (0644 -> 0600 is fine too)
         os.replace(tmp, path)
     finally:
         with contextlib.suppress(FileNotFoundError):
             tmp.unlink()
+    fsync_folder(path.parent)
+
+
+def fsync_folder(folder: Path) -> None:
+    """Make the names in `folder` (a rename, a new file) durable. Some file systems cannot
+    fsync a folder (EINVAL): there the rename is as durable as the OS makes it."""
+    try:
+        fd = os.open(folder, os.O_RDONLY | getattr(os, "O_DIRECTORY", 0))
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
 
 
 def read_session_json(folder: Path) -> dict[str, Any]:
@@ -80,13 +117,7 @@ def read_session_json(folder: Path) -> dict[str, Any]:
         raise SessionFileError(f"{folder}: no {SESSION_JSON} here - is this a session folder?")
     if path.stat().st_size > MAX_SESSION_BYTES:
         raise SessionFileError(f"{path}: file is implausibly large")
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"),
-                         parse_constant=_reject_constant)
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise SessionFileError(f"{path}: not valid JSON ({exc})") from None
-    except ValueError as exc:
-        raise SessionFileError(f"{path}: {exc}") from None
+    doc = parse_json(path.read_bytes(), path)
     if not isinstance(doc, dict):
         raise SessionFileError(f"{path}: expected a JSON object at the top")
     version = doc.get("schema_version")
@@ -97,5 +128,59 @@ def read_session_json(folder: Path) -> dict[str, Any]:
     return doc
 
 
+def parse_json(data: bytes, path: Path) -> Any:
+    """The JSON in `data`, bounded as the module says; SessionFileError names what is wrong."""
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise SessionFileError(f"{path}: not valid JSON (not UTF-8 text: {exc.reason})"
+                               ) from None
+    too_deep = SessionFileError(f"{path}: nested deeper than {MAX_DEPTH} levels: not a file "
+                                "cellteach wrote")
+    try:
+        doc = json.loads(text, parse_constant=_reject_constant, parse_float=_finite_float,
+                         parse_int=_bounded_int)
+    except RecursionError:
+        raise too_deep from None
+    except json.JSONDecodeError as exc:
+        raise SessionFileError(f"{path}: not valid JSON ({exc})") from None
+    except ValueError as exc:
+        raise SessionFileError(f"{path}: {exc}") from None
+    if json_depth(doc) > MAX_DEPTH:
+        raise too_deep
+    return doc
+
+
+def json_depth(doc: Any) -> int:
+    """How deeply lists and objects nest in `doc` (iteratively: no recursion to exhaust)."""
+    deepest, stack = 0, [(doc, 1)]
+    while stack:
+        node, depth = stack.pop()
+        if isinstance(node, dict):
+            children = node.values()
+        elif isinstance(node, list):
+            children = node
+        else:
+            continue
+        deepest = max(deepest, depth)
+        if depth > MAX_DEPTH:
+            return depth
+        stack.extend((c, depth + 1) for c in children)
+    return deepest
+
+
 def _reject_constant(name: str) -> float:
     raise ValueError(f"{name} is not allowed in a session file")
+
+
+def _finite_float(text: str) -> float:
+    v = float(text)
+    if v != v or v in (float("inf"), float("-inf")):
+        raise ValueError(f"the number {text[:30]} is beyond floating-point range")
+    return v
+
+
+def _bounded_int(text: str) -> int:
+    if len(text.lstrip("-")) > MAX_INT_DIGITS:
+        raise ValueError(f"the integer {text[:30]}... has more than {MAX_INT_DIGITS} digits")
+    return int(text)

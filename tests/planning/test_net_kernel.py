@@ -132,3 +132,19 @@ def _same_net(fast, slow) -> None:
         np.testing.assert_allclose(getattr(fast, name), getattr(slow, name), rtol=0,
                                    atol=1e-9, equal_nan=True, err_msg=name)
     assert np.array_equal(fast._pinned, slow._pinned)
+
+
+def test_a_refused_move_is_retried_at_half_length():
+    """The numpy path's retry: a move refused at full length (and not pinned) is tested
+    again at half its length; pinned or accepted rows keep theirs. (Halving is exact in
+    binary floating point, so the values compare exactly.)"""
+    ok = np.array([True, False, False])
+    pin = np.array([False, False, True])
+    idx = np.array([3, 4, 5])
+    D = np.ones((3, 2))
+    P = np.zeros((6, 2))
+    trial = np.full((6, 2), 9.0)
+    rows = en._halve_retries(ok, pin, idx, D, trial, P)
+    assert rows.tolist() == [1]
+    assert (D[1] == 0.5).all() and (D[[0, 2]] == 1.0).all()
+    assert (trial[4] == 0.5).all() and (trial[[3, 5]] == 9.0).all()

@@ -152,6 +152,34 @@ def test_missing_mesh_names_link_and_path(tmp_path):
     assert str(p) in msg and "link 'l1'" in msg and str(tmp_path / "meshes" / "gone.stl") in msg
 
 
+def test_a_mesh_path_naming_a_device_or_a_pipe_is_refused_by_what_it_is(tmp_path):
+    """Issue 54: a URDF mesh path naming /dev/zero grew the process to 3.2 GB."""
+    import os
+
+    for target, what in (("/dev/zero", "character device"), (tmp_path / "m.stl", "FIFO")):
+        if what == "FIFO":
+            os.mkfifo(target)
+        p = _write(tmp_path, _arm_urdf(collision=f'<mesh filename="{target}"/>'))
+        with pytest.raises(RobotModelError) as e:
+            URDFRobot.from_file(p)
+        msg = str(e.value)
+        assert "link 'l1'" in msg and what in msg and "not a mesh file" in msg, msg
+    with pytest.raises(RobotModelError, match="character device, not a URDF file"):
+        URDFRobot.from_file("/dev/zero")
+
+
+def test_a_urdf_nested_too_deep_or_with_entities_is_refused(tmp_path):
+    deep = _arm_urdf().replace("</robot>", "<x>" * 400 + "</x>" * 400 + "</robot>")
+    with pytest.raises(RobotModelError, match="malformed XML: Excessive depth"):
+        URDFRobot.from_file(_write(tmp_path, deep))
+    body = _arm_urdf().split("?>", 1)[1]
+    entity = ('<?xml version="1.0"?><!DOCTYPE robot [<!ENTITY z SYSTEM "file:///dev/zero">]>'
+              + body.replace('<robot name="arm">', '<robot name="&z;">'))
+    with pytest.raises(RobotModelError, match="malformed XML: Attribute references external "
+                                              "entity 'z'"):
+        URDFRobot.from_file(_write(tmp_path, entity))
+
+
 def test_chain_without_actuated_joint(tmp_path):
     p = _write(tmp_path, _arm_urdf())
     with pytest.raises(RobotModelError, match=r"no actuated joint between base link 'l3' and "

@@ -1,4 +1,4 @@
-"""Issue 33: bad or big CAD never leaves the session stuck.
+"""Issues 33 and 54: bad or big CAD never leaves the session stuck.
 
 After each bad input the session is idle, unchanged and the next command succeeds; a big
 import runs off the session lock (queries answer at once, edits are refused at once with the
@@ -14,6 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from bench_modules import load_benchmark
+from test_file_guard import zip_bomb
 
 from assistant.cell.cad import CadImportError
 from assistant.progress import Cancelled
@@ -40,12 +41,17 @@ def _bad_inputs(tmp_path: Path) -> list[tuple[str, bytes, str]]:
         ("nan.obj", b"v 0 0 0\nv nan 0 0\nv 0 1 0\nf 1 2 3\n", "NaN or infinite"),
         ("inf.stl", b"solid x\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex inf 0 0\n"
                     b"vertex 0 1 0\nendloop\nendfacet\nendsolid x\n", "NaN or infinite"),
-        ("over.stl", over.read_bytes(), "250,000"),
+        ("over.stl", over.read_bytes(), "260,000 triangles, more than the 100,000"),
+        ("fixture.3mf", zip_bomb(), "would expand from 2 MiB to 2,048 MiB"),
         ("broken.stl", b"\x00" * 84 + b"\x01\x02", "no triangle faces|could not be read"),
     ]
 
 
-def test_session_stays_usable_after_each_bad_cad_input(empty_session, tmp_path):
+def test_session_stays_usable_after_each_bad_cad_input(empty_session, tmp_path,
+                                                        monkeypatch):
+    import assistant.cell.cad.importer as importer
+
+    monkeypatch.setattr(importer, "MAX_FACES", 100_000)  # over.stl is over it, and small
     s = _at_cad(empty_session)
     for filename, data, says in _bad_inputs(tmp_path):
         before = s.document().obstacles_key()
@@ -111,9 +117,10 @@ def test_a_big_import_finishes_with_a_report_while_the_session_answers(empty_ses
     obj, cad = fut.result()
     assert max(latencies) < 0.5  # the lock was never held for the heavy part
     assert obj.name == "ring" and s.machine.mode.value == "idle"
-    assert len(cad.mesh.faces) <= 100_000  # display decimated
+    assert len(cad.display_mesh.faces) <= 100_000 < len(cad.mesh.faces)  # drawn decimated
+    assert obj.full_mesh is cad.mesh and obj.display_mesh is cad.display_mesh
     assert cad.proxy.kind != "mesh" and cad.proxy.faces <= 20_000
-    assert any("decimated" in b for b in cad.bounded)
+    assert any("drawn with 100,000 of its" in b for b in cad.bounded)
     assert "bounded:" in cad.summary()
 
 
@@ -137,3 +144,19 @@ def test_a_part_beyond_the_working_volume_is_announced(empty_session):
     T[:3, 3] = (50.0, 0.0, 0.0)
     s.place_object("floor", T)
     assert any("entirely outside the robot's working volume" in n for n in notes), notes
+
+
+def test_importing_a_pipe_or_a_device_path_is_refused_at_once(empty_session, tmp_path):
+    """A FIFO named as a CAD file has no writer: reading it would hang the session."""
+    import os
+
+    from assistant.session.types import SessionError
+
+    s = _at_cad(empty_session)
+    os.mkfifo(tmp_path / "part.stl")
+    for path, what in ((tmp_path / "part.stl", "named pipe"), ("/dev/zero", "character device")):
+        t0 = time.perf_counter()
+        with pytest.raises(SessionError, match=what):
+            s.import_cad_path(path)
+        assert time.perf_counter() - t0 < 30.0
+        assert s.machine.mode.value == "idle" and not s.cell.objects

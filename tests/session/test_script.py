@@ -87,3 +87,30 @@ def test_cli_lists_the_sample_cells():
     r = run_cli("cells")
     assert r.returncode == 0
     assert "thesis_rv2aj" in r.stdout
+
+
+def test_import_cad_of_a_device_or_a_pipe_is_one_clear_line(tmp_path):
+    """Issue 54: /dev/zero grew the process to 3.2 GB and ended in an empty MemoryError;
+    a FIFO would hang the run. Both are refused by what they are, in the run's one line."""
+    import os
+
+    os.mkfifo(tmp_path / "pipe.stl")
+    for target, what in (("/dev/zero", "character device"),
+                         (str(tmp_path / "pipe.stl"), "named pipe (FIFO)")):
+        script = write(tmp_path, f"""
+            cell: {SAMPLE}
+            actions:
+              - next
+              - import_cad: {{file: {target}, name: part}}
+        """)
+        out = tmp_path / "out"
+        r = run_cli("run", str(script), "--out", str(out))
+        assert r.returncode == 1
+        last = r.stderr.strip().splitlines()[-1]
+        assert "s.yaml:5: import_cad failed" in last and what in last, last
+        assert "MemoryError" not in r.stderr and "Traceback" not in r.stderr
+
+
+def test_a_script_that_is_a_device_is_refused(tmp_path):
+    with pytest.raises(ScriptError, match="/dev/zero is a character device, not a script"):
+        parse_script("/dev/zero")

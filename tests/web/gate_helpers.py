@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import datetime
 import ipaddress
 import ssl
@@ -17,6 +18,7 @@ import msgspec
 import pytest
 
 from web.gate import AccessTokens, GateConfig
+from web.gate.login import LOGIN_PATH
 
 VISER_PROTOCOL = "viser-v" + __import__("viser").__version__
 #: What viser's client sends first: a camera (viser counts a client as connected after it).
@@ -76,6 +78,16 @@ def client(*, cookie: str | None = None, source: str | None = None,
     return s
 
 
+async def sign_in(c: aiohttp.ClientSession, url: str, code: str, next_path: str = "/",
+                  **headers: str) -> aiohttp.ClientResponse:
+    """Send the sign-in form as a browser does (not following the redirect); the response
+    (already read: status, headers) - its cookie stays in `c`'s jar."""
+    async with c.post(url + LOGIN_PATH, data={"code": code, "next": next_path},
+                      allow_redirects=False, headers=headers) as r:
+        await r.read()
+        return r
+
+
 async def wait_for(pred: Callable[[], bool], timeout: float = 20.0) -> bool:
     """Until pred() holds (polls the in-process app; False on timeout)."""
     loop = asyncio.get_running_loop()
@@ -105,6 +117,70 @@ def run(coro: Any) -> Any:
     if "error" in out:
         raise out["error"]
     return out.get("value")
+
+
+class Page:
+    """One browser as the front sees it: its HTTP client (from `source`, another loopback
+    address: another computer), websocket, viser client id and every message it received."""
+
+    def __init__(self, app: Any, token: str, source: str | None = None):
+        self.app, self.token, self.source = app, token, source
+        self.received: list[bytes] = []
+        self.http: aiohttp.ClientSession | None = None
+        self.ws: aiohttp.ClientWebSocketResponse | None = None
+        self.client_id: int | None = None
+        self._drain: asyncio.Task | None = None
+
+    async def __aenter__(self) -> Page:
+        url = local_url(self.app)
+        before = set(self.app.server.get_clients())
+        self.http = client(source=self.source)
+        assert (await sign_in(self.http, url, self.token)).status == 303
+        self.ws = await self.http.ws_connect(url, protocols=[VISER_PROTOCOL])
+        self._drain = asyncio.ensure_future(self._read())
+        await self.ws.send_bytes(encode(CAMERA))  # a camera passes for every role
+        assert await wait_for(lambda: set(self.app.server.get_clients()) - before)
+        (self.client_id,) = set(self.app.server.get_clients()) - before
+        return self
+
+    async def _read(self) -> None:
+        async for msg in self.ws:  # keep the stream flowing
+            if msg.type == aiohttp.WSMsgType.BINARY:
+                self.received.append(unpack_frame(msg.data))
+
+    def saw(self, text: str) -> bool:
+        """Whether any message this page received holds `text` (in the msgpack that
+        `unpack_frame` opened, strings are UTF-8 bytes)."""
+        needle = text.encode()
+        return any(needle in m for m in self.received)
+
+    @property
+    def client(self) -> Any:
+        return self.app.server.get_clients()[self.client_id]
+
+    async def send(self, raw: bytes) -> None:
+        await self.ws.send_bytes(raw)
+
+    async def __aexit__(self, *exc: Any) -> None:
+        with contextlib.suppress(Exception):
+            await self.ws.close()
+        if self._drain is not None:
+            self._drain.cancel()
+        await self.http.close()
+
+
+def unpack_frame(raw: bytes) -> bytes:
+    """One websocket frame from viser as its page reads it: viser 1.1 sends [8 bytes
+    msgpack size][8 bytes compressed size][zstd(msgpack)][binary arrays]; the msgpack
+    (decompressed) and the arrays."""
+    import zstandard
+
+    size = int.from_bytes(raw[:8], "little")
+    packed = int.from_bytes(raw[8:16], "little")
+    inner = zstandard.ZstdDecompressor().decompress(raw[16:16 + packed],
+                                                    max_output_size=size)
+    assert len(inner) == size, "not viser's wire format"
+    return inner + raw[16 + packed:]
 
 
 def self_signed_cert(tmp: Path) -> tuple[Path, Path]:

@@ -5,19 +5,14 @@ Collision! and Stop work for every operator, uploads are bounded."""
 from __future__ import annotations
 
 import asyncio
-import contextlib
 from typing import Any
 
-import aiohttp
 import numpy as np
 from gate_helpers import (  # noqa: F401
-    CAMERA,
-    VISER_PROTOCOL,
+    Page,
     click,
-    client,
     encode,
     gated_fixture,
-    local_url,
     run,
     uuid_of,
     wait_for,
@@ -26,44 +21,6 @@ from gate_helpers import (  # noqa: F401
 from assistant.session import Session
 from web.gate import AccessTokens
 from web.gate.messages import CHANGING
-
-
-class Page:
-    """One browser as the front sees it: its HTTP client, websocket and viser client id."""
-
-    def __init__(self, app: Any, token: str):
-        self.app, self.token = app, token
-        self.http: aiohttp.ClientSession | None = None
-        self.ws: aiohttp.ClientWebSocketResponse | None = None
-        self.client_id: int | None = None
-        self._drain: asyncio.Task | None = None
-
-    async def __aenter__(self) -> Page:
-        url = local_url(self.app)
-        before = set(self.app.server.get_clients())
-        self.http = client()
-        async with self.http.get(f"{url}/?token={self.token}") as r:
-            assert r.status == 200
-        self.ws = await self.http.ws_connect(url, protocols=[VISER_PROTOCOL])
-        self._drain = asyncio.ensure_future(self._read())
-        await self.ws.send_bytes(encode(CAMERA))  # a camera passes for every role
-        assert await wait_for(lambda: set(self.app.server.get_clients()) - before)
-        (self.client_id,) = set(self.app.server.get_clients()) - before
-        return self
-
-    async def _read(self) -> None:
-        async for _ in self.ws:  # keep the stream flowing
-            pass
-
-    async def send(self, raw: bytes) -> None:
-        await self.ws.send_bytes(raw)
-
-    async def __aexit__(self, *exc: Any) -> None:
-        with contextlib.suppress(Exception):
-            await self.ws.close()
-        if self._drain is not None:
-            self._drain.cancel()
-        await self.http.close()
 
 
 def _viewer_messages(app: Any) -> list[bytes]:

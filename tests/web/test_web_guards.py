@@ -142,6 +142,7 @@ def test_collision_key_stops_the_moving_robot(serve_session, open_ui):
     ui.fill("J1 (deg)", target_deg)
     ui.click("Move to the slider values")
     ui.wait_text("The robot is moving")
+    app.wait_idle(30)  # every update of the step is out to the page: Space is armed
     ui.page.keyboard.press("Space")
     ui.wait_text("Collision #1 recorded")
     ui.shot("collision-key")

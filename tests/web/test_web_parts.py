@@ -189,7 +189,11 @@ def test_the_tcp_gizmo_jogs_by_ik_and_says_when_it_turned_the_pose():
         T_goal[:3, :3] = rot_x(np.radians(25.0)) @ np.diag([1.0, -1.0, -1.0])
         T_goal[:3, 3] = [0.30, 0.10, 0.20]
         jog._gizmo.wxyz, jog._gizmo.position = wxyz_position(T_goal)
-        client = SimpleNamespace(add_notification=lambda *a, **k: None)
+        # the page that drags the gizmo holds motion authority (no browser here: this stand-in
+        # takes it, and no heartbeat asks it to answer)
+        app.heartbeat.stop()
+        client = SimpleNamespace(add_notification=lambda *a, **k: None, client_id=9999)
+        assert session.hold.take(client.client_id)
         jog._gizmo_moved(SimpleNamespace(phase="end", client=client))
         session.worker.join(30)
         assert app.wait_idle(10)

@@ -8,6 +8,7 @@ import ssl
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from web.gate.connections import ConnectionLimits
 from web.gate.limits import FailureLimiter
 from web.gate.tokens import AccessTokens
 
@@ -41,6 +42,7 @@ class GateConfig:
     uploads_per_connection: int = 2
     uploads_total: int = 4
     limiter: FailureLimiter = field(default_factory=FailureLimiter)
+    limits: ConnectionLimits = field(default_factory=ConnectionLimits)
 
     @property
     def tls(self) -> bool:
@@ -51,22 +53,40 @@ class GateConfig:
         return not is_loopback(self.host)
 
     def ssl_context(self) -> ssl.SSLContext | None:
-        """The server TLS context, or None; a ValueError says which file is wrong."""
+        """The server TLS context, or None; a ValueError says which file is wrong and why."""
         if self.certfile is None:
             if self.keyfile is not None:
                 raise ValueError("--keyfile needs --certfile (the certificate it belongs to)")
             return None
+        for what, path in (("certificate (--certfile)", self.certfile),
+                           ("private key (--keyfile)", self.keyfile)):
+            if path is not None:
+                _readable(Path(path), what)
         ctx = ssl.create_default_context(ssl.Purpose.CLIENT_AUTH)
         ctx.minimum_version = ssl.TLSVersion.TLSv1_2
         try:
             ctx.load_cert_chain(str(self.certfile),
                                 None if self.keyfile is None else str(self.keyfile))
-        except FileNotFoundError as exc:
-            raise ValueError(f"cannot read {exc.filename}: no such file") from None
         except (ssl.SSLError, OSError) as exc:
-            raise ValueError(f"cannot use the certificate {self.certfile} with key "
-                             f"{self.keyfile or '(in the certificate file)'}: {exc}") from None
+            reason = getattr(exc, "reason", None) or getattr(exc, "strerror", None) or exc
+            key = self.keyfile or "(in the certificate file)"
+            raise ValueError(f"cannot use the certificate {self.certfile} with the key {key}: "
+                             f"{reason} - give a PEM certificate and its private key "
+                             "(--keyfile if the key is in a file of its own)") from None
         return ctx
+
+
+def _readable(path: Path, what: str) -> None:
+    """ValueError naming `path` if it cannot be read as a file."""
+    if not path.exists():
+        raise ValueError(f"cannot read the {what} {path}: no such file")
+    if not path.is_file():
+        raise ValueError(f"cannot read the {what} {path}: not a file")
+    try:
+        with open(path, "rb") as f:
+            f.read(1)
+    except OSError as exc:
+        raise ValueError(f"cannot read the {what} {path}: {exc.strerror or exc}") from None
 
 
 def shown_host(host: str) -> str:

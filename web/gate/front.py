@@ -4,11 +4,14 @@ aiohttp is the one well-kept package with an HTTP server, an HTTP client and web
 both sides, all on asyncio (what viser's own server runs on): the front needs exactly those
 four and nothing else. It runs its own event loop on a daemon thread.
 
-Every request: a blocked address gets 429; a body announced larger than `max_body_bytes` gets
-413 unread; anything but GET/HEAD 405; `?token=` is checked, answered with an HttpOnly cookie
-and a redirect to the same address without the token (so it leaves the address bar and
-history); without a valid cookie nothing is served (401, the websocket handshake too). The
-access log is off: a URL with a token must never reach a log.
+Connections are admitted by `connections.Doorman` (per-address and total caps, head, handshake
+and idle timeouts, the open-files limit raised). Every request then: a blocked address gets
+429; a body announced larger than `max_body_bytes` gets 413 unread; without a valid cookie
+nothing is served - a page request gets the sign-in form (`login.py`, 401), the websocket
+handshake 401; the form POSTs the access code, the answer sets an HttpOnly cookie and sends
+the browser back to a path on this site (303). An access code in the address is never taken
+(the browser would keep it in its history). Anything but GET/HEAD (and the form's POST) 405.
+The access log is off: nothing a browser sends may reach a log.
 """
 
 from __future__ import annotations
@@ -17,6 +20,7 @@ import asyncio
 import contextlib
 import logging
 import secrets
+import socket
 import threading
 from dataclasses import dataclass
 from urllib.parse import urlsplit
@@ -26,7 +30,14 @@ from aiohttp import web
 
 from web.gate.banner import with_banner
 from web.gate.config import GateConfig, shown_host
+from web.gate.connections import (
+    Doorman,
+    connection_budget,
+    listen,
+    raise_open_files_limit,
+)
 from web.gate.limits import UploadSlots
+from web.gate.login import CODE_IN_ADDRESS, LOGIN_PATH, WRONG_CODE, login_page, safe_path
 from web.gate.messages import CloseConnection, MessageGuard
 from web.gate.tokens import Role
 
@@ -36,12 +47,12 @@ COOKIE = "cellteach_access"
 CONN_HEADER = "X-Cellteach-Conn"
 #: How many following ports are tried when the one asked for is taken (as viser does).
 PORT_TRIES = 20
-
-DENIED_PAGE = """<!doctype html><html><head><meta charset="utf-8"><title>cellteach</title>
-</head><body style="font-family:sans-serif;max-width:40em;margin:3em auto">
-<h1>This page needs its access link</h1><p>The cellteach assistant on this computer only opens
-with the link its operator was given (it carries an access token). Ask the person who
-started it for the operator or the viewer link.</p></body></html>"""
+#: The sign-in form's body (a code and a path back): anything larger is not the form.
+MAX_LOGIN_BYTES = 4096
+#: Upstream connections for page requests (assets, index.html); websockets have their own.
+PAGE_POOL = 16
+NO_STORE = {"Cache-Control": "no-store", "Referrer-Policy": "no-referrer",
+            "X-Content-Type-Options": "nosniff", "X-Frame-Options": "DENY"}
 
 
 @dataclass(frozen=True)
@@ -67,7 +78,10 @@ class Front:
         self._thread: threading.Thread | None = None
         self._runner: web.AppRunner | None = None
         self._client: aiohttp.ClientSession | None = None
+        self._ws_client: aiohttp.ClientSession | None = None
         self._sockets: set[web.WebSocketResponse] = set()
+        self._listener: socket.socket | None = None
+        self.doorman: Doorman | None = None
 
     # ------------------------------------------------------------------ lifetime
     def start(self) -> None:
@@ -97,35 +111,50 @@ class Front:
             raise failure[0]
 
     async def _listen(self) -> None:
+        limits = self.cfg.limits
         app = web.Application(client_max_size=self.cfg.max_body_bytes)
         app.router.add_route("*", "/{tail:.*}", self._handle)
-        self._runner = web.AppRunner(app, access_log=None, handle_signals=False)
+        self._runner = web.AppRunner(app, access_log=None, handle_signals=False,
+                                     keepalive_timeout=limits.keepalive_timeout_s)
         await self._runner.setup()
-        self._client = aiohttp.ClientSession(auto_decompress=False)
+        self._client = aiohttp.ClientSession(
+            auto_decompress=False, connector=aiohttp.TCPConnector(limit=PAGE_POOL))
+        self._ws_client = aiohttp.ClientSession(connector=aiohttp.TCPConnector(limit=0))
         last: OSError | None = None
         for port in ([self.cfg.port] if self.cfg.port == 0 else
                      range(self.cfg.port, self.cfg.port + PORT_TRIES)):
-            site = web.TCPSite(self._runner, self.cfg.host, port, ssl_context=self._ssl)
             try:
-                await site.start()
+                self._listener = listen(self.cfg.host, port)
             except OSError as exc:
                 last = exc
                 continue
-            server = site._server  # noqa: SLF001 - the bound port when 0 was asked for
-            self.port = server.sockets[0].getsockname()[1] if server and server.sockets \
-                else port
+            self.port = self._listener.getsockname()[1]
+            open_files = raise_open_files_limit()
+            total = connection_budget(limits, open_files)
+            if total < limits.total:
+                log.info("the open-files limit (%d) leaves room for %d connections at once",
+                         open_files, total)
+            server = self._runner.server
+            assert server is not None
+            self.doorman = Doorman(limits, server, self._ssl, total)
+            self.doorman.start(self._listener)
             return
         await self._cleanup()
         raise OSError(f"cannot listen on {self.cfg.host}:{self.cfg.port}: {last}")
 
     async def _cleanup(self) -> None:
+        if self.doorman is not None:
+            await self.doorman.stop()
+        if self._listener is not None:
+            self._listener.close()
         for ws in list(self._sockets):
             with contextlib.suppress(Exception):
                 await ws.close(code=aiohttp.WSCloseCode.GOING_AWAY, message=b"server stops")
         if self._runner is not None:
             await self._runner.cleanup()
-        if self._client is not None:
-            await self._client.close()
+        for client in (self._client, self._ws_client):
+            if client is not None:
+                await client.close()
 
     def stop(self) -> None:
         if self._loop is not None and self._loop.is_running():
@@ -142,10 +171,9 @@ class Front:
     def url(self) -> str:
         return f"{self.scheme}://{shown_host(self.cfg.host)}:{self.port}"
 
-    def link(self, role: Role) -> str:
-        """The link that opens the page in `role` (carries the token: print it, never log)."""
-        token = self.cfg.tokens.operator if role == Role.OPERATOR else self.cfg.tokens.viewer
-        return f"{self.url}/?token={token}"
+    def code(self, role: Role) -> str:
+        """The access code that opens the page in `role` (print it, never log it)."""
+        return self.cfg.tokens.operator if role == Role.OPERATOR else self.cfg.tokens.viewer
 
     def peer(self, conn_id: str | None) -> Peer | None:
         return None if conn_id is None else self._peers.get(conn_id)
@@ -155,39 +183,70 @@ class Front:
         addr = request.remote or "unknown"
         wait = self.cfg.limiter.retry_after(addr)
         if wait > 0:
-            return web.Response(status=429, text="Too many wrong access tokens from this "
+            return web.Response(status=429, text="Too many wrong access codes from this "
                                 "address: try again later.\n",
                                 headers={"Retry-After": str(int(wait) + 1)})
         if (request.content_length or 0) > self.cfg.max_body_bytes:
             return web.Response(status=413, text="Request body too large.\n")
-        tokens = self.cfg.tokens
-        if "token" in request.query:
-            role = tokens.role_of(request.query.get("token"))
-            if role is None:
-                return self._refuse(addr, counted=True)
-            query = {k: v for k, v in request.query.items() if k != "token"}
-            resp = web.Response(status=303,
-                                headers={"Location": str(request.rel_url.with_query(query))})
-            resp.set_cookie(COOKIE, request.query["token"], httponly=True, samesite="Lax",
-                            secure=self.cfg.tls, path="/")
-            resp.headers["Cache-Control"] = "no-store"
-            resp.headers["Referrer-Policy"] = "no-referrer"
-            return resp
+        if request.path == LOGIN_PATH and request.method == "POST":
+            return await self._login(request, addr)
         cookie = request.cookies.get(COOKIE)
-        role = tokens.role_of(cookie)
+        role = self.cfg.tokens.role_of(cookie)
         if role is None:
-            return self._refuse(addr, counted=cookie is not None)
+            if cookie is not None and self.cfg.limiter.failed(addr):
+                log.warning("blocked %s after repeated wrong access codes", addr)
+            return self._sign_in(request)
         if request.method not in ("GET", "HEAD"):
             return web.Response(status=405, headers={"Allow": "GET, HEAD"})
         if request.headers.get("Upgrade", "").lower() == "websocket":
             return await self._websocket(request, role, addr)
+        if request.path == LOGIN_PATH:  # signed in already: back to the page
+            return _see_other(safe_path(request.query.get("next")))
         return await self._page(request, role)
 
-    def _refuse(self, addr: str, *, counted: bool) -> web.Response:
-        if counted and self.cfg.limiter.failed(addr):
-            log.warning("blocked %s after repeated wrong access tokens", addr)
-        return web.Response(status=401, text=DENIED_PAGE, content_type="text/html",
-                            headers={"Cache-Control": "no-store"})
+    def _sign_in(self, request: web.Request, message: str = "", status: int = 401
+                 ) -> web.Response:
+        """The sign-in form, coming back to what was asked for (never the websocket)."""
+        if request.headers.get("Upgrade", "").lower() == "websocket" or \
+                request.method not in ("GET", "HEAD", "POST"):
+            return web.Response(status=401, text="Sign in first.\n", headers=NO_STORE)
+        back = request.raw_path
+        if "token" in request.query:
+            message = message or CODE_IN_ADDRESS
+            back = str(request.rel_url.with_query(
+                {k: v for k, v in request.query.items() if k != "token"}))
+        page = login_page(back, message=message,
+                          unencrypted=self.cfg.exposed and not self.cfg.tls)
+        return web.Response(status=status, text=page, content_type="text/html",
+                            headers=NO_STORE)
+
+    async def _login(self, request: web.Request, addr: str) -> web.Response:
+        """The form's POST: the right code sets the cookie and goes back, a wrong one counts
+        towards the address's block. Only a form from this site may sign in (another site's
+        page could otherwise swap an operator's cookie for a viewer's)."""
+        for header in ("Origin", "Referer"):
+            seen = request.headers.get(header)
+            if seen is not None and seen != "null" and urlsplit(seen).netloc != request.host:
+                return web.Response(status=403, text="Sign in from this site's own page.\n")
+        if (request.content_length or 0) > MAX_LOGIN_BYTES:
+            return web.Response(status=413, text="Request body too large.\n")
+        try:
+            form = await request.post()
+        except (ValueError, aiohttp.web.HTTPException):
+            return web.Response(status=400, text="Not the sign-in form.\n")
+        code, back = form.get("code"), safe_path(str(form.get("next") or "/"))
+        role = self.cfg.tokens.role_of(code if isinstance(code, str) else None)
+        if role is None:
+            if self.cfg.limiter.failed(addr):
+                log.warning("blocked %s after repeated wrong access codes", addr)
+            page = login_page(back, message=WRONG_CODE,
+                              unencrypted=self.cfg.exposed and not self.cfg.tls)
+            return web.Response(status=401, text=page, content_type="text/html",
+                                headers=NO_STORE)
+        resp = _see_other(back)
+        resp.set_cookie(COOKIE, str(code), httponly=True, samesite="Lax",
+                        secure=self.cfg.tls, path="/")
+        return resp
 
     async def _page(self, request: web.Request, role: Role) -> web.StreamResponse:
         assert self._client is not None
@@ -204,9 +263,8 @@ class Front:
         if ctype.startswith("text/html") and status == 200:
             body = with_banner(body, role=role, unencrypted=self.cfg.exposed and not
                                self.cfg.tls)
-        resp = web.Response(status=status, body=body, headers={
-            "Content-Type": ctype, "Cache-Control": "no-store", "Referrer-Policy": "no-referrer",
-            "X-Content-Type-Options": "nosniff", "X-Frame-Options": "DENY"})
+        resp = web.Response(status=status, body=body, headers={"Content-Type": ctype,
+                                                               **NO_STORE})
         if len(body) > 1024:
             resp.enable_compression()
         return resp
@@ -214,7 +272,7 @@ class Front:
     # ------------------------------------------------------------------ websocket
     async def _websocket(self, request: web.Request, role: Role, addr: str
                          ) -> web.StreamResponse:
-        assert self._client is not None
+        assert self._ws_client is not None
         origin = request.headers.get("Origin")
         if origin is not None and urlsplit(origin).netloc != request.host:
             return web.Response(status=403, text="Cross-site websocket refused.\n")
@@ -226,15 +284,16 @@ class Front:
                              self.cfg.uploads_per_connection)
         try:
             try:
-                up = await self._client.ws_connect(
+                up = await self._ws_client.ws_connect(
                     self.upstream, protocols=offered, headers={CONN_HEADER: conn_id},
-                    max_msg_size=0, compress=0, autoping=True)
+                    max_msg_size=0, compress=0, autoping=False)
             except (aiohttp.ClientError, OSError) as exc:
                 log.warning("the page server behind the front refused a websocket: %s", exc)
                 return web.Response(status=502, text="The assistant is not answering.\n")
             down = web.WebSocketResponse(
                 protocols=[up.protocol] if up.protocol else (),
-                max_msg_size=self.cfg.max_ws_message_bytes, compress=False)
+                max_msg_size=self.cfg.max_ws_message_bytes, compress=False,
+                heartbeat=self.cfg.limits.ws_heartbeat_s, autoping=False)
             try:
                 await down.prepare(request)
                 self._sockets.add(down)
@@ -252,8 +311,16 @@ class Front:
 
     async def _pump(self, down: web.WebSocketResponse,
                     up: aiohttp.ClientWebSocketResponse, guard: MessageGuard) -> None:
+        # Pings pass through both ways: the page server's heartbeat (`web.heartbeat`) is
+        # answered by the browser, not by this front.
         async def upwards() -> None:
             async for msg in down:
+                if msg.type == aiohttp.WSMsgType.PONG:
+                    await up.pong(msg.data)
+                    continue
+                if msg.type == aiohttp.WSMsgType.PING:
+                    await down.pong(msg.data)
+                    continue
                 if msg.type != aiohttp.WSMsgType.BINARY:
                     continue  # viser speaks binary only
                 try:
@@ -266,7 +333,9 @@ class Front:
 
         async def downwards() -> None:
             async for msg in up:
-                if msg.type == aiohttp.WSMsgType.BINARY:
+                if msg.type == aiohttp.WSMsgType.PING:
+                    await down.ping(msg.data)
+                elif msg.type == aiohttp.WSMsgType.BINARY:
                     await down.send_bytes(msg.data)
                 elif msg.type == aiohttp.WSMsgType.TEXT:
                     await down.send_str(msg.data)
@@ -278,3 +347,9 @@ class Front:
             for t in tasks:
                 t.cancel()
             await asyncio.gather(*tasks, return_exceptions=True)
+
+
+def _see_other(path: str) -> web.Response:
+    """303 to a same-site path (`login.safe_path` made it)."""
+    assert path.startswith("/") and not path.startswith("//")
+    return web.Response(status=303, headers={"Location": path, **NO_STORE})

@@ -1,5 +1,7 @@
-"""The two access tokens (operator, viewer): made with `secrets`, or kept in a token file so the
-links survive a restart. Compared in constant time; never logged."""
+"""The two access codes (operator, viewer): made with `secrets`, or kept in a token file so the
+codes survive a restart. Compared in constant time; never logged. A token file other users may
+read or change is refused (whoever reads the operator code can drive the robot; whoever can
+write the file can plant their own)."""
 
 from __future__ import annotations
 
@@ -7,6 +9,7 @@ import enum
 import hmac
 import os
 import secrets
+import stat
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -59,6 +62,7 @@ class AccessTokens:
                 raise TokenFileError(f"cannot create the token file {path}: "
                                      f"{exc.strerror or exc}") from None
             return tokens
+        _check_private(path)
         try:
             text = path.read_text(encoding="utf-8")
         except (OSError, UnicodeDecodeError) as exc:
@@ -78,3 +82,23 @@ class AccessTokens:
         if viewer == lines[0]:
             raise TokenFileError(f"the token file {path} gives the same token to both roles")
         return AccessTokens(lines[0], viewer)
+
+
+def _check_private(path: Path) -> None:
+    """TokenFileError unless only its owner may read and write `path` (POSIX permissions)."""
+    if os.name != "posix":
+        return
+    try:
+        st = os.stat(path)
+    except OSError as exc:
+        raise TokenFileError(f"cannot read the token file {path}: {exc.strerror}") from None
+    if not stat.S_ISREG(st.st_mode):
+        raise TokenFileError(f"the token file {path} is not a regular file")
+    mode = stat.S_IMODE(st.st_mode)
+    if mode & 0o077:
+        who = " and ".join(w for w, bits in (("read", 0o044), ("changed", 0o022))
+                           if mode & bits)
+        raise TokenFileError(
+            f"the token file {path} can be {who} by other users (mode {mode:04o}): whoever "
+            f"reads the operator code can drive the robot. Run 'chmod 600 {path}' (or delete "
+            "the file to get new codes)")

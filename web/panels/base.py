@@ -1,7 +1,12 @@
-"""What every step panel shares: a folder shown only in its steps, redraws on the UI thread."""
+"""What every step panel shares: a folder shown only in its steps, redraws on the UI thread.
+
+Every `refresh` reads the session settled (between actions, under its lock: what it shows is
+saved, `Session.settled`), also when a page callback calls it directly."""
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import viser
@@ -23,6 +28,11 @@ class Panel:
     steps: tuple[str, ...] = ()
     order: float = PANEL_ORDER
     expand: bool = True
+
+    def __init_subclass__(cls, **kw: Any) -> None:
+        super().__init_subclass__(**kw)
+        if "refresh" in cls.__dict__:
+            cls.refresh = settled_view(cls.__dict__["refresh"])  # type: ignore[method-assign]
 
     def __init__(self, app: App):
         self.app = app
@@ -63,6 +73,17 @@ class Panel:
     def on_enter(self) -> None:
         """The workflow has just moved to one of this panel's steps (UI thread); default:
         nothing. A step whose work is obvious starts it here, saving the operator a click."""
+
+
+def settled_view(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """Run a redraw between the session's actions (see the module docstring)."""
+
+    @functools.wraps(fn)
+    def redraw(self: Any, *args: Any, **kw: Any) -> Any:
+        with self.app.session.settled():
+            return fn(self, *args, **kw)
+
+    return redraw
 
 
 def busy_reason(mode: str) -> str:

@@ -187,7 +187,7 @@ class CadPanel(Panel):
         else:
             rows = ["| part | role | size (mm) |", "|---|---|---|"]
             for o in objs:
-                ext = o.display_mesh.extents * 1000.0
+                ext = o.full_mesh.extents * 1000.0
                 rows.append(f"| {o.name} | {o.role.value} | "
                             f"{ext[0]:.0f} x {ext[1]:.0f} x {ext[2]:.0f} |")
             self.table.content = "\n".join(rows)

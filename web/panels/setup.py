@@ -1,12 +1,20 @@
-"""Step 1 - robot, tool and link: what the assistant drives and how it talks to it."""
+"""Step 1 - robot, tool and link: what the assistant drives and how it talks to it.
+
+The link's password is typed into a field of the operator's own page (`web.pages`: no other
+page, a viewer's least, ever receives what is typed), masked as it is typed, and never sent
+back to any page: the summary shows that one is stored, not what it is."""
 
 from __future__ import annotations
 
 import threading
+from typing import Any
+
+import viser
 
 from assistant.links.settings import KINDS, LinkSettings
 from assistant.robots.catalog import CATALOG, RobotSpec, ToolSpec
 from assistant.session.events import Event, SceneChanged, StateChanged
+from assistant.session.link_secrets import masked
 from web.panels.base import Panel
 
 ROBOTS = {"Mitsubishi RV-2AJ (built in)": "rv2aj",
@@ -40,14 +48,14 @@ class SetupPanel(Panel):
             self.tool_rad = g.add_number("Tool radius (mm)", 20.0, min=0.0, max=200.0, step=0.5)
             self.gripper = g.add_checkbox("Gripper", True)
             self.apply_robot = g.add_button("Use this robot")
-        with g.add_folder("Link to the robot"):
+        self.link_folder = g.add_folder("Link to the robot")
+        with self.link_folder:
             self.link_kind = g.add_dropdown("Link", tuple(LINK_LABELS[k] for k in KINDS))
             self.host = g.add_text("Address", "127.0.0.1", visible=False)
             self.port = g.add_number("Port", 10001, min=1, max=65535, step=1, visible=False)
             self.rws_user = g.add_text("RWS user", "Default User", visible=False,
                                        hint="The IRC5's default login unless the cell "
                                             "has its own")
-            self.rws_password = g.add_text("RWS password", "robotics", visible=False)
             self.time_scale = g.add_number(
                 "Simulation speed (x real time)", 1.0, min=0.1, max=50.0, step=0.1,
                 hint="1 = as fast as the real robot; 20 runs a minute's motion in 3 s")
@@ -61,9 +69,22 @@ class SetupPanel(Panel):
         self.robot.on_update(lambda e: self._robot_kind_changed())
         self.link_kind.on_update(lambda e: self._link_kind_picked())
         self.bind(self.apply_robot, lambda e: self._choose_robot())
-        self.bind(self.apply_link, lambda e: self._set_link())
+        #: Each operator page's own password field (`_password_field`).
+        self.rws_password = self.app.pages.add(self._password_field, operators_only=True)
+        self.bind(self.apply_link, lambda e: self._set_link(e.client))
         self.bind(self.connect, lambda e: self._connect(e.client))
         self.bind(self.test_link, lambda e: self._test_link())
+
+    def _password_field(self, client: viser.ClientHandle) -> viser.GuiTextHandle:
+        with self.link_folder:
+            field = client.gui.add_text(
+                "RWS password", "", order=self.rws_user.order + 0.5,
+                visible=self._link_kind() in RWS_KINDS, hint="Leave it empty to keep the "
+                "stored password; type a new one to change it (Use this link stores it)")
+        # Typed characters show as dots on this page (viser's text field has no password
+        # mode; the style reaches this page only).
+        client.gui.add_html(mask_style(field))
+        return field
 
     def _robot_kind_changed(self) -> None:
         self.urdf.visible = ROBOTS[self.robot.value] == "urdf"
@@ -79,7 +100,10 @@ class SetupPanel(Panel):
 
     def _link_kind_changed(self) -> None:
         kind = self._link_kind()
-        self.rws_user.visible = self.rws_password.visible = kind in RWS_KINDS
+        self.rws_user.visible = kind in RWS_KINDS
+        for field in self.rws_password.all():
+            if field.visible != (kind in RWS_KINDS):
+                field.visible = kind in RWS_KINDS
         sim = kind == "simulated"
         self.host.visible = not sim
         self.port.visible = not sim and kind not in FIXED_PORTS
@@ -93,7 +117,7 @@ class SetupPanel(Panel):
         spec = RobotSpec(kind=kind, urdf_path=self.urdf.value.strip() or None, tool=tool)
         self.session.choose_robot(spec)
 
-    def _set_link(self) -> None:
+    def _set_link(self, client: Any = None) -> None:
         kind = self._link_kind()
         kw: dict = {"kind": kind}
         if kind == "simulated":
@@ -102,10 +126,14 @@ class SetupPanel(Panel):
             kw["host"] = self.host.value.strip()
             if kind not in FIXED_PORTS:
                 kw["port"] = int(self.port.value)
+        field = self.rws_password.of(client)
+        typed = field.value if field is not None else ""
         if kind in RWS_KINDS:
             kw["rws_user"] = self.rws_user.value.strip()
-            kw["rws_password"] = self.rws_password.value
+            kw["rws_password"] = typed or self.session.link_settings.rws_password
         self.session.set_link(LinkSettings(**kw))
+        if field is not None and typed:
+            field.value = ""  # stored: it is not kept on the page
 
     def _test_link(self) -> None:
         """Run the session's checklist off the UI thread; the result is shown on it, one
@@ -145,7 +173,9 @@ class SetupPanel(Panel):
                  f"**Tool:** {tool.name}, TCP {tcp_mm:.1f} mm from the flange",
                  f"**Link:** {LINK_LABELS[ls.kind]}"
                  + ("" if ls.kind == "simulated" else f" at {ls.host}" if ls.kind in FIXED_PORTS
-                    else f" at {ls.host}:{ls.port}")]
+                    else f" at {ls.host}:{ls.port}")
+                 + (f", RWS user {ls.rws_user}, password {masked(ls.rws_password)}"
+                    if ls.kind in RWS_KINDS else "")]
         if r.dof < 6:
             lines.append(f"*{r.dof}-axis arm: taught orientations are turned into the arm's "
                          "plane; the page says by how much.*")
@@ -161,7 +191,6 @@ class SetupPanel(Panel):
         self.host.value = ls.host
         self.port.value = int(ls.port)
         self.rws_user.value = ls.rws_user
-        self.rws_password.value = ls.rws_password
         self._robot_kind_changed()
         self._link_kind_changed()
 
@@ -169,3 +198,11 @@ class SetupPanel(Panel):
         if isinstance(ev, SceneChanged) and ev.what in ("robot", "link", "all") or \
                 isinstance(ev, StateChanged) and ev.state == "setup":
             self.refresh()
+
+
+def mask_style(field: viser.GuiTextHandle) -> str:
+    """A style that shows `field`'s characters as dots. viser 1.1 draws a labelled input as
+    a Mantine Flex row: a Box with the Text holding `<label for=uuid>`, then the input."""
+    uuid = field._impl.uuid  # noqa: SLF001 - the id the page knows the field by
+    return (f'<style>.mantine-Flex-root:has(> div > p > label[for="{uuid}"]) input '
+            "{-webkit-text-security: disc; text-security: disc;}</style>")

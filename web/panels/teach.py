@@ -165,11 +165,12 @@ class TeachPanel(Panel):
                 except Exception:  # noqa: BLE001 - the drawing must not hide the refusal
                     log.exception("drawing the refused target failed")
             raise
-        self.pick.options = tuple(self.session.locations) or ("-",)
-        self.pick.value = loc.name
-        self._typed_abc.pop(loc.name, None)  # taught again: typed angles are no longer its
-        self._last_taught = loc.name
-        self.name.value = name_after(loc.name, self.session.locations)
+        with self.session.settled():  # what it shows is saved (another page may teach too)
+            self.pick.options = tuple(self.session.locations) or ("-",)
+            self.pick.value = loc.name
+            self._typed_abc.pop(loc.name, None)  # taught again: its typed angles are gone
+            self._last_taught = loc.name
+            self.name.value = name_after(loc.name, self.session.locations)
         self._seed_from_name()
         return loc
 
@@ -205,7 +206,7 @@ class TeachPanel(Panel):
         obj = self.session.cell.objects.get(obj_name)
         if obj is None:
             return
-        hit = pick(obj.display_mesh, obj.T_world_object, np.array(ev.ray_origin),
+        hit = pick(obj.full_mesh, obj.T_world_object, np.array(ev.ray_origin),
                    np.array(ev.ray_direction))
         if hit is None:
             return

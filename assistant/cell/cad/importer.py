@@ -1,11 +1,15 @@
-"""The import pipeline shared by every format: read, check, units, repair, collision proxy."""
+"""The import pipeline shared by every format: size up, read, check, units, repair, display
+level of detail, collision proxy.
+
+The full-resolution part is kept (`CadImport.mesh`: picking, sizes, the reports); the page
+draws a decimated copy of at most `DISPLAY_MAX_FACES` triangles (`display_mesh`), and the
+collision checks use the proxy with its margin (`collision`)."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
 
-import numpy as np
 import trimesh
 
 from assistant.cell.cad.errors import CadImportError
@@ -16,17 +20,21 @@ from assistant.cell.cad.options import (
     DEFAULT_STEP_TOLERANCE_M,
     ImportOptions,
 )
+from assistant.cell.cad.precheck import check_before_parsing
 from assistant.cell.cad.proxy import ProxyReport, collision_proxy
 from assistant.cell.cad.source import CadSource
 from assistant.cell.cad.units import decide_units, size_warning
-from assistant.cell.cad.validate import check_raw, repair, used_vertices
+from assistant.cell.cad.validate import MAX_FACES, check_raw, repair
+from assistant.file_guard import FileRefused, read_file
 from assistant.progress import Cancelled, Progress
 from assistant.robots.model import CollisionShape
 
-#: Larger uploads are refused before parsing (memory); no cell part needs more.
+#: Larger files are refused before reading (memory): a binary STL of `MAX_FACES` triangles
+#: is 191 MiB.
 MAX_FILE_BYTES = 512 * 1024 * 1024
-#: Above this many triangles the mesh kept for display (and CAD clicks) is decimated to it:
-#: the page draws it smoothly and the session stays small; collision uses its own proxy.
+#: Above this many triangles the page draws a decimated copy of the part (its level of
+#: detail): a browser without a GPU draws 100 000 smoothly; picking and the reports use the
+#: full part, collision its own proxy.
 DISPLAY_MAX_FACES = 100_000
 #: A part larger than this (metres, after units) or farther than this from its file's origin
 #: is refused: no robot cell part is, and such numbers break the collision checks' precision
@@ -43,7 +51,7 @@ class CadImport:
 
     filename: str
     format: str
-    #: Full-detail mesh in the file's own frame, scaled to metres.
+    #: The repaired part at full resolution, in the file's own frame, scaled to metres.
     mesh: trimesh.Trimesh
     #: Collision shapes in the same frame: the mesh itself, or a proxy for big meshes.
     collision: tuple[CollisionShape, ...]
@@ -60,6 +68,12 @@ class CadImport:
     source: CadSource
     #: What was bounded to keep a big import short: display decimation, proxy work copy...
     bounded: tuple[str, ...] = ()
+    #: What the page draws: `mesh` itself, or a decimated copy of a big part.
+    display_mesh: trimesh.Trimesh | None = None
+
+    def __post_init__(self) -> None:
+        if self.display_mesh is None:
+            object.__setattr__(self, "display_mesh", self.mesh)
 
     def summary(self) -> str:
         """A few lines for the operator: size, units and why, repairs, proxy, warnings."""
@@ -72,9 +86,16 @@ class CadImport:
         lines += [f"repaired: {r}" for r in self.repairs]
         lines += [f"bounded: {b}" for b in self.bounded]
         if self.proxy.kind != "mesh":
-            lines.append(f"collision proxy: {self.proxy.kind.replace('_', ' ')}, "
-                         f"{self.proxy.parts} part(s), {self.proxy.faces:,} triangles, "
-                         f"deviation {self.proxy.deviation_m * 1000:.2f} mm")
+            p = self.proxy
+            lines.append(f"collision proxy: {p.kind.replace('_', ' ')}, {p.parts} part(s), "
+                         f"{p.faces:,} triangles, deviation {p.deviation_m * 1000:.2f} mm")
+            if p.margin_m > 0.0:
+                lines.append(
+                    f"the part lies at most {p.margin_m * 1000:.2f} mm outside its proxy "
+                    "(one-sided Hausdorff, bounded over every triangle): the collision "
+                    f"checks keep a {p.margin_m * 1000:.2f} mm margin around the proxy")
+            else:
+                lines.append("the part lies inside its proxy (the hull holds every vertex)")
         lines += [f"note: {n}" for n in self.notes]
         lines += [f"warning: {w}" for w in self.warnings]
         return "\n".join(lines)
@@ -125,15 +146,16 @@ def load_cad(
 def load_cad_path(path: str | Path, **kwargs) -> CadImport:
     """`load_cad` for a file on disk (same keyword arguments)."""
     p = Path(path)
+    return load_cad(read_cad_file(p), p.name, **kwargs)
+
+
+def read_cad_file(path: str | Path) -> bytes:
+    """The bytes of a CAD file on disk: a regular file of at most `MAX_FILE_BYTES`
+    (`file_guard`: no devices, FIFOs or folders), else `CadImportError` saying why."""
     try:
-        size = p.stat().st_size
-    except OSError as exc:
-        raise CadImportError(str(p), f"cannot be opened ({exc.strerror})",
-                             "check the path") from exc
-    if size > MAX_FILE_BYTES:
-        raise CadImportError(p.name, f"is {size / 2**20:.0f} MiB, more than the "
-                             f"{MAX_FILE_BYTES // 2**20} MiB allowed", "simplify it in CAD")
-    return load_cad(p.read_bytes(), p.name, **kwargs)
+        return read_file(path, limit=MAX_FILE_BYTES, what="CAD file")
+    except FileRefused as exc:
+        raise CadImportError(Path(path).name, exc.problem, exc.advice) from None
 
 
 def import_with_options(data: bytes, filename: str, options: ImportOptions,
@@ -164,6 +186,8 @@ def _import(data: bytes, filename: str, options: ImportOptions,
         raise CadImportError(filename, f"is {len(data) / 2**20:.0f} MiB, more than the "
                              f"{MAX_FILE_BYTES // 2**20} MiB allowed", "simplify it in CAD")
     fmt = format_from_filename(filename)
+    progress.update(0.01, "sizing up the file")
+    check_before_parsing(data, filename, fmt, MAX_FACES)
     progress.update(0.02, "reading the file")
     raw = reader_for(fmt)(data, filename, options)
 
@@ -172,11 +196,7 @@ def _import(data: bytes, filename: str, options: ImportOptions,
         size = raw.outline.bounds_size()
         reach = size
     else:
-        check_raw(raw.mesh, filename)
-        used = raw.mesh.vertices[used_vertices(raw.mesh.faces, len(raw.mesh.vertices))]
-        size = float(np.ptp(used, axis=0).max())
-        reach = float(np.abs(used).max())
-        del used
+        size, reach = check_raw(raw.mesh, filename)
     decision = decide_units(filename=filename, largest_dimension=size,
                             file_units=raw.file_units, caller_units=options.units,
                             converted_from=raw.converted_from)
@@ -191,26 +211,25 @@ def _import(data: bytes, filename: str, options: ImportOptions,
     progress.update(0.15, "repairing the mesh")
     mesh = raw.mesh
     raw.mesh = None  # one copy of a big mesh at a time
-    if decision.scale_to_m != 1.0:
-        mesh.apply_scale(decision.scale_to_m)
-    mesh, rep = repair(mesh, filename, copy=False)
+    mesh, rep = repair(mesh, filename, copy=False, scale=decision.scale_to_m,
+                       progress=progress.sub(0.15, 0.33, "repairing the mesh"))
     warnings = list(raw.warnings) + rep.warnings
     w = size_warning(float(mesh.extents.max()), decision)
     if w:
         warnings.append(w)
     bounded: list[str] = []
+    display = mesh
+    if len(mesh.faces) > DISPLAY_MAX_FACES:
+        progress.update(0.35, "a level of detail for the page")
+        display = mesh.simplify_quadric_decimation(face_count=DISPLAY_MAX_FACES)
+        bounded.append(f"drawn with {len(display.faces):,} of its {len(mesh.faces):,} "
+                       "triangles (picking, sizes and collision use the full part)")
     progress.update(0.45, "collision proxy")
     collision, proxy, proxy_warnings = collision_proxy(
         mesh, max_faces=options.proxy_max_faces, tolerance_m=options.proxy_tolerance_m,
-        progress=progress.sub(0.45, 0.85))
+        progress=progress.sub(0.45, 0.98), lod=display if display is not mesh else None)
     warnings += proxy_warnings
     bounded += proxy.bounded
-    if len(mesh.faces) > DISPLAY_MAX_FACES:
-        progress.update(0.88, "decimating the display mesh")
-        n_full = len(mesh.faces)
-        mesh = mesh.simplify_quadric_decimation(face_count=DISPLAY_MAX_FACES)
-        bounded.append(f"display mesh decimated from {n_full:,} to {len(mesh.faces):,} "
-                       "triangles (the collision proxy above was built from the full part)")
     progress.update(1.0, "imported")
 
     source = CadSource(filename=filename, data=data, format=fmt.value, units=decision.units,
@@ -222,7 +241,8 @@ def _import(data: bytes, filename: str, options: ImportOptions,
         file_units=decision.file_units, scale_to_m=decision.scale_to_m,
         units_reason=decision.reason, repairs=tuple(rep.repairs),
         notes=tuple(raw.notes + rep.notes),
-        warnings=tuple(warnings), bodies=raw.bodies, source=source, bounded=tuple(bounded))
+        warnings=tuple(warnings), bodies=raw.bodies, source=source, bounded=tuple(bounded),
+        display_mesh=display)
 
 
 def _check_working_volume(filename: str, size_m: float, reach_m: float, units: str,

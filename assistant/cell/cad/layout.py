@@ -25,6 +25,9 @@ from pathlib import Path
 from ezdxf import recover
 
 from assistant.cell.cad.errors import CadImportError
+from assistant.cell.cad.formats import CadFormat
+from assistant.cell.cad.precheck import check_before_parsing
+from assistant.cell.cad.validate import MAX_FACES
 
 LOCATION_LAYER = "LOCATIONS"
 #: The tool pointing down, as typed poses default to.
@@ -62,6 +65,7 @@ def read_layout(data: bytes, filename: str) -> CellLayout | None:
     """The layout of a DXF with a LOCATIONS layer; None for an ordinary one-part drawing."""
     if not might_be_layout(data, filename):
         return None
+    check_before_parsing(data, filename, CadFormat.DXF, MAX_FACES)  # before ezdxf reads it
     try:
         doc, _auditor = recover.read(io.BytesIO(data))
     except Exception as exc:  # a parser of untrusted bytes: any failure means "unreadable"

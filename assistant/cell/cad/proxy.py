@@ -12,15 +12,23 @@ big mesh (more than `max_faces` triangles) is replaced by, in order of preferenc
 
 If none is within tolerance the closest is kept and a warning says by how much it deviates.
 
+Nothing the part occupies is left out: the chosen proxy carries a collision margin
+(`CollisionShape.margin`) of at least the distance by which the part lies outside it - zero
+for the hull (it holds every vertex by construction), else the one-sided Hausdorff distance
+from the part to the proxy, bounded over every triangle of the full-resolution part
+(`outside.outside_bound`). The collision checks count the margin as the proxy.
+
 Big meshes are bounded work, not a longer wait (`ProxyReport.bounded` says what was bounded):
 above `WORK_FACES` triangles the candidates are built and measured on a decimated work copy
-(its own measured deviation is added to each candidate's, so the figure stays an upper
-estimate); above `HULL_EXACT_VERTICES` the hull is a polytope of support planes over every
-vertex (still containing the whole part); V-HACD runs in a child process killed after
-`DECOMPOSE_BUDGET_S` seconds (ordinary parts: `DECOMPOSE_BUDGET_SMALL_S`) or on Cancel.
-The deviation is a symmetric Hausdorff estimate from seeded surface samples (see
+(its distance from the part is added to each candidate's figure); above `HULL_EXACT_VERTICES`
+the hull is a polytope of support planes over every vertex (still containing the whole part);
+V-HACD runs in a child process killed after `DECOMPOSE_BUDGET_S` seconds (ordinary parts:
+`DECOMPOSE_BUDGET_SMALL_S`) or on Cancel, and is not tried above `DECOMPOSE_MAX_FACES`
+(there the decimated copy follows the part better in the time). The candidates' figure
+(`deviation_m`) is a symmetric Hausdorff estimate from seeded surface samples (see
 `_deviation`): how far the part sticks out of the proxy, and how far the proxy sticks out of
-the part. Being sampled, it can miss the very worst point: on a torus it reads ~5 % low.
+the part; it chooses the proxy. Being sampled, it can miss the very worst point (on a torus
+it reads ~5 % low) - which is why the margin is a bound, not this estimate.
 """
 
 from __future__ import annotations
@@ -37,6 +45,7 @@ import numpy as np
 import trimesh
 from scipy.spatial import cKDTree
 
+from assistant.cell.cad.outside import outside_bound
 from assistant.cell.cad.raw import merge_meshes
 from assistant.progress import Progress
 from assistant.robots.model import CollisionShape, ShapeKind
@@ -57,6 +66,12 @@ HULL_EXACT_VERTICES = 100_000
 #: depend on how busy the machine is.
 DECOMPOSE_BUDGET_S = 5.0
 DECOMPOSE_BUDGET_SMALL_S = 90.0
+#: Above this many triangles V-HACD is not tried: hull, else the decimated copy.
+DECOMPOSE_MAX_FACES = 250_000
+#: The big-part hull is pushed out from the work copy by its bound when that bound is below
+#: this share of the tolerance, else from every vertex of the part; likewise its excess is
+#: measured on the work copy, else on the part.
+WORK_HULL_ERROR = 0.5
 
 
 @dataclass(frozen=True)
@@ -64,12 +79,18 @@ class ProxyReport:
     """Which proxy was chosen and how far it deviates from the mesh (metres)."""
 
     kind: str  # "mesh", "convex_hull", "convex_decomposition", "decimated"
+    #: Symmetric estimate (both ways) that chose the proxy.
     deviation_m: float
     faces: int
     parts: int
     tried: tuple[tuple[str, float], ...] = ()
     #: What was bounded to keep a big import short (empty for ordinary parts).
     bounded: tuple[str, ...] = ()
+    #: The collision margin: no point of the part lies farther than this outside the proxy
+    #: (one-sided Hausdorff from the part to the proxy, bounded over every triangle).
+    margin_m: float = 0.0
+    #: The largest of those distances found at a vertex of the part (<= margin_m).
+    outside_at_vertices_m: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -81,50 +102,62 @@ class _Candidate:
 
 def collision_proxy(
     mesh: trimesh.Trimesh, *, max_faces: int, tolerance_m: float,
-    progress: Progress | None = None,
+    progress: Progress | None = None, lod: trimesh.Trimesh | None = None,
 ) -> tuple[tuple[CollisionShape, ...], ProxyReport, list[str]]:
-    """Collision shapes (object frame) for `mesh`, the report, and any warnings."""
+    """Collision shapes (object frame) for `mesh`, the report, and any warnings. `lod`, a
+    decimated copy of `mesh` already made for display, is decimated further for the work
+    copy instead of `mesh` itself (seconds less on millions of triangles)."""
     if len(mesh.faces) <= max_faces:
         shape = CollisionShape(ShapeKind.MESH, mesh=mesh)
         return (shape,), ProxyReport("mesh", 0.0, len(mesh.faces), 1), []
     progress = progress or Progress()
     bounded: list[str] = []
-    work, work_error = mesh, 0.0
+    work, work_bound = mesh, None
     if len(mesh.faces) > WORK_FACES:
         progress.update(0.05, "decimating a work copy for the collision proxy")
-        dec = _decimate(mesh, WORK_FACES)
+        src = lod if lod is not None and len(lod.faces) > WORK_FACES else mesh
+        dec = _decimate(src, WORK_FACES)
         if dec is not None and len(dec.faces) >= 4:
             work = dec
-            work_error = _decimation_error(mesh, work)
+            work_bound = outside_bound(mesh.vertices, mesh.faces, (work,), convex=False,
+                                       progress=progress.sub(0.08, 0.4, "measuring"))
             bounded.append(f"collision proxy built on a {len(work.faces):,}-triangle copy "
-                           f"({work_error * 1000:.2f} mm from the part, included below)")
+                           f"(the part lies within {work_bound.distance_m * 1000:.2f} mm of "
+                           "it, included below)")
+    work_error = work_bound.distance_m if work_bound is not None else 0.0
 
-    progress.update(0.15, "measuring the part")
+    progress.update(0.42, "measuring the part")
     samples = _surface_samples(work)
     tree = cKDTree(_dense_samples(work))
     tried: list[_Candidate] = []
 
-    progress.update(0.25, "convex hull")
+    progress.update(0.45, "convex hull")
     if len(mesh.vertices) > HULL_EXACT_VERTICES:
-        hull = _bounded_hull(mesh, work, max_faces, tolerance_m)
-        bounded.append(f"hull from support planes over all {len(mesh.vertices):,} vertices")
+        hull = _bounded_hull(mesh, work, work_error, tolerance_m)
+        bounded.append(f"hull from support planes around all {len(mesh.vertices):,} vertices")
     else:
         hull = _hull(mesh, max_faces, tolerance_m)
-    tried.append(_Candidate("convex_hull", (hull,),
-                            work_error + _deviation(work, samples, tree, (hull,))))
-    if tried[-1].deviation_m > tolerance_m:
-        progress.update(0.4, "convex decomposition")
+    if work is mesh or work_error <= WORK_HULL_ERROR * tolerance_m:
+        hull_dev = work_error + _deviation(work, samples, tree, (hull,))
+    else:  # the work copy lost too much of the part to judge the hull: the part itself
+        on_hull, _ = trimesh.sample.sample_surface(hull, 5 * SAMPLES, seed=_SEED)
+        hull_dev = _excess(np.vstack([on_hull, hull.vertices]), mesh)
+    tried.append(_Candidate("convex_hull", (hull,), hull_dev))
+    if tried[-1].deviation_m > tolerance_m and len(mesh.faces) <= DECOMPOSE_MAX_FACES:
+        progress.update(0.5, "convex decomposition")
         budget = DECOMPOSE_BUDGET_S if work is not mesh else DECOMPOSE_BUDGET_SMALL_S
-        parts, note = _decompose(work, progress.sub(0.4, 0.8), budget)
+        parts, note = _decompose(work, progress.sub(0.5, 0.75), budget)
         if note:
             bounded.append(note)
         if parts:
             tried.append(_Candidate("convex_decomposition", parts,
                                     work_error + _deviation(work, samples, tree, parts)))
     if min(c.deviation_m for c in tried) > tolerance_m:
-        progress.update(0.85, "decimated proxy")
+        progress.update(0.78, "decimated proxy")
         dec = work if len(work.faces) <= max_faces else _decimate(work, max_faces)
-        if dec is not None:
+        if dec is work and work is not mesh:  # measured already: the work copy's bound
+            tried.append(_Candidate("decimated", (dec,), work_error))
+        elif dec is not None:
             tried.append(_Candidate("decimated", (dec,), work_error + _deviation(
                 work, samples, tree, (dec,), convex=False)))
     ok = [c for c in tried if c.deviation_m <= tolerance_m]
@@ -134,45 +167,65 @@ def collision_proxy(
         warnings.append(
             f"no collision proxy within {tolerance_m * 1000:.1f} mm of the mesh; using the "
             f"{best.kind.replace('_', ' ')} ({best.deviation_m * 1000:.1f} mm off)")
-    shapes = tuple(CollisionShape(ShapeKind.MESH, mesh=p) for p in best.parts)
+
+    progress.update(0.82, "bounding how far the part lies outside the proxy")
+    if best.kind == "convex_hull":
+        margin, at_vertices = 0.0, 0.0  # holds every vertex of the part by construction
+    elif len(best.parts) == 1 and best.parts[0] is work and work_bound is not None:
+        margin, at_vertices = work_bound.distance_m, work_bound.at_vertices_m
+    else:
+        b = outside_bound(mesh.vertices, mesh.faces, best.parts,
+                          convex=best.kind == "convex_decomposition",
+                          progress=progress.sub(0.82, 0.98, "measuring"))
+        margin, at_vertices = b.distance_m, b.at_vertices_m
+    # Rounding of the bound's own arithmetic (relative 1e-12 of the part's size) on top.
+    size = float(np.ptp(mesh.vertices.view(np.ndarray), axis=0).max())
+    margin = margin + 1e-12 * size if margin > 0.0 else 0.0
+    if margin > tolerance_m:
+        warnings.append(
+            f"the part lies up to {margin * 1000:.1f} mm outside its collision proxy: the "
+            f"collision checks keep the arm that much farther from the proxy")
+    shapes = tuple(CollisionShape(ShapeKind.MESH, mesh=p, margin=margin) for p in best.parts)
     report = ProxyReport(best.kind, best.deviation_m, int(sum(len(p.faces) for p in best.parts)),
                          len(best.parts), tuple((c.kind, c.deviation_m) for c in tried),
-                         tuple(bounded))
+                         tuple(bounded), margin, at_vertices)
     progress.update(1.0, "collision proxy ready")
     return shapes, report, warnings
 
 
-def _decimation_error(mesh: trimesh.Trimesh, work: trimesh.Trimesh) -> float:
-    """How far the part and its decimated copy lie apart (sampled, both ways): points of the
-    part measured exactly to the copy, points of the copy screened against dense samples of
-    the part (an over-estimate by up to the sample spacing)."""
-    on_part = _surface_samples(mesh)
-    d1 = float(trimesh.proximity.closest_point(work, on_part)[1].max())
-    on_work = np.vstack([trimesh.sample.sample_surface(work, SAMPLES, seed=_SEED)[0],
-                         work.vertices])
-    d2 = float(cKDTree(_dense_samples(mesh)).query(on_work)[0].max())
-    return max(d1, d2)
-
-
-def _bounded_hull(mesh: trimesh.Trimesh, work: trimesh.Trimesh, max_faces: int,
+def _bounded_hull(mesh: trimesh.Trimesh, work: trimesh.Trimesh, work_error: float,
                   tolerance_m: float) -> trimesh.Trimesh:
-    """A convex polytope that contains every vertex of `mesh`, at bounded cost: the plane
-    normals of the work copy's (merged) hull, each pushed out to the farthest vertex of the
-    full mesh along it (one matrix product over all vertices), then intersected."""
+    """A convex polytope that contains every point of `mesh`, at bounded cost: the plane
+    normals of the work copy's (merged) hull, each pushed out as far as the part reaches
+    along it, then intersected. How far the part reaches: the work copy's farthest vertex
+    plus `work_error` (every point of the part lies within that bound of the work copy) when
+    that is small, else the part's own farthest vertex (a product over all its vertices)."""
     from scipy.spatial import ConvexHull, HalfspaceIntersection
 
     merged = ConvexHull(work.vertices, qhull_options=f"Qt C{tolerance_m / 4.0:.6g}")
     normals = np.unique(np.round(merged.equations[:, :3], 12), axis=0)
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    v = np.asarray(mesh.vertices)
-    reach = np.full(len(normals), -np.inf)
-    step = max(1, 20_000_000 // max(1, len(normals)))
-    for k in range(0, len(v), step):
-        reach = np.maximum(reach, (v[k:k + step] @ normals.T).max(axis=0))
+    if work_error <= WORK_HULL_ERROR * tolerance_m:
+        v = work.vertices.view(np.ndarray)
+        reach = (v @ normals.T).max(axis=0) + work_error
+    else:
+        v = mesh.vertices.view(np.ndarray)
+        reach = np.full(len(normals), -np.inf)
+        step = max(1, 20_000_000 // max(1, len(normals)))
+        for k in range(0, len(v), step):
+            reach = np.maximum(reach, (v[k:k + step] @ normals.T).max(axis=0))
     planes = np.column_stack([normals, -reach])
     inner = v[:: max(1, len(v) // 1000)].mean(axis=0)
     corners = HalfspaceIntersection(planes, inner).intersections
     return trimesh.convex.convex_hull(corners)
+
+
+def _excess(points: Array, mesh: trimesh.Trimesh) -> float:
+    """How far the farthest of `points` lies from the surface of a big `mesh` (exact
+    distances to candidate triangles: an upper bound, tight where the candidates are right)."""
+    from assistant.cell.cad.outside import nearest_distances
+
+    return float(nearest_distances(points, mesh).max()) if len(points) else 0.0
 
 
 def _surface_samples(mesh: trimesh.Trimesh, n: int = SAMPLES) -> Array:
@@ -190,17 +243,21 @@ def _dense_samples(mesh: trimesh.Trimesh) -> Array:
 def _hull(mesh: trimesh.Trimesh, max_faces: int, tolerance_m: float) -> trimesh.Trimesh:
     """The convex hull; if it alone has more than `max_faces` triangles (a finely tessellated
     round part), a coarser convex polytope that still contains every point: qhull merges
-    nearly coplanar facets (post-merge 'C' at a quarter of the tolerance keeps all points
-    inside the merged planes) and the polytope is the intersection of those planes. It is
-    measured like every other candidate."""
+    nearly coplanar facets (post-merge 'C' at a quarter of the tolerance), and each merged
+    plane is pushed out to the farthest hull vertex along its normal before the planes are
+    intersected, so every vertex is inside by construction. It is measured like every other
+    candidate."""
     hull = mesh.convex_hull
     if len(hull.faces) <= max_faces:
         return hull
     from scipy.spatial import ConvexHull, HalfspaceIntersection
 
     merged = ConvexHull(hull.vertices, qhull_options=f"Qt C{tolerance_m / 4.0:.6g}")
-    planes = np.unique(np.round(merged.equations, 12), axis=0)
-    corners = HalfspaceIntersection(planes, hull.vertices.mean(axis=0)).intersections
+    normals = np.unique(np.round(merged.equations[:, :3], 12), axis=0)
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    reach = (hull.vertices @ normals.T).max(axis=0)
+    corners = HalfspaceIntersection(np.column_stack([normals, -reach]),
+                                    hull.vertices.mean(axis=0)).intersections
     coarse = trimesh.convex.convex_hull(corners)
     return coarse if len(coarse.faces) < len(hull.faces) else hull
 

@@ -12,9 +12,12 @@ from __future__ import annotations
 import re
 
 from assistant.cell.cad.errors import CadImportError
+from assistant.cell.cad.formats import CadFormat
 from assistant.cell.cad.meshfile import read_mesh_file
 from assistant.cell.cad.options import ImportOptions
+from assistant.cell.cad.precheck import gltf_triangles
 from assistant.cell.cad.raw import RawGeometry
+from assistant.cell.cad.validate import MAX_FACES
 
 ANGULAR_TOLERANCE_RAD = 0.5
 
@@ -41,6 +44,14 @@ def read_step(data: bytes, filename: str, options: ImportOptions) -> RawGeometry
     if not glb:
         raise CadImportError(filename, "OpenCASCADE could not read or mesh this STEP file",
                              "the file may be truncated or damaged; export it again from CAD")
+    # Its triangles exist only now: counted from the tessellation before it is read.
+    n = gltf_triangles(glb, filename, CadFormat.GLB)
+    if n > MAX_FACES:
+        raise CadImportError(
+            filename, f"tessellates to {n:,} triangles, more than the {MAX_FACES:,} an "
+                      "import takes",
+            "import it again with a coarser STEP tolerance, or leave out small details "
+            "(screws, text) in CAD")
     try:
         raw = read_mesh_file(glb, filename, "glb")
     except CadImportError as exc:
