@@ -113,7 +113,8 @@ def test_capsule_cover_contains_every_vertex_with_the_padding(arm):
 
 def _cell(arm) -> list[Obstacle]:
     """A table under the base and boxes within reach, standing where uniform postures
-    pass them closely."""
+    pass them closely; two of the boxes with a margin (`CollisionShape.margin`: everything
+    within it counts as the obstacle)."""
     from assistant.world.model import tcp_reach
 
     reach = tcp_reach(arm)
@@ -125,7 +126,8 @@ def _cell(arm) -> list[Obstacle]:
         size = tuple(rng.uniform(0.05, 0.2, 3) * [1.0, 1.0, 2.0])
         obs.append(Obstacle(f"B{k + 1}", make_T(rot_z(rng.uniform(0, np.pi)),
                                                  (r * np.cos(a), r * np.sin(a), size[2] / 2)),
-                            (CollisionShape(ShapeKind.BOX, size),)))
+                            (CollisionShape(ShapeKind.BOX, size,
+                                            margin=0.03 if k in (1, 4) else 0.0),)))
     return obs
 
 
