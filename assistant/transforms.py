@@ -151,6 +151,8 @@ def angle_between(a: Array, b: Array) -> float:
     digits near 0 and pi (one rounding of the dot becomes ~1.5e-8 rad)."""
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
+    if a.shape == (2,):  # a plane's vectors: the cross product's one component
+        return float(np.arctan2(abs(a[0] * b[1] - a[1] * b[0]), float(a @ b)))
     return float(np.arctan2(np.linalg.norm(np.cross(a, b)), float(a @ b)))
 
 

@@ -23,6 +23,12 @@ def test_angle_between_is_exact_near_parallel_and_antiparallel(t):
     assert angle_between(a, b) == pytest.approx(want, rel=REL)
 
 
+@pytest.mark.parametrize("t", [1e-9, 0.3, np.pi - 1e-7])
+def test_angle_between_plane_vectors(t):
+    a, b = np.array([2.0, 0.0]), np.array([np.cos(t), np.sin(t)])
+    assert angle_between(a, b) == pytest.approx(t, rel=REL)
+
+
 @pytest.mark.parametrize("t", [1e-10, 1e-7, 0.5, 3.0])
 def test_rotation_angle_of_a_small_and_a_large_turn(t):
     assert rotation_angle(rot_z(t)) == pytest.approx(t, rel=REL)

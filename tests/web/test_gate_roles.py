@@ -235,7 +235,10 @@ def test_uploads_are_bounded_at_the_front(gated):
         # One message larger than the front takes (viser sends 512 KiB parts).
         async with Page(app, tokens.operator) as p:
             await p.send(b"\x00" * (3 * 2**20))
-            assert await closed_with(p) == 1009
+            # 1009 (too big) when the close frame reaches the page; on a busy machine the
+            # front's close can reset the socket while the page still sends its 3 MiB, and
+            # the page then sees the connection drop (1006) - refused either way
+            assert await closed_with(p) in (1009, 1006)
         assert await wait_for(lambda: app.access.front._slots.used == 0)  # noqa: SLF001
 
     run(go())
