@@ -36,13 +36,13 @@ def _centres_numpy(frames: Array, sph_link: Array, sph_local: Array) -> Array:
 def _broad_rows_numpy(frames: Array, sph_link: Array, sph_local: Array, sph_r: Array,
                       sph_shape: Array, env_lo: Array, env_hi: Array, sp_a: Array,
                       sp_b: Array, sp_pair: Array, env_c: Array, self_c: Array,
-                      ) -> tuple[Array, Array]:
+                      env_from: int = 1) -> tuple[Array, Array]:
     """The broad phase of every row of frames as array expressions: flags into env_c and
     self_c (rows aligned with frames), returns the gaps and the centres."""
     n = frames.shape[0]
     centre = _centres_numpy(frames, sph_link, sph_local)
     gap = np.full(n, np.inf)
-    moving = np.flatnonzero(sph_link != 0)
+    moving = np.flatnonzero(sph_link >= env_from)
     if moving.size and env_lo.shape[0]:
         c = centre[:, moving, None, :]  # (N, M, 1, 3)
         d = c - np.minimum(np.maximum(c, env_lo), env_hi)
@@ -64,7 +64,7 @@ def _broad_rows_numpy(frames: Array, sph_link: Array, sph_local: Array, sph_r: A
 def _sphere_broad_phase_numpy(frames: Array, sph_link: Array, sph_local: Array, sph_r: Array,
                               sph_shape: Array, env_lo: Array, env_hi: Array, sp_a: Array,
                               sp_b: Array, sp_pair: Array, n_shapes: int, n_pairs: int,
-                              ) -> tuple[Array, Array, Array]:
+                              env_from: int = 1) -> tuple[Array, Array, Array]:
     """`sphere_broad_phase` as array expressions over all configurations (its fallback until
     compiled), in chunks that keep the (rows, spheres, boxes) temporaries small."""
     n = frames.shape[0]
@@ -76,16 +76,18 @@ def _sphere_broad_phase_numpy(frames: Array, sph_link: Array, sph_local: Array, 
         b = min(n, a + chunk)
         gap[a:b] = _broad_rows_numpy(frames[a:b], sph_link, sph_local, sph_r, sph_shape,
                                      env_lo, env_hi, sp_a, sp_b, sp_pair, env_c[a:b],
-                                     self_c[a:b])[0]
+                                     self_c[a:b], env_from)[0]
     return env_c, self_c, gap
 
 
 def _broad_row_numpy(frames: Array, k: int, sph_link: Array, sph_local: Array, sph_r: Array,
                      sph_shape: Array, env_lo: Array, env_hi: Array, sp_a: Array, sp_b: Array,
-                     sp_pair: Array, centre: Array, env_c: Array, self_c: Array) -> float:
+                     sp_pair: Array, centre: Array, env_c: Array, self_c: Array,
+                     env_from: int = 1) -> float:
     """`_broad_row` as array expressions (its fallback until compiled)."""
     gap, c = _broad_rows_numpy(frames[k:k + 1], sph_link, sph_local, sph_r, sph_shape, env_lo,
-                               env_hi, sp_a, sp_b, sp_pair, env_c[k:k + 1], self_c[k:k + 1])
+                               env_hi, sp_a, sp_b, sp_pair, env_c[k:k + 1], self_c[k:k + 1],
+                               env_from)
     centre[:] = c[0]
     return float(gap[0])
 
@@ -94,7 +96,7 @@ def _broad_row_numpy(frames: Array, k: int, sph_link: Array, sph_local: Array, s
 def sphere_broad_phase(frames: Array, sph_link: Array, sph_local: Array, sph_r: Array,
                        sph_shape: Array, env_lo: Array, env_hi: Array, sp_a: Array,
                        sp_b: Array, sp_pair: Array, n_shapes: int, n_pairs: int,
-                       ) -> tuple[Array, Array, Array]:
+                       env_from: int = 1) -> tuple[Array, Array, Array]:
     """Which (robot shape, obstacle) and self pairs may touch, per configuration.
 
     frames (N, L, 4, 4) link frames; spheres s (centre `sph_local[s]` in link `sph_link[s]`,
@@ -103,7 +105,9 @@ def sphere_broad_phase(frames: Array, sph_link: Array, sph_local: Array, sph_r: 
     Returns env_c (N, n_shapes, E) and self_c (N, n_pairs) bool: a sphere reaches the box or
     the other sphere; and gap (N,): how far every moving sphere stays outside every box and
     every self sphere pair apart (m, inf if there is nothing to measure). Spheres of the
-    fixed base (link 0) never meet obstacles (the cell reports that overlap), only self pairs.
+    fixed base (link 0) never meet obstacles (the cell reports that overlap), only self pairs;
+    nor do those of links below `env_from` (the fast model's, when it has proved that link
+    clear of every obstacle in every posture: `fast_model`).
     """
     n = frames.shape[0]
     env_c = np.zeros((n, n_shapes, env_lo.shape[0]), dtype=np.bool_)
@@ -112,14 +116,15 @@ def sphere_broad_phase(frames: Array, sph_link: Array, sph_local: Array, sph_r: 
     centre = np.empty((sph_r.shape[0], 3))
     for k in range(n):
         gap[k] = _broad_row(frames, k, sph_link, sph_local, sph_r, sph_shape, env_lo, env_hi,
-                            sp_a, sp_b, sp_pair, centre, env_c, self_c)
+                            sp_a, sp_b, sp_pair, centre, env_c, self_c, env_from)
     return env_c, self_c, gap
 
 
 @kernel(cache=True, inline="always", fallback=_broad_row_numpy)
 def _broad_row(frames: Array, k: int, sph_link: Array, sph_local: Array, sph_r: Array,
                sph_shape: Array, env_lo: Array, env_hi: Array, sp_a: Array, sp_b: Array,
-               sp_pair: Array, centre: Array, env_c: Array, self_c: Array) -> float:
+               sp_pair: Array, centre: Array, env_c: Array, self_c: Array,
+               env_from: int = 1) -> float:
     """`sphere_broad_phase` of row k: flags into env_c[k] and self_c[k], returns its gap
     (`centre` is scratch space, (S, 3))."""
     n_sph = sph_r.shape[0]
@@ -127,7 +132,7 @@ def _broad_row(frames: Array, k: int, sph_link: Array, sph_local: Array, sph_r: 
         _sphere_centre(frames, k, sph_link[s], sph_local[s], centre[s])
     g = np.inf
     for s in range(n_sph):
-        if sph_link[s] == 0:
+        if sph_link[s] < env_from:
             continue
         r = sph_r[s]
         for e in range(env_lo.shape[0]):
@@ -285,7 +290,7 @@ def _pose_and_broad_numpy(frames: Array, ready: Array, F: Array, Q: Array, rows:
                          sp_pair: Array, env_c: Array, self_c: Array, shape_link: Array,
                          seg_a: Array, seg_b: Array, seg_r: Array, box_R: Array, box_c: Array,
                          box_h: Array, pair_a: Array, pair_b: Array, apart: float,
-                         status: Array) -> Array:
+                         status: Array, env_from: int = 1) -> Array:
     """Pose `rows` (unless ready), give them the broad phase as array expressions and prune
     the rows it flags; status FREE or ASK_FCL per row into `status`; returns their gaps."""
     todo = rows[~ready[rows]]
@@ -295,7 +300,7 @@ def _pose_and_broad_numpy(frames: Array, ready: Array, F: Array, Q: Array, rows:
     env_r = np.zeros((rows.size,) + env_c.shape[1:], dtype=np.bool_)
     self_r = np.zeros((rows.size,) + self_c.shape[1:], dtype=np.bool_)
     gap = _broad_rows_numpy(frames[rows], sph_link, sph_local, sph_r, sph_shape, env_lo,
-                            env_hi, sp_a, sp_b, sp_pair, env_r, self_r)[0]
+                            env_hi, sp_a, sp_b, sp_pair, env_r, self_r, env_from)[0]
     env_c[rows], self_c[rows] = env_r, self_r
     flagged = rows[env_r.reshape(rows.size, -1).any(axis=1) | self_r.any(axis=1)]
     status[rows] = FREE
@@ -315,7 +320,7 @@ def _certify_samples_numpy(frames: Array, ready: Array, F: Array, Q: Array, insi
                            sp_pair: Array, n_shapes: int, n_pairs: int, shape_link: Array,
                            seg_a: Array, seg_b: Array, seg_r: Array, box_R: Array,
                            box_c: Array, box_h: Array, pair_a: Array, pair_b: Array,
-                           apart: float) -> tuple[Array, Array, Array]:
+                           apart: float, env_from: int = 1) -> tuple[Array, Array, Array]:
     """`certify_samples` as array expressions (its fallback until compiled): every row within
     the limits gets the broad phase itself - none is certified by a neighbour's margin, so
     the answers are the same (FREE where the kernel says CERTIFIED) for more arithmetic."""
@@ -328,7 +333,7 @@ def _certify_samples_numpy(frames: Array, ready: Array, F: Array, Q: Array, insi
         _pose_and_broad_numpy(frames, ready, F, Q, rows, sph_link, sph_local, sph_r, sph_shape,
                               env_lo, env_hi, sp_a, sp_b, sp_pair, env_c, self_c, shape_link,
                               seg_a, seg_b, seg_r, box_R, box_c, box_h, pair_a, pair_b, apart,
-                              status)
+                              status, env_from)
     return status, env_c, self_c
 
 
@@ -337,7 +342,8 @@ def _margin_rows_numpy(frames: Array, ready: Array, F: Array, Q: Array, sph_link
                        env_hi: Array, sp_a: Array, sp_b: Array, sp_pair: Array, n_shapes: int,
                        n_pairs: int, shape_link: Array, seg_a: Array, seg_b: Array,
                        seg_r: Array, box_R: Array, box_c: Array, box_h: Array, pair_a: Array,
-                       pair_b: Array, apart: float) -> tuple[Array, Array, Array, Array]:
+                       pair_b: Array, apart: float, env_from: int = 1,
+                       ) -> tuple[Array, Array, Array, Array]:
     """`margin_rows` as array expressions (its fallback until compiled)."""
     n = Q.shape[0]
     env_c = np.zeros((n, n_shapes, env_lo.shape[0]), dtype=np.bool_)
@@ -348,7 +354,7 @@ def _margin_rows_numpy(frames: Array, ready: Array, F: Array, Q: Array, sph_link
         gap = _pose_and_broad_numpy(frames, ready, F, Q, np.arange(n), sph_link, sph_local,
                                     sph_r, sph_shape, env_lo, env_hi, sp_a, sp_b, sp_pair,
                                     env_c, self_c, shape_link, seg_a, seg_b, seg_r, box_R,
-                                    box_c, box_h, pair_a, pair_b, apart, status)
+                                    box_c, box_h, pair_a, pair_b, apart, status, env_from)
     return status, gap, env_c, self_c
 
 
@@ -360,7 +366,7 @@ def certify_samples(frames: Array, ready: Array, F: Array, Q: Array, inside: Arr
                     sp_b: Array, sp_pair: Array, n_shapes: int, n_pairs: int,
                     shape_link: Array, seg_a: Array, seg_b: Array, seg_r: Array,
                     box_R: Array, box_c: Array, box_h: Array, pair_a: Array, pair_b: Array,
-                    apart: float) -> tuple[Array, Array, Array]:
+                    apart: float, env_from: int = 1) -> tuple[Array, Array, Array]:
     """Everything of `CollisionChecker.is_valid_samples` but FCL, for motions' samples.
 
     Rows of one motion are consecutive (`first`/`last` mark its ends); `inside` says which
@@ -406,7 +412,8 @@ def certify_samples(frames: Array, ready: Array, F: Array, Q: Array, inside: Arr
             status[k] = OUTSIDE_LIMITS
         elif coarse[k]:
             margin[k] = _broad_row(frames, k, sph_link, sph_local, sph_r, sph_shape, env_lo,
-                                   env_hi, sp_a, sp_b, sp_pair, centre, env_c, self_c)
+                                   env_hi, sp_a, sp_b, sp_pair, centre, env_c, self_c,
+                                   env_from)
             status[k] = _prune_and_flag(frames, k, env_c, self_c, shape_link, seg_a, seg_b,
                                         seg_r, box_R, box_c, box_h, pair_a, pair_b, apart,
                                         A, B, la, lb)
@@ -443,7 +450,7 @@ def certify_samples(frames: Array, ready: Array, F: Array, Q: Array, inside: Arr
         if not todo[k]:
             continue
         _broad_row(frames, k, sph_link, sph_local, sph_r, sph_shape, env_lo, env_hi, sp_a,
-                   sp_b, sp_pair, centre, env_c, self_c)
+                   sp_b, sp_pair, centre, env_c, self_c, env_from)
         status[k] = _prune_and_flag(frames, k, env_c, self_c, shape_link, seg_a, seg_b, seg_r,
                                     box_R, box_c, box_h, pair_a, pair_b, apart, A, B, la, lb)
     return status, env_c, self_c
@@ -455,7 +462,7 @@ def margin_rows(frames: Array, ready: Array, F: Array, Q: Array, sph_link: Array
                 env_hi: Array, sp_a: Array, sp_b: Array, sp_pair: Array, n_shapes: int,
                 n_pairs: int, shape_link: Array, seg_a: Array, seg_b: Array, seg_r: Array,
                 box_R: Array, box_c: Array, box_h: Array, pair_a: Array, pair_b: Array,
-                apart: float) -> tuple[Array, Array, Array, Array]:
+                apart: float, env_from: int = 1) -> tuple[Array, Array, Array, Array]:
     """Every row's broad phase, its gap and its pruning, as one pass: (status FREE or
     ASK_FCL, gap, env_c, self_c) - `sphere_broad_phase` and `prune_round_pairs` of
     `CollisionChecker._collide_batch` (rows posed here from the DH chain's fixed parts F
@@ -475,7 +482,7 @@ def margin_rows(frames: Array, ready: Array, F: Array, Q: Array, sph_link: Array
         _pose(frames, ready, Q, F, k, T)
     for k in range(n):
         gap[k] = _broad_row(frames, k, sph_link, sph_local, sph_r, sph_shape, env_lo, env_hi,
-                            sp_a, sp_b, sp_pair, centre, env_c, self_c)
+                            sp_a, sp_b, sp_pair, centre, env_c, self_c, env_from)
         status[k] = _prune_and_flag(frames, k, env_c, self_c, shape_link, seg_a, seg_b, seg_r,
                                     box_R, box_c, box_h, pair_a, pair_b, apart, A, B, la, lb)
     return status, gap, env_c, self_c

@@ -18,6 +18,7 @@ answer is still one FCL collision test; clearances to it are FCL's distance less
 
 from __future__ import annotations
 
+import copy
 import threading
 from collections.abc import Iterable
 from dataclasses import dataclass
@@ -106,6 +107,8 @@ class CollisionChecker(MotionChecks):
     #: tolerance, so the answers remain FCL's. On the planning benchmark's cells the bound
     #: clears ~80 % of the obstacle pairs the covering spheres pass.
     PRUNE_APART = 1e-4
+    #: Most covering spheres per capsule or cylinder (`fcl_shapes.covering_spheres`).
+    COVER_SPHERES = 6
 
     def __init__(
         self,
@@ -115,6 +118,7 @@ class CollisionChecker(MotionChecks):
         self_collision: bool = True,
         max_step: float = 0.005,
         chunk: int = 2048,
+        pairs_of: CollisionChecker | None = None,
     ):
         self.robot = robot
         self.max_step = float(max_step)
@@ -134,7 +138,7 @@ class CollisionChecker(MotionChecks):
                 self._rshapes.append(
                     _RobotShape(li, shape, fcl.CollisionObject(fcl_geometry(shape)))
                 )
-                c, r = covering_spheres(shape)
+                c, r = covering_spheres(shape, self.COVER_SPHERES)
                 sph_c.append(c)
                 sph_r.append(r)
                 sph_owner += [idx] * len(r)
@@ -149,7 +153,9 @@ class CollisionChecker(MotionChecks):
         self._env: list[_EnvShape] = []
         lo, hi, obb, env_box = [], [], [], []
         self.obstacle_names: list[str] = []
-        for ob in obstacles:
+        #: The obstacles as given (the fast model takes its boxes from them).
+        self.obstacles: list[ObstacleView] = list(obstacles)
+        for ob in self.obstacles:
             self.obstacle_names.append(ob.name)
             for shape in ob.collision:
                 T = np.asarray(ob.T_base_object, dtype=float) @ shape.T_link_shape
@@ -180,6 +186,9 @@ class CollisionChecker(MotionChecks):
         self._env_exact = np.array(env_box, dtype=bool)
         self._env_lo = np.array(lo).reshape(-1, 3) - 1e-9
         self._env_hi = np.array(hi).reshape(-1, 3) + 1e-9
+        #: A checker of the robot this one views (a link subset): its self pairs among
+        #: these links are the pairs here, not sampled again.
+        self._pairs_of = pairs_of
         self._self_pairs = self._self_shape_pairs() if self_collision else []
         # Sphere pairs for the self broad phase.
         sp_a, sp_b, sp_pair = [], [], []
@@ -206,9 +215,48 @@ class CollisionChecker(MotionChecks):
         self._shape_link = np.array([rs.link for rs in self._rshapes], dtype=np.int64)
         self._shape_T = (np.stack([rs.shape.T_link_shape for rs in self._rshapes])
                          if self._rshapes else np.zeros((0, 4, 4)))
+        #: Links below this one are never checked against obstacles: the fixed base (the
+        #: cell reports an overlap), and in the fast model a link it proved clear in every
+        #: posture (`fast_checker`).
+        self._env_from = 1
+        #: A lower bound (m) of those links' distance to every obstacle (`min_clearance_along`).
+        self._env_floor = np.inf
+        self._fast_model: CollisionChecker | None | bool = False  # `fast`: not built yet
+        #: Mesh robots (URDF arms) ask the fast model first (`fast_prefilter`).
+        self._has_mesh = any(rs.shape.kind == ShapeKind.MESH for rs in self._rshapes)
+        self._frame_fix: tuple[Array, Array] | None = None  # `_link_frames`
+        #: False in the view `exact_only` returns: FCL and the robot's own kinematics only.
+        self._use_fast = True
         #: Robot shapes grown by an obstacle's margin, by (shape index, margin), made when
         #: first needed (`_grown`).
         self._grown_objs: dict[tuple[int, float], fcl.CollisionObject] = {}
+
+    def exact_only(self) -> CollisionChecker:
+        """This checker without the fast model: its own broad phase and FCL on the shapes
+        posed by the robot's own kinematics (not the fast model's compiled chain). What
+        certifies a finished path, so a fault of the fast model cannot pass one; the
+        same as this checker for a robot of primitive shapes (it asks no fast model)."""
+        if not self._has_mesh:
+            return self
+        view = copy.copy(self)
+        view._use_fast = False
+        view._fast_model = None
+        view._frame_fix = None
+        return view
+
+    @property
+    def fast(self) -> CollisionChecker | None:
+        """The fast conservative model of this checker's robot and obstacles
+        (`fast_checker.FastChecker`), built on first use; None for a robot it cannot pose."""
+        if not self._use_fast:
+            return None
+        if self._fast_model is False:
+            from assistant.collision.fast_checker import FastChecker
+            from assistant.collision.fast_model import fast_robot
+
+            robot = fast_robot(self.robot)
+            self._fast_model = None if robot is None else FastChecker(self, robot)
+        return self._fast_model  # type: ignore[return-value]
 
     def _grown(self, i: int, margin: float) -> fcl.CollisionObject:
         """Robot shape i grown by `margin` (unposed; see `fcl_shapes.inflated_geometry`)."""
@@ -251,6 +299,12 @@ class CollisionChecker(MotionChecks):
     # ------------------------------------------------------------------ self-collision pairs
     def _self_shape_pairs(self) -> list[tuple[int, int]]:
         """Shape pairs worth checking for self-collision, cached per robot description."""
+        if self._pairs_of is not None:
+            index = {(rs.link, self._shape_index_in_link(i)): i
+                     for i, rs in enumerate(self._rshapes)}
+            return [(index[(la, ia)], index[(lb, ib)])
+                    for la, ia, lb, ib in self._pairs_of.self_shape_pairs
+                    if (la, ia) in index and (lb, ib) in index]
         key = self.robot.description_hash()
         with _SELF_PAIR_LOCK:
             if key in _SELF_PAIR_CACHE:
@@ -325,7 +379,7 @@ class CollisionChecker(MotionChecks):
         env_c, self_c, gap = sphere_broad_phase(
             np.ascontiguousarray(frames, dtype=float), self._sph_link, self._sph_local,
             self._sph_r, self._sph_shape, self._env_lo, self._env_hi, self._sp_a, self._sp_b,
-            self._sp_pair, R, P)
+            self._sp_pair, R, P, self._env_from)
         return env_c, self_c, (gap if with_gap else None)
 
     def _contacts(self, frames_n: Array, env_c: Array, self_c: Array) -> list[Contact]:
@@ -379,7 +433,29 @@ class CollisionChecker(MotionChecks):
 
     def in_collision_batch(self, Q: Array) -> Array:
         """Exact collision flag (ignoring joint limits) for each configuration."""
-        return self._collide_batch(Q, with_gap=False)[0]
+        Q = np.atleast_2d(np.asarray(Q, dtype=float))
+        fast = self._prefilter()
+        if fast is None or not len(Q):
+            return self._collide_batch(Q, with_gap=False)[0]
+        hit = fast.in_collision_batch(Q)
+        if hit.any():
+            hit[hit] = self._collide_batch(Q[hit], with_gap=False)[0]
+        return hit
+
+    def _prefilter(self) -> CollisionChecker | None:
+        """The fast model, asked first by a mesh robot's checks (`fast_prefilter`): what
+        it calls free is free, only the rest reaches this checker's own passes and FCL.
+        Robots of primitive shapes (the RV-2AJ) are answered as fast without it."""
+        return self.fast if self._has_mesh and self._use_fast else None
+
+    def _fast_scale(self) -> float:
+        """Factor that turns the fast model's margins into this checker's: its arm radii
+        may be larger (its capsules reach beyond the shapes), and a margin is compared with
+        this checker's `travel`."""
+        fast = self.fast
+        assert fast is not None
+        r = np.maximum(fast._radii, 1e-12)
+        return float(min(1.0, np.min(np.maximum(self._radii, 0.0) / r)))
 
     def is_valid_batch_margin(self, Q: Array, certified: Array | None = None,
                               ) -> tuple[Array, Array]:
@@ -394,6 +470,19 @@ class CollisionChecker(MotionChecks):
         moves far from everything - the answers stay exactly those of `is_valid_batch`.
         """
         Q = np.atleast_2d(np.asarray(Q, dtype=float))
+        fast = self._prefilter()
+        if fast is not None and len(Q):
+            ok, margin = fast.is_valid_batch_margin(Q, certified)
+            margin = margin * self._fast_scale()
+            inside = self.robot.limits.contains_batch(Q)
+            todo = ~ok & inside
+            if certified is not None:
+                todo &= ~np.asarray(certified, dtype=bool)
+            if todo.any():
+                hit, gap = self._margin_rows(np.ascontiguousarray(Q[todo]))
+                ok[todo] = ~hit
+                margin[todo] = np.where(hit, np.nan, gap)
+            return ok, margin
         ok = self.robot.limits.contains_batch(Q)
         margin = np.full(len(Q), np.nan)
         todo = ok.copy() if certified is None else ok & ~np.asarray(certified, dtype=bool)
@@ -416,7 +505,7 @@ class CollisionChecker(MotionChecks):
             self._sph_shape, self._env_lo, self._env_hi, self._sp_a, self._sp_b,
             self._sp_pair, len(self._rshapes), len(self._self_pairs), self._shape_link,
             self._seg_a, self._seg_b, self._seg_r, self._env_R, self._env_c, self._env_h,
-            self._pair_a, self._pair_b, self.PRUNE_APART)
+            self._pair_a, self._pair_b, self.PRUNE_APART, self._env_from)
         hit = np.zeros(len(Q), dtype=bool)
         rows = np.flatnonzero(status == ASK_FCL)
         if len(rows):
@@ -445,6 +534,65 @@ class CollisionChecker(MotionChecks):
         into an obstacle has dozens of samples inside it, each an FCL question otherwise.
         """
         Q = np.atleast_2d(np.asarray(Q, dtype=float))
+        fast = self._prefilter()
+        if fast is not None and len(Q):
+            return self._prefiltered_samples(fast, Q, groups, first_only, known_invalid)
+        return self._exact_samples(Q, groups, first_only, known_invalid)
+
+    def _prefiltered_samples(self, fast: CollisionChecker, Q: Array, groups: Array | None,
+                             first_only: bool, known_invalid: Array | None) -> Array:
+        """`is_valid_samples` asking the fast model first: the rows it calls free are free;
+        the others (within the limits, not known invalid) get this checker's own passes."""
+        ok = fast.is_valid_samples(Q, groups, known_invalid=known_invalid)
+        ask = ~ok & self.robot.limits.contains_batch(Q)
+        if known_invalid is not None:
+            ask &= ~known_invalid
+        if ask.any() and first_only:
+            self._first_asked(Q, groups, ok, ask)
+        elif ask.any():
+            g = None if groups is None else np.asarray(groups)[ask]
+            ok[ask] = self._exact_samples(Q[ask], g, False, None)
+        if first_only and not ok.all():
+            g = np.zeros(len(Q), dtype=np.int64) if groups is None else np.asarray(groups)
+            motion = motion_marks(np.ascontiguousarray(g, dtype=np.int64))[2]
+            bad = np.flatnonzero(~ok)
+            first_bad = np.full(int(motion[-1]) + 1, len(Q))
+            np.minimum.at(first_bad, motion[bad], bad)
+            ok &= np.arange(len(Q)) <= first_bad[motion]
+        return ok
+
+    def _first_asked(self, Q: Array, groups: Array | None, ok: Array, ask: Array,
+                     rounds: int = 3) -> None:
+        """Exact answers (into ok) for the `ask` rows up to each motion's first invalid
+        one: each round checks every motion's first unanswered row (a motion into an
+        obstacle is done with one exact check); a row the fast model called a collision
+        that is free lets its motion go on to its next; after `rounds` the rest at once."""
+        g = np.zeros(len(Q), dtype=np.int64) if groups is None else np.asarray(groups)
+        motion = motion_marks(np.ascontiguousarray(g, dtype=np.int64))[2]
+        ok[ask] = False  # until answered
+        open_rows = np.flatnonzero(ask)
+        for _ in range(rounds):
+            if not len(open_rows):
+                return
+            m = motion[open_rows]
+            first = open_rows[np.r_[True, m[1:] != m[:-1]]]  # each motion's first
+            hit = self.in_collision_batch_exact(Q[first])
+            done = set(m_ for m_, h in zip(motion[first].tolist(), hit.tolist(),
+                                           strict=True) if h)
+            ok[first[~hit]] = True
+            keep = ~np.isin(open_rows, first) & ~np.isin(motion[open_rows], list(done))
+            open_rows = open_rows[keep]
+        if len(open_rows):
+            ok[open_rows] = self._exact_samples(Q[open_rows], g[open_rows], True, None)
+
+    def in_collision_batch_exact(self, Q: Array) -> Array:
+        """This checker's own passes and FCL, without the fast model."""
+        return self._collide_batch(np.atleast_2d(np.asarray(Q, dtype=float)),
+                                   with_gap=False)[0]
+
+    def _exact_samples(self, Q: Array, groups: Array | None, first_only: bool,
+                       known_invalid: Array | None) -> Array:
+        """`is_valid_samples` by this checker's own passes and FCL."""
         n = len(Q)
         stride = self.CERTIFY_STRIDE
         if n <= 2 or stride <= 1 or len(self._sph_r) == 0:
@@ -485,7 +633,7 @@ class CollisionChecker(MotionChecks):
             self._env_lo, self._env_hi, self._sp_a, self._sp_b, self._sp_pair,
             len(self._rshapes), len(self._self_pairs), self._shape_link, self._seg_a,
             self._seg_b, self._seg_r, self._env_R, self._env_c, self._env_h, self._pair_a,
-            self._pair_b, self.PRUNE_APART)
+            self._pair_b, self.PRUNE_APART, self._env_from)
         return frames, status, env_c, self_c, motion
 
     def _frames_to_fill(self, Q: Array) -> tuple[Array, Array, Array]:
@@ -497,9 +645,25 @@ class CollisionChecker(MotionChecks):
             chain = np.ascontiguousarray(self._chain_F, dtype=float)
             return np.empty((n, len(chain) + 1, 4, 4)), np.zeros(n, dtype=bool), chain
         frames = np.ascontiguousarray(
-            np.concatenate([self.robot.batch_link_poses(Q[i : i + self.chunk])
+            np.concatenate([self._link_frames(Q[i : i + self.chunk])
                             for i in range(0, n, self.chunk)]), dtype=float)
         return frames, np.ones(n, dtype=bool), np.zeros((0, 4, 4))
+
+    def _link_frames(self, Q: Array) -> Array:
+        """The robot's link frames of the rows of Q: a mesh robot's from the fast model's
+        compiled chain (`fast_model.FastRobot`: its frames turned back into the robot's,
+        L_k = G L'_k to_fast_k), where numpy's batch FK costs ~1 ms a call; else the
+        robot's own."""
+        if not self._has_mesh or not self._use_fast or len(Q) == 0:
+            return self.robot.batch_link_poses(Q)
+        fast = self.fast
+        if fast is None:
+            return self.robot.batch_link_poses(Q)
+        if self._frame_fix is None:
+            fr = fast.robot
+            self._frame_fix = (fr.G, np.stack(fr.to_fast))
+        G, fix = self._frame_fix
+        return np.matmul(np.matmul(G, fast.robot.batch_link_poses(Q)), fix)
 
     def net_kernel_checker(self) -> tuple | None:
         """The broad phase's and the pruning's arrays in `trajectory.net_kernel`'s order,
@@ -540,7 +704,7 @@ class CollisionChecker(MotionChecks):
         gaps = np.empty(len(Q)) if with_gap else None
         for start in range(0, len(Q), self.chunk):
             block = Q[start : start + self.chunk]
-            frames = self.robot.batch_link_poses(block)
+            frames = self._link_frames(block)
             env_c, self_c, gap = self._candidates(frames, with_gap)
             if gaps is not None:
                 gaps[start : start + len(block)] = gap

@@ -150,18 +150,20 @@ class MotionChecks:
         else:
             S, F, _ = self._path_samples(P, max_step)
             Q = P[S] + F[:, None] * (P[S + 1] - P[S])
-        movable = np.array([i for i, rs in enumerate(self._rshapes) if rs.link > 0],
-                           dtype=np.int64)
+        movable = np.array([i for i, rs in enumerate(self._rshapes)
+                            if rs.link >= self._env_from], dtype=np.int64)
+        best = self._env_floor  # what the links left out keep in every posture (m)
         if not len(movable):
             return float(best)
         Q = np.ascontiguousarray(Q, dtype=float)
         frames, ready, chain = self._frames_to_fill(Q)  # the pass poses what it visits
-        best, cand, bound = pruned_clearance(
+        found, cand, bound = pruned_clearance(
             Q, frames, ready, chain, self.travel(Q[:-1], Q[1:]), self.CLEARANCE_STRIDE,
             movable, len(self._rshapes), self._sph_link, self._sph_local, self._sph_r,
             self._sph_shape, self._env_lo, self._env_hi, self._shape_link, self._seg_a,
             self._seg_b, self._seg_r, self._seg_exact, self._env_R, self._env_c,
             self._env_h, self._env_exact)
+        best = min(best, found)
         n_mov, n_env = len(movable), len(self._env)
         order = np.lexsort((cand, bound))  # by bound, ties in sample order
         for j, b in zip(cand[order].tolist(), bound[order].tolist(), strict=True):

@@ -42,6 +42,7 @@ from assistant.collision.checker import CollisionChecker
 from assistant.collision.reports import ObstacleView
 from assistant.mission.model import Location, Mission
 from assistant.mission.motion import Trajectory
+from assistant.planning.certify import all_exact, certificate_refusal, needs_certificate
 from assistant.planning.config import MissionPlannerConfig
 from assistant.planning.joint_moves import prefer_joint_moves
 from assistant.planning.joint_rrt import joint_space_plan
@@ -57,6 +58,7 @@ from assistant.planning.pieces import PieceKind, PlanPiece, join_pieces
 from assistant.planning.report import MissionPlanReport, PieceReport
 from assistant.planning.shortcut import shortcut_joint_path
 from assistant.planning.transfer_ends import _joint_moves, _snap_end
+from assistant.planning.transfer_forms import direct_move, moves_along, via_move
 from assistant.progress import Progress
 from assistant.roadmap.planner import PlanFailure, RoadmapPlan, RoadmapPlanner
 from assistant.robots.model import Robot
@@ -137,6 +139,10 @@ class MissionPlanner:
         self.checker = checker or CollisionChecker(robot, self.obstacles)
         self.config = config or MissionPlannerConfig()
         self.verifier = KnownVerifier(self.checker, world)
+        #: The same checks on the fast conservative model (`CollisionChecker.fast`): what
+        #: scores candidate moves and measures their clearance; `verifier` certifies.
+        fast = self.checker.fast
+        self.screen = KnownVerifier(fast, world) if fast is not None else self.verifier
         #: Application paths and the joined trajectory: without the recorded hand leaves
         #: (each transfer was verified with them).
         self.app_verifier = KnownVerifier(self.checker, world, hand=False)
@@ -154,12 +160,73 @@ class MissionPlanner:
     def plan_transfer(self, q_start: Array, q_goal: Array, *, exploring: bool = False,
                       label: str = "transfer", progress: Progress | None = None,
                       roadmap_plan: RoadmapPlan | None = None) -> TransferResult:
-        """Roadmap query + smoothing + verification of one transfer q_start -> q_goal."""
+        """Roadmap query + smoothing + verification of one transfer q_start -> q_goal; on a
+        mesh arm certified by the exact check alone, planned again with every check exact
+        if that refuses (`certify`)."""
+        res = self._plan_transfer(q_start, q_goal, exploring=exploring, label=label,
+                                  progress=progress, roadmap_plan=roadmap_plan)
+        if not res.ok or res.piece is None or not needs_certificate(self):
+            return res
+        t0 = time.perf_counter()
+        refusal = certificate_refusal(self, res.piece.trajectory)
+        if not refusal:
+            return replace(res, smoothing_seconds=res.smoothing_seconds
+                           + time.perf_counter() - t0)
+        with all_exact(self):  # the repair: the fast model is not asked again
+            again = self._plan_transfer(q_start, q_goal, exploring=exploring, label=label,
+                                        progress=progress)
+        why = again.report.reason
+        if again.ok and again.piece is not None:
+            why = certificate_refusal(self, again.piece.trajectory)
+            if not why:
+                rep = replace(again.report, notes=again.report.notes + (
+                    f"planned again with exact checks only ({refusal})",))
+                return replace(again, report=rep)
+        rep = PieceReport(label, "transfer", False, f"{refusal}; planned again with exact "
+                          f"checks only: {why}", seconds=time.perf_counter() - t0)
+        return TransferResult(False, None, rep, None, res.roadmap_seconds)
+
+    def _plan_transfer(self, q_start: Array, q_goal: Array, *, exploring: bool = False,
+                       label: str = "transfer", progress: Progress | None = None,
+                       roadmap_plan: RoadmapPlan | None = None) -> TransferResult:
+        """`plan_transfer` without the certificate."""
         q_s = np.asarray(q_start, dtype=float)
         q_g = np.asarray(q_goal, dtype=float)
         t0 = time.perf_counter()
+        forms = not exploring and self.config.transfer_joint_moves
+        direct_c = -1.0
+        if forms and roadmap_plan is None and self._terminals_ok(q_s, q_g):
+            asm, direct_c = direct_move(self.robot, q_s, q_g, **self._form_args(q_s, label))
+            if asm is not None:
+                t1 = time.perf_counter()
+                notes = ("one joint move: the straight joint motion is free and keeps the "
+                         "clearance",)
+                piece = PlanPiece(PieceKind.TRANSFER, label, asm.trajectory, asm.report)
+                rep = PieceReport(label, "transfer", True, "", asm.report, t1 - t0, "direct",
+                                  notes)
+                return TransferResult(True, piece, rep, None, t1 - t0, 0.0)
+            # one via round what is in the way; else on a 6- or 7-axis arm - where the
+            # straight move is free but closer than the clearance - that move, as the
+            # roads' direct answer always was there
+            asm = via_move(self.robot, self.world, q_s, q_g, **self._form_args(q_s, label))
+            how, searched = ("two joint moves through a valid posture, keeping the "
+                             "clearance"), "one via"
+            if asm is None and direct_c >= 0.0 and self.world.sampled:
+                traj = _joint_moves(self.robot, [q_s, q_g], label, self.config.assembly)
+                checked = verify(self.robot, traj, self.verifier,
+                                 clearance_step=self.config.assembly.clearance_step)
+                if checked.ok:
+                    asm, searched = checked, "direct"
+                    how = "one joint move: the straight joint motion is free"
+            if asm is not None:
+                t1 = time.perf_counter()
+                piece = PlanPiece(PieceKind.TRANSFER, label, asm.trajectory, asm.report)
+                rep = PieceReport(label, "transfer", True, "", asm.report, t1 - t0,
+                                  searched, (how,))
+                return TransferResult(True, piece, rep, None, t1 - t0, 0.0)
         plan = roadmap_plan if roadmap_plan is not None else self.roadmap.plan(
-            q_s, q_g, progress.sub(0.0, 0.2) if progress else None)
+            q_s, q_g, progress.sub(0.0, 0.2) if progress else None,
+            direct=direct_c < 0.0)  # free but too close: look for a way round first
         if not plan.ok and plan.failure in (PlanFailure.NO_PATH, PlanFailure.NO_PATH_REGIONS,
                                             PlanFailure.BUDGET) \
                 and self.world.sampled:
@@ -178,6 +245,29 @@ class MissionPlanner:
                              clearance_step=self.config.assembly.clearance_step)
             if checked.ok:
                 asm, notes = checked, ["one joint move: the straight joint motion is free"]
+        if asm is None and exploring and self.world.sampled and plan.searched != "direct":
+            # Exploring on a 6- or 7-axis arm: the searched path itself, as joint moves
+            # along the roads (their clearance keeps the run off what is not known yet).
+            # The exploring net costs seconds there (a numerical IK per particle) and a
+            # re-plan with the arm halted after a Collision! must take well under one; the
+            # final plan is formed afresh at the goal.
+            traj = _joint_moves(self.robot, plan.joint_path, label, self.config.assembly)
+            checked = verify(self.robot, traj, self.verifier,
+                             clearance_step=self.config.assembly.clearance_step)
+            if checked.ok:
+                asm, notes = checked, [f"{len(traj.motions)} joint moves along the roads "
+                                       "(exploring)"]
+        if asm is None and forms:
+            moves, _ = moves_along(self.robot, plan.joint_path, **self._form_args(q_s, label))
+            if moves is not None:
+                asm = moves
+                n = len(moves.trajectory.motions) if moves.trajectory is not None else 0
+                notes = [f"{n} joint move{'s' if n > 1 else ''} along the searched path, "
+                         f"keeping {self.config.transfer_clearance * 1000:.0f} mm"]
+        if asm is None and forms and direct_c >= 0.0 and plan.searched != "direct" and \
+                self.world.sampled:
+            # no way round keeps the clearance: the free straight move comes closest to it
+            plan = replace(plan, joint_path=[q_s, q_g], searched="direct")
         if asm is None:
             asm, notes = self._smooth(plan.joint_path, exploring, label,
                                       progress.sub(0.2, 1.0) if progress else None)
@@ -204,6 +294,23 @@ class MissionPlanner:
                           tuple(notes))
         return TransferResult(True, piece, rep, plan, t1 - t0, t2 - t1)
 
+    def _form_args(self, q_s: Array, label: str) -> dict:
+        """What `transfer_forms` needs of this planner for a transfer from q_s."""
+        cfg = self.config
+        return dict(verifier=self.verifier, screen=self.screen,
+                    exempt=self.world.recorded_collisions_at(q_s),
+                    clearance=cfg.transfer_clearance, assembly=cfg.assembly, label=label,
+                    params=cfg.joint_moves)
+
+    def _terminals_ok(self, q_s: Array, q_g: Array) -> bool:
+        """Start and goal within the limits and the world, the goal in no recorded posture
+        box: what the roadmap refuses with a reason (it is asked when this is False)."""
+        lim = self.robot.limits
+        if not (np.isfinite(q_g).all() and lim.contains(q_s) and lim.contains(q_g)):
+            return False
+        sc, gc = self.world.tcp_cells(np.stack([q_s, q_g])).tolist()
+        return sc >= 0 and gc >= 0 and not self.world.near_recorded_collision(q_g[None])[0]
+
     def _joint_rrt(self, q_s: Array, q_g: Array, failed: RoadmapPlan,
                    progress: Progress | None = None) -> RoadmapPlan:
         return joint_space_plan(self.robot, self.world, self.verifier, q_s, q_g, failed,
@@ -219,7 +326,7 @@ class MissionPlanner:
         return prefer_joint_moves(self.robot, asm, notes, self.verifier,
                                   exempt=self.world.recorded_collisions_at(q0),
                                   clearance=cfg.transfer_clearance, step=cfg.assembly.step,
-                                  label=label, params=cfg.joint_moves)
+                                  label=label, params=cfg.joint_moves, screen=self.screen)
 
     def _smooth(self, joint_path: list[Array], exploring: bool, label: str,
                 progress: Progress | None) -> tuple[AssemblyResult, list[str]]:
@@ -283,7 +390,7 @@ class MissionPlanner:
             if not exploring:
                 exempt = self.world.recorded_collisions_at(q0)
                 short = shortcut_joint_path(
-                    joint_path, lambda a, b: self.verifier.check_motion(a, b, exempt).valid)
+                    joint_path, lambda a, b: self.screen.check_motion(a, b, exempt).valid)
                 # Each shortcut passed `check_motion`; `verify` samples the dense moves on
                 # its own, and should it still refuse one, the searched path is next.
                 if len(short) < len(joint_path):

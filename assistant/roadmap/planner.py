@@ -244,7 +244,14 @@ class RoadmapPlanner:
         self.config = config or RoadmapConfig()
         self.labels: SourceLabels | None = None
         self.voronoi: VoronoiMap | None = None
-        self._edge = _EdgeCheck(checker, world)
+        self._exact_edge = _EdgeCheck(checker, world)
+        #: Edges are checked on the fast conservative model when the checker has one
+        #: (`CollisionChecker.fast`): what it calls free is free, so the path found needs
+        #: no other check; the exact checker takes over where it calls a terminal a
+        #: collision or finds no path (a gap only the real shapes pass).
+        fast = getattr(checker, "fast", None)
+        self._fast_edge = _EdgeCheck(fast, world) if fast is not None else None
+        self._edge = self._exact_edge
         #: The search graphs' nodes (`GraphBase`) and the positions array they were made of.
         self._base: tuple[Array, GraphBase] | None = None
         self._grids: _SearchGrids | None = None  # `_search_grids`
@@ -309,9 +316,11 @@ class RoadmapPlanner:
                                upd.rebuilt, time.perf_counter() - t0)
 
     # ---------------------------------------------------------------- queries
-    def plan(self, q_start: Array, q_goal: Array, progress: Progress | None = None,
-             ) -> RoadmapPlan:
-        """Joint path from q_start to q_goal through the roads (see RoadmapPlan)."""
+    def plan(self, q_start: Array, q_goal: Array, progress: Progress | None = None, *,
+             direct: bool = True) -> RoadmapPlan:
+        """Joint path from q_start to q_goal through the roads (see RoadmapPlan); with
+        `direct` False never the straight joint move (a caller that wants a way round
+        what that move passes too closely)."""
         labels, base = self._need()
         if progress is not None:
             progress.update(0.0, "planning")
@@ -327,13 +336,21 @@ class RoadmapPlanner:
         pre = self._check_terminals(q_s, q_g, sc, gc)
         if pre is not None:
             return pre
-        self._edge.exempt = w.recorded_collisions_at(q_s)
+        exempt = w.recorded_collisions_at(q_s)
+        self._exact_edge.exempt = exempt
+        self._edge = self._exact_edge
+        if self._fast_edge is not None:
+            self._fast_edge.exempt = exempt
+            if self._fast_edge.checker.is_valid_batch(np.stack([q_s, q_g])).all():
+                self._edge = self._fast_edge
+        allow_direct = direct
         direct = self._weighted(q_s, q_g)
         # A valid straight joint move is the answer (a programmer's PTP): one motion check
         # instead of a search that would bend it into several moves. At any distance on the
         # sampled store (6- and 7-axis arms); the RV-2AJ's grid keeps the thesis' rule (one
         # edge long), whose scenario and tests show the roads.
-        if (sc == gc or direct <= self.config.max_edge or self.world.sampled) and \
+        if allow_direct and \
+                (sc == gc or direct <= self.config.max_edge or self.world.sampled) and \
                 self._edge.first_invalid_fraction(q_s, q_g) is None:
             timings["total"] = time.perf_counter() - t0
             return self._plan_from([q_s, q_g], None, "direct", timings, direct)
@@ -357,8 +374,12 @@ class RoadmapPlanner:
         tries = [("roads", on_roads, False)]
         if self.config.fallback_to_free_cells:
             tries += [("free cells", free, False), ("free cells", free, True)]
+        if self._edge is not self._exact_edge:  # then the real shapes, the roads first
+            tries += [("roads", on_roads, False, self._exact_edge)]
+            if self.config.fallback_to_free_cells:
+                tries += [("free cells", free, True, self._exact_edge)]
         res = graph = searched = None
-        for i, (name, searchable, exempt) in enumerate(tries):
+        for i, (name, searchable, exempt, *edge) in enumerate(tries):
             budget = self.config.budget
             if res is not None:
                 if res.found or res.reason in (REASON_BUDGET, REASON_SAFETY):
@@ -367,6 +388,8 @@ class RoadmapPlanner:
                                  max_expansions=max(1, budget.max_expansions - res.expansions),
                                  max_edge_checks=max(1, budget.max_edge_checks - res.edge_checks),
                                  max_seconds=max(0.0, budget.max_seconds - res.seconds))
+            if edge:
+                self._edge = edge[0]
             nxt, graph = self._search(q_s, q_g, sc, gc, searchable, progress, timings, budget,
                                       exempt)
             searched = name

@@ -7,12 +7,15 @@ wrist ball, flange and straight tool) does not even depend on its own joint, so 
 one level earlier: for the RV-2AJ the levels are (q1, q2) for the upper arm, (q1, q2, q3) for
 the forearm and wrist, and (q1, q2, q3, q5) for flange + tool (J6 never matters).
 
-Each level is checked by the project's exact `CollisionChecker` (its batched sphere/AABB broad
-phase + FCL narrow phase) on a *view* of the robot that keeps the collision shapes of the links
-up to that level only; its self-collision pairs are the full robot's pairs among those links.
-So a position that passes every level passes the full checker (same shapes, same pairs), and
-one that fails a level really collides. Results are cached per level prefix, so repeated calls
-(e.g. refilling a leaf) never check a prefix twice.
+Each level is checked by the project's `CollisionChecker` on a *view* of the robot that keeps
+the collision shapes of the links up to that level only; its self-collision pairs are the full
+robot's pairs among those links (sampled once for the robot). So a position that passes every
+level passes the full checker (same shapes, same pairs). A robot of primitive shapes (the
+RV-2AJ) is checked exactly (broad phase + FCL): one that fails a level really collides; a mesh
+robot (URDF arms) on its fast conservative model (`CollisionChecker.fast`): a position it
+keeps is free, one it drops may not have collided - its leaf offers its next positions.
+Results are cached per level prefix, so repeated calls (e.g. refilling a leaf) never check a
+prefix twice.
 """
 
 from __future__ import annotations
@@ -70,6 +73,19 @@ class LinkSubsetRobot(Robot):
         self.T_flange_tool = robot.T_flange_tool
         self.links = [lk if i in keep else replace(lk, collision=())
                       for i, lk in enumerate(robot.links)]
+        #: The robot this views (its fast model's capsules serve the view's: `fast_model`).
+        self.subset_parent = robot
+        hook = getattr(robot, "dh_fixed_stack", None)
+        if hook is not None:
+            self.dh_fixed_stack = hook
+        chain = getattr(robot, "batch_chain", None)
+        if chain is not None:
+            self.batch_chain = chain
+
+    def root_description(self) -> str:
+        """The viewed robot's description: geometry keyed by it is the same here."""
+        root = getattr(self._robot, "root_description", self._robot.description_hash)
+        return root()
 
     def fk(self, q: Array) -> Array:
         return self._robot.fk(q)
@@ -255,19 +271,23 @@ class ChainValidator:
         self.levels = sorted({self.link_level[i] for i in shaped if i > 0})
         self._space = {L: table.prefix_space(L) for L in self.levels}
         memo = _FrameMemo(robot)
+        # the views' self pairs are the robot's own among their links (sampled once)
+        full = CollisionChecker(robot, (), self_collision=self_collision) \
+            if self_collision else None
         self._checkers: dict[int, list[CollisionChecker]] = {}
         self._cache: dict[int, Array | dict[int, int]] = {}
         for L in self.levels:
             new = [i for i in shaped if i > 0 and self.link_level[i] == L]
             checkers = [CollisionChecker(LinkSubsetRobot(robot, new, f"L{L}:env", memo),
-                                         self.obstacles, self_collision=self_collision)]
+                                         self.obstacles, self_collision=self_collision,
+                                         pairs_of=full)]
             if self_collision:
                 older = [i for i in shaped if self.link_level[i] < L or i == 0]
                 for group in _pairless_groups(older, new, n_links):
                     tag = f"L{L}:self:" + ",".join(map(str, group))
                     checkers.append(CollisionChecker(
                         LinkSubsetRobot(robot, set(group) | set(new), tag, memo), (),
-                        self_collision=True))
+                        self_collision=True, pairs_of=full))
             self._checkers[L] = checkers
             self._cache[L] = (np.zeros(self._space[L], dtype=np.int8)
                               if self._space[L] <= _DENSE_LIMIT else {})
@@ -281,6 +301,9 @@ class ChainValidator:
                                               and self.link_level[i] == L])
                        for L in self.levels}
         self._boxes, self._obstacle_balls = _obstacle_solids(self.obstacles)
+        #: Whether the levels are checked on the fast model (`_collides`).
+        self._fast_levels = all(c._has_mesh and c.fast is not None
+                                for cs in self._checkers.values() for c in cs)
 
     def _sure_hits(self, L: int, Q: Array) -> Array:
         """Configurations whose new links certainly touch an obstacle, without FCL.
@@ -309,6 +332,16 @@ class ChainValidator:
             d2 = np.einsum("nmok,nmok->nmo", diff, diff)
             hit |= np.any(d2 <= (radii[:, None] + orad[None]) ** 2, axis=(1, 2))
         return hit
+
+    @staticmethod
+    def _collides(chk: CollisionChecker, Q: Array) -> Array:
+        """The level's check: a mesh robot's (URDF arms) on the fast conservative model
+        alone (`CollisionChecker.fast`: its capsules contain the meshes, so a position it
+        keeps is free; one it drops may have been free, and the leaf offers its next
+        positions) - FCL on the meshes of every position near an obstacle cost most of the
+        world build; a robot of primitive shapes (the RV-2AJ) exactly, as fast."""
+        fast = chk.fast if chk._has_mesh else None
+        return fast.in_collision_batch(Q) if fast is not None else chk.in_collision_batch(Q)
 
     def _prefix_configs(self, L: int, prefixes: Array) -> Array:
         return self.table.prefix_configs(L, prefixes, self._rest)
@@ -342,12 +375,14 @@ class ChainValidator:
                 for s in range(0, len(todo), step):
                     part = todo[s:s + step]
                     Q = self._prefix_configs(L, part)
-                    bad = self._sure_hits(L, Q)
+                    # (the exact pre-test spares FCL calls; the fast model asks none)
+                    bad = np.zeros(len(Q), dtype=bool) if self._fast_levels else \
+                        self._sure_hits(L, Q)
                     self.sure_hits[L] += int(bad.sum())
                     for chk in self._checkers[L]:
                         rest = ~bad
                         if rest.any():
-                            bad[rest] = chk.in_collision_batch(Q[rest])
+                            bad[rest] = self._collides(chk, Q[rest])
                     self._store(L, part, np.where(bad, INVALID, VALID).astype(np.int8))
                     self.checks[L] += len(part)
                     if progress is not None:

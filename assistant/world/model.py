@@ -204,7 +204,10 @@ class WorldModel:
             table = table.focused(self.robot, self.anchors, cfg.focus_samples,
                                   cfg.focus_margin).toward(self.anchors, self.weights)
         table.index_of_ids(np.zeros(0, dtype=np.int64))  # build the inverse map now, not
-        # during the first collision indication
+        # during the first collision indication; likewise the sample store's box queries
+        prepare = getattr(table, "prepare_box_queries", None)
+        if prepare is not None:
+            prepare()
         t1 = time.perf_counter()
         progress.update(0.4, "rasterising CAD")
         cad_cells = rasterise_obstacles(self.grid, self.cad)

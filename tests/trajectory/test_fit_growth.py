@@ -128,12 +128,17 @@ def test_fits_of_planned_nets(thesis_nets):
 @pytest.fixture(scope="module")
 def thesis_nets() -> list[np.ndarray]:
     """The elastic nets of the thesis mission's transfers (final smoothing)."""
+    from dataclasses import replace
+
     import assistant.planning.mission_planner as mp_module
     from assistant.planning.scenario import load_scenario
-    from tests.planning.planning_fixtures import make_planner
+    from tests.planning.planning_fixtures import FAST, make_planner
 
     sc = load_scenario()
-    planner = make_planner(sc.cell.robot(), sc.known_obstacles())
+    # the transfers as smoothed paths: with the joint-move forms a final plan answers most
+    # thesis transfers without a net (one certified joint move or two)
+    planner = make_planner(sc.cell.robot(), sc.known_obstacles(),
+                           config=replace(FAST, transfer_joint_moves=False))
     nets: list[np.ndarray] = []
     run = mp_module.run_elastic_net
 

@@ -77,12 +77,21 @@ def test_samples_sharing_their_first_joints_share_a_prefix(store):
 
 
 def test_ids_in_a_box_are_exactly_those_within_the_steps(store):
-    q = store.joints(store.positions[[100]])[0]
-    got = np.sort(store.ids_in_box(q, 1.5))
-    Q = store.joints(np.arange(store.id_space))
+    # a stored position, and postures between grid values (the sorted search's range
+    # ends are then not grid values): the ids a scan of every id finds, ascending
+    rng = np.random.default_rng(8)
+    I = store.index.astype(float)
     varying = store.counts > 1
-    inside = np.all(np.abs(Q - q)[:, varying] <= 1.5 * store.step[varying] + 1e-9, axis=1)
-    assert np.array_equal(got, np.flatnonzero(inside)) and len(got) >= 1
+    for k, half in ((100, 1.5), (2000, 0.0), (40000, 3.0)):
+        q = store.joints(store.positions[[k]])[0]
+        if half == 3.0:
+            q = q + rng.uniform(-0.5, 0.5, store.dof) * store.step
+        got = store.ids_in_box(q, half)
+        x = (q - store.lower) / np.where(varying, store.step, 1.0)
+        # in grid steps, as the store counts them (the comparison is exact on integers
+        # and the tolerance only decides the boundary of a box drawn on grid values)
+        inside = np.all(np.abs(I - x)[:, varying] <= half + 1e-9, axis=1)
+        assert np.array_equal(got, np.flatnonzero(inside)) and len(got) >= 1
 
 
 def test_focus_adds_samples_and_leaves_list_them_nearest_to_the_anchors_first(ur5, store):
