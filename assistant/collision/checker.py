@@ -7,8 +7,9 @@ and each obstacle with its axis-aligned box, over many configurations in one com
 pairs that might touch reach FCL. Because the bounds are conservative the result equals the
 brute-force FCL answer (checked by the tests and `benchmarks/collision.py`).
 
-Self-collision skips adjacent links and the pairs that never touch (or always touch) over a
-sampled sweep of the joint space, computed once per robot description.
+Self-collision checks the pairs of the robot's one rule (`self_rule.self_collision_rule`:
+not adjacent, not always or never touching over random postures), the rule teach, plan,
+jog and the world model share.
 
 An obstacle shape with a margin (`CollisionShape.margin`, a big CAD part's proxy) counts
 everything within the margin as the obstacle: its bounds grow by the margin, and FCL tests
@@ -19,7 +20,6 @@ answer is still one FCL collision test; clearances to it are FCL's distance less
 from __future__ import annotations
 
 import copy
-import threading
 from collections.abc import Iterable
 from dataclasses import dataclass
 
@@ -57,6 +57,7 @@ from assistant.collision.reports import (
     ObstacleView,
 )
 from assistant.collision.segment_box import OrientedBox, axis_segment, oriented_bounds
+from assistant.collision.self_rule import SelfCollisionRule, link_words, self_collision_rule
 from assistant.collision.shape_poses import shape_poses
 from assistant.robots.model import CollisionShape, Robot, ShapeKind
 
@@ -76,10 +77,6 @@ class _EnvShape:
     obj: fcl.CollisionObject
     #: Everything within this distance (m) of the shape counts as the obstacle.
     margin: float = 0.0
-
-
-_SELF_PAIR_CACHE: dict[str, list[tuple[int, int]]] = {}
-_SELF_PAIR_LOCK = threading.Lock()
 
 
 class CollisionChecker(MotionChecks):
@@ -187,8 +184,12 @@ class CollisionChecker(MotionChecks):
         self._env_lo = np.array(lo).reshape(-1, 3) - 1e-9
         self._env_hi = np.array(hi).reshape(-1, 3) + 1e-9
         #: A checker of the robot this one views (a link subset): its self pairs among
-        #: these links are the pairs here, not sampled again.
+        #: these links are the pairs here (the same rule's).
         self._pairs_of = pairs_of
+        #: The robot's self-collision rule (None without self-collision checks) and its
+        #: links in the operator's words (`CollisionReport.describe`).
+        self.rule: SelfCollisionRule | None = None
+        self.link_words = dict(zip(self._link_names, link_words(robot), strict=True))
         self._self_pairs = self._self_shape_pairs() if self_collision else []
         # Sphere pairs for the self broad phase.
         sp_a, sp_b, sp_pair = [], [], []
@@ -298,58 +299,20 @@ class CollisionChecker(MotionChecks):
 
     # ------------------------------------------------------------------ self-collision pairs
     def _self_shape_pairs(self) -> list[tuple[int, int]]:
-        """Shape pairs worth checking for self-collision, cached per robot description."""
+        """The shape pairs the robot's one self-collision rule checks (`self_rule`), as
+        indices into this checker's shapes (a view of some links keeps the pairs among
+        them, from the rule or from the checker of the robot it views)."""
+        index = {(rs.link, self._shape_index_in_link(i)): i
+                 for i, rs in enumerate(self._rshapes)}
         if self._pairs_of is not None:
-            index = {(rs.link, self._shape_index_in_link(i)): i
-                     for i, rs in enumerate(self._rshapes)}
-            return [(index[(la, ia)], index[(lb, ib)])
-                    for la, ia, lb, ib in self._pairs_of.self_shape_pairs
-                    if (la, ia) in index and (lb, ib) in index]
-        key = self.robot.description_hash()
-        with _SELF_PAIR_LOCK:
-            if key in _SELF_PAIR_CACHE:
-                return list(_SELF_PAIR_CACHE[key])
-        n_links = len(self.robot.links)
-        adjacent = {(i, i + 1) for i in range(n_links - 1)}
-        candidates = []
-        for i, a in enumerate(self._rshapes):
-            for j in range(i + 1, len(self._rshapes)):
-                b = self._rshapes[j]
-                la, lb = sorted((a.link, b.link))
-                if la == lb or (la, lb) in adjacent:
-                    continue
-                candidates.append((i, j))
-        pairs = self._sampled_pairs(candidates) if candidates else []
-        with _SELF_PAIR_LOCK:
-            _SELF_PAIR_CACHE[key] = list(pairs)
-        return pairs
-
-    def _sampled_pairs(self, candidates: list[tuple[int, int]], n: int = 1500,
-                       margin: float = 0.03) -> list[tuple[int, int]]:
-        """Keep the pairs a sweep of the joint space shows can matter.
-
-        Dropped: pairs touching in every sample (built touching, e.g. overlapping housings)
-        and pairs that never came within `margin` of each other in the sweep (the "never"
-        pairs of MoveIt's set-up assistant, with a safety margin instead of a bare miss).
-        """
-        rng = np.random.default_rng(12345)
-        lim = self.robot.limits
-        Q = rng.uniform(lim.lower, lim.upper, size=(n, self.robot.dof))
-        frames = self.robot.batch_link_poses(Q)
-        hits = np.zeros(len(candidates), dtype=np.int64)
-        closest = np.full(len(candidates), np.inf)
-        dreq = fcl.DistanceRequest()
-        for k in range(n):
-            self._pose_robot(frames[k])
-            for ci, (i, j) in enumerate(candidates):
-                a, b = self._rshapes[i].obj, self._rshapes[j].obj
-                if fcl.collide(a, b, self._req, fcl.CollisionResult()):
-                    hits[ci] += 1
-                    closest[ci] = 0.0
-                elif closest[ci] >= margin:
-                    closest[ci] = min(closest[ci], fcl.distance(a, b, dreq, fcl.DistanceResult()))
-        return [c for c, h, d in zip(candidates, hits, closest, strict=True)
-                if h < n and d < margin]
+            self.rule = self._pairs_of.rule
+            chosen = self._pairs_of.self_shape_pairs
+        else:
+            self.rule = self_collision_rule(self.robot)
+            assert self.rule is not None
+            chosen = self.rule.shape_pairs
+        return [(index[(la, ka)], index[(lb, kb)]) for la, ka, lb, kb in chosen
+                if (la, ka) in index and (lb, kb) in index]
 
     # ------------------------------------------------------------------ posing
     def _pose_robot(self, frames: Array, which: Iterable[int] | None = None) -> None:

@@ -4,6 +4,7 @@ reports, clearances, motion checks."""
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import Protocol
 
@@ -55,8 +56,13 @@ class CollisionReport:
     def valid(self) -> bool:
         return self.within_limits and not self.contacts
 
-    def describe(self) -> str:
-        parts = [f"{c.link} touches {c.other}" for c in self.contacts]
+    def describe(self, words: Mapping[str, str] | None = None) -> str:
+        """"link touches other; ..." - with `words` (link name -> the operator's words,
+        `CollisionChecker.link_words`) the links are named as the operator knows them."""
+        w = words or {}
+        parts = [f"{w.get(c.link, c.link)} touches "
+                 f"{w.get(c.other, c.other) if c.self_collision else c.other}"
+                 for c in self.contacts]
         parts += [f"joint limit: {v}" for v in self.limit_violations]
         return "; ".join(parts) if parts else "free"
 

@@ -257,6 +257,17 @@ class Robot(abc.ABC):
     def description_hash(self) -> str:
         """A stable hash of everything that changes kinematics or geometry (cache keys)."""
 
+    @property
+    def model_limits(self) -> JointLimits:
+        """The model's own joint ranges (the URDF's, the data sheet's), whatever the operator
+        narrowed `limits` to: the self-collision rule is sampled over these."""
+        return self.limits
+
+    def rule_key(self) -> str:
+        """A stable hash of what decides the self-collision rule: the links, their shapes,
+        the tool and `model_limits` (not the operator's narrowed limits)."""
+        return self.description_hash()
+
     def adjacent_link_pairs(self) -> set[tuple[int, int]]:
         """Pairs of link indices joined by a joint (never checked for self-collision)."""
         n = 1 + self.dof

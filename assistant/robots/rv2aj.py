@@ -464,6 +464,26 @@ class RV2AJ(Robot):
         return urdf_from_chain("rv2aj", self.chain, self.joint_names, self.limits, self.links,
                                self.T_flange_tool)
 
+    @property
+    def model_limits(self) -> JointLimits:
+        """The data sheet's ranges, widened to any an integrator configured beyond them."""
+        sheet = np.radians(np.array(DATASHEET_LIMITS_DEG))
+        return JointLimits(np.minimum(sheet[:, 0], self.limits.lower),
+                           np.maximum(sheet[:, 1], self.limits.upper), self.limits.velocity)
+
+    def rule_key(self) -> str:
+        lim = self.model_limits
+        payload = json.dumps({"robot": "rv2aj", "dh": [list(vars(r).values()) for r in
+                                                       self.chain.rows],
+                              **self.config.to_json(),
+                              "limits_deg": np.degrees(np.column_stack(
+                                  [lim.lower, lim.upper])).round(9).tolist(),
+                              "tool_shapes": [(s.kind.value, list(s.size),
+                                               np.round(s.T_link_shape, 12).tolist())
+                                              for s in self.config.tool.collision]},
+                             sort_keys=True)
+        return hashlib.sha256(payload.encode()).hexdigest()[:16]
+
     def description_hash(self) -> str:
         payload = json.dumps({"robot": "rv2aj", "dh": [list(vars(r).values()) for r in
                                                        self.chain.rows],

@@ -519,8 +519,23 @@ class URDFRobot(DLSInverseKinematics, Robot):
                     return g.path
         raise KeyError(filename)
 
+    @property
+    def model_limits(self) -> JointLimits:
+        """The URDF's own joint ranges, whatever `with_limits` narrowed them to."""
+        return JointLimits(np.array([j.lower for j in self._chain_joints]),
+                           np.array([j.upper for j in self._chain_joints]),
+                           self.limits.velocity)
+
+    def rule_key(self) -> str:
+        """`description_hash` over the URDF's own ranges instead of the operator's."""
+        lim = self.model_limits
+        return self._hash(np.column_stack([lim.lower, lim.upper]))
+
     def description_hash(self) -> str:
         """sha256 of the URDF text, mesh contents, frames, tool, limits and locked joints."""
+        return self._hash(np.column_stack([self.limits.lower, self.limits.upper]))
+
+    def _hash(self, limits: Array) -> str:
         payload = json.dumps({
             "urdf": hashlib.sha256(self._doc.text.encode()).hexdigest(),
             "meshes": self._doc.mesh_digests,
@@ -528,8 +543,7 @@ class URDFRobot(DLSInverseKinematics, Robot):
             "T_flange_tool": np.round(self.T_flange_tool, 12).tolist(),
             "tool_shapes": [(s.kind.value, list(s.size), np.round(s.T_link_shape, 12).tolist())
                             for s in self.tool.collision],
-            "limits": np.round(np.column_stack([self.limits.lower, self.limits.upper]),
-                               12).tolist(),
+            "limits": np.round(limits, 12).tolist(),
             "locked": self.locked_positions,
         }, sort_keys=True)
         return hashlib.sha256(payload.encode()).hexdigest()[:16]

@@ -9,13 +9,13 @@ the forearm and wrist, and (q1, q2, q3, q5) for flange + tool (J6 never matters)
 
 Each level is checked by the project's `CollisionChecker` on a *view* of the robot that keeps
 the collision shapes of the links up to that level only; its self-collision pairs are the full
-robot's pairs among those links (sampled once for the robot). So a position that passes every
-level passes the full checker (same shapes, same pairs). A robot of primitive shapes (the
-RV-2AJ) is checked exactly (broad phase + FCL): one that fails a level really collides; a mesh
-robot (URDF arms) on its fast conservative model (`CollisionChecker.fast`): a position it
-keeps is free, one it drops may not have collided - its leaf offers its next positions.
-Results are cached per level prefix, so repeated calls (e.g. refilling a leaf) never check a
-prefix twice.
+robot's pairs among those links (the robot's one rule, `collision.self_rule`). So a position
+that passes every level passes the full checker (same shapes, same pairs). A robot of
+primitive shapes (the RV-2AJ) is checked exactly (broad phase + FCL): one that fails a level
+really collides; a mesh robot (URDF arms) on its fast conservative model
+(`CollisionChecker.fast`): a position it keeps is free, one it drops may not have collided -
+its leaf offers its next positions. Results are cached per level prefix, so repeated calls
+(e.g. refilling a leaf) never check a prefix twice.
 """
 
 from __future__ import annotations
@@ -113,6 +113,10 @@ class LinkSubsetRobot(Robot):
 
     def description_hash(self) -> str:
         return f"{self._robot.description_hash()}:{self._tag}"
+
+    def rule_robot(self) -> Robot:
+        """The whole robot: its self-collision rule is this view's (`collision.self_rule`)."""
+        return self._robot
 
 
 def _key_points(shape: CollisionShape) -> Array:
