@@ -17,7 +17,7 @@ import numpy as np
 
 from assistant.collision.checker import CollisionChecker
 from assistant.mission.model import Location, LocationSource
-from assistant.robots.model import IKFailure, Robot
+from assistant.robots.model import IKFailure, IKResult, Robot
 from assistant.transforms import inv_T
 
 Array = np.ndarray
@@ -28,6 +28,8 @@ class LocationProblem(str, Enum):
     ORIENTATION = "orientation"
     JOINT_LIMIT = "joint_limit"
     IN_COLLISION = "in_collision"
+    #: Every posture that reaches the pose has the arm touching itself: no cell change helps.
+    SELF_COLLISION = "self_collision"
 
 
 class LocationError(ValueError):
@@ -81,9 +83,11 @@ def branch_hint(location: Location) -> Array | None:
 
 def solve_location(robot: Robot, checker: CollisionChecker | None, name: str,
                    T_world_tool: Array, T_world_base: Array, *, seed: Array | None = None,
-                   q_hint: Array | None = None) -> SolvedLocation:
+                   q_hint: Array | None = None, taught: Array | None = None,
+                   ) -> SolvedLocation:
     """The valid joint solution of a taught pose nearest `q_hint` (else `seed`, turned to
-    face the location: `branch_seed`).
+    face the location: `branch_seed`); `taught`, the posture teach accepted for it, when
+    none of IK's solutions from here is free (teach and plan agree: `first_free`).
 
     Raises:
         LocationError naming the location and the problem (see the module docstring).
@@ -93,6 +97,10 @@ def solve_location(robot: Robot, checker: CollisionChecker | None, name: str,
     pref = q_hint if q_hint is not None else (
         None if seed is None else branch_seed(seed, T_base_tool[:3, 3]))
     res = robot.ik(T_base_tool, pref)
+    known = taught is not None and _reaches(robot, taught, T_base_tool)
+    if not res.ok and known:
+        res = IKResult([np.asarray(taught, dtype=float)])
+        known = False
     if not res.ok:
         p_mm = np.asarray(T_world_tool)[:3, 3] * 1000.0
         where = f"({p_mm[0]:.0f}, {p_mm[1]:.0f}, {p_mm[2]:.0f}) mm"
@@ -113,10 +121,43 @@ def solve_location(robot: Robot, checker: CollisionChecker | None, name: str,
         sols.sort(key=lambda q: float(np.linalg.norm(q - np.asarray(pref, dtype=float))))
     if checker is None:
         return SolvedLocation(name, sols[0], T_base_tool)
+    if known:
+        # Last: the posture teach accepted is a solution too, should IK from here miss it.
+        sols.append(np.asarray(taught, dtype=float))
+    k, problem = first_free(checker, name, sols)
+    if problem is not None:
+        raise problem
+    return SolvedLocation(name, sols[k], T_base_tool)
+
+
+def first_free(checker: CollisionChecker, name: str, sols: list[Array],
+               ) -> tuple[int, LocationError | None]:
+    """The first collision-free posture among `sols` (best first), or why there is none.
+
+    The one verdict teach and plan share: every posture touching the arm itself is a
+    `SELF_COLLISION` (the pose cannot be taught like this), else an `IN_COLLISION` with the
+    cell; the contacts of the first posture are named in the operator's words."""
     ok = checker.is_valid_batch(np.array(sols))
-    if not ok.any():
-        why = checker.check(sols[0]).describe()
-        raise LocationError(name, LocationProblem.IN_COLLISION,
+    if ok.any():
+        return int(np.argmax(ok)), None
+    reports = [checker.check(q) for q in sols]
+    why = reports[0].describe(checker.link_words)
+    if all(any(c.self_collision for c in r.contacts) for r in reports):
+        return 0, LocationError(name, LocationProblem.SELF_COLLISION,
+                                f"{name}: the arm would touch itself in every posture that "
+                                f"reaches it ({why}); give it another tool orientation or "
+                                "position")
+    return 0, LocationError(name, LocationProblem.IN_COLLISION,
                             f"{name} is inside an obstacle: every arm configuration collides "
                             f"({why})")
-    return SolvedLocation(name, sols[int(np.argmax(ok))], T_base_tool)
+
+
+def _reaches(robot: Robot, q: Array, T_base_tool: Array, tol: float = 1e-4) -> bool:
+    """`q` is within the limits and puts the TCP on the pose (m; the rotation in rad x 1 m)."""
+    q = np.asarray(q, dtype=float)
+    if q.shape != (robot.dof,) or not robot.limits.contains(q):
+        return False
+    T = robot.fk(q)
+    dR = T[:3, :3].T @ np.asarray(T_base_tool)[:3, :3]
+    return bool(np.linalg.norm(T[:3, 3] - T_base_tool[:3, 3]) < tol
+                and np.linalg.norm(dR - np.eye(3)) < tol)

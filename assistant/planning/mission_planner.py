@@ -443,7 +443,7 @@ class MissionPlanner:
             if not self.checker.is_valid(q_cur):
                 return failed("start (current posture)", "location",
                               "the robot's current posture is in collision "
-                              f"({self.checker.check(q_cur).describe()})")
+                              f"({self.checker.check(q_cur).describe(self.checker.link_words)})")
             s = SolvedLocation("current posture", q_cur, self.robot.fk(q_cur))
             start_label = "current posture"
         locations[s.name] = s.q
@@ -578,7 +578,7 @@ class MissionPlanner:
     def _solve(self, loc: Location, T_wb: Array, seed: Array) -> SolvedLocation:
         """Joints for a taught location near `seed` (raises `LocationError` with the reason)."""
         return solve_location(self.robot, self.checker, loc.name, loc.T_world_tool, T_wb,
-                              seed=seed, q_hint=branch_hint(loc))
+                              seed=seed, q_hint=branch_hint(loc), taught=loc.q_hint)
 
     def _order(self, mission: Mission, s: SolvedLocation, goal: SolvedLocation | None,
                apps: dict[tuple[int, bool], ApplicationMotions],

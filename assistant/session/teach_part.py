@@ -46,8 +46,10 @@ class TeachActions:
     def teach(self, name: str, T_world_tool: Array, *,
               source: LocationSource = LocationSource.TYPED, q_hint: Array | None = None,
               uncertainty_m: float = 0.0, replace_existing: bool = True) -> Location:
-        """Store a location. Out-of-reach poses are refused; a 5-axis robot's orientation is
-        projected into its arm plane (the operator is told by how much)."""
+        """Store a location. Out-of-reach poses are refused, and poses the arm reaches only
+        touching itself; one inside a cell object is kept with a warning (`_free_solution`).
+        A 5-axis robot's orientation is projected into its arm plane (the operator is told
+        by how much)."""
         with self._action(f"teach {name}", TEACH_STEPS, scene="locations"):
             loc = self._make_location(name, np.asarray(T_world_tool, float), source, q_hint,
                                       uncertainty_m)
@@ -76,8 +78,25 @@ class TeachActions:
         if not res.ok:
             note = reach_note(self.robot, T_base[:3, 3])
             raise UnreachableError(res.message + (f"; {note}" if note else ""), res)
-        q = res.best(seed)
+        q = self._free_solution(name, res, seed)
         return Location(name, self.T_world_base() @ T_base, source, q, uncertainty_m)
+
+    def _free_solution(self, name: str, res: IKResult, seed: Array) -> Array:
+        """The IK solution nearest `seed` that the planner's check accepts (the same rule,
+        the same cell objects: `planning.locations.first_free`). A pose whose every posture
+        has the arm touching itself is refused; one whose every posture touches a cell
+        object is kept with a warning (the object may be about to move) - the planner
+        refuses it until the cell changes."""
+        from assistant.planning.locations import LocationProblem, first_free
+
+        sols = sorted((np.asarray(q, dtype=float) for q in res.solutions),
+                      key=lambda q: float(np.linalg.norm(q - seed)))
+        k, problem = first_free(self._known_checker(), name, sols)
+        if problem is not None and problem.problem == LocationProblem.SELF_COLLISION:
+            raise SessionError(str(problem))
+        if problem is not None:
+            self.bus.emit(Notice(f"{problem}: planning refuses it until the cell changes"))
+        return sols[k]
 
     def teach_from_robot(self, name: str) -> Location:
         q = self.current_joints()
