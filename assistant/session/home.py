@@ -1,12 +1,14 @@
-"""Where the simulated robot stands before anyone moves it."""
+"""Where the simulated robot stands before anyone moves it, and the way out when a cell change
+puts that posture inside an object (`way_to_free_posture`)."""
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 
 import numpy as np
 
 from assistant.collision.checker import CollisionChecker
+from assistant.collision.reports import ObstacleView
 from assistant.robots.model import Robot, ShapeKind
 
 Array = np.ndarray
@@ -53,16 +55,17 @@ def dexterity(robot: Robot, q: Array, h: float = 1e-5) -> float:
     return float(np.linalg.svd(J, compute_uv=False)[k - 1])
 
 
-def raised_posture(robot: Robot) -> Array:
+def raised_posture(robot: Robot, obstacles: Sequence[ObstacleView] = ()) -> Array:
     """The zero posture clipped to the limits if every moving link is `CLEAR_OF_MOUNT` above
     the mounting plane, away from singularities (`dexterity`) and free of self-collision; else
     the middle of the ranges, then the nearest such posture (arm-radius weighted joint
     distance) whose joints are each 0, +-45 or +-90 deg, then among Sobol samples of the
     limits; the zero posture if none is. Arms of fewer than 6 axes skip the singularity test
-    (the RV-2AJ starts upright at zero, as in the thesis)."""
+    (the RV-2AJ starts upright at zero, as in the thesis). With `obstacles` (the cell's
+    objects) the posture is free of them too."""
     lo, hi = robot.limits.lower, robot.limits.upper
     zero = np.clip(np.zeros(robot.dof), lo, hi)
-    checker = CollisionChecker(robot, ())
+    checker = CollisionChecker(robot, obstacles)
     right = np.radians([0.0, -45.0, 45.0, -90.0, 90.0])
     grid = np.stack(np.meshgrid(*[right] * robot.dof, indexing="ij"), -1).reshape(-1, robot.dof)
     Q = np.clip(grid, lo, hi)
@@ -77,6 +80,60 @@ def raised_posture(robot: Robot) -> Array:
             return q
     return zero
 
+
+def way_to_free_posture(robot: Robot, checker: CollisionChecker, q0: Array,
+                        tries: int = 64) -> Array | None:
+    """A joint path from `q0` (touching something) to the nearest free posture that leaves
+    the contact and never touches anything else: along the path the postures that touch
+    form one stretch at its start, and touch only what `q0` touches. Candidates, nearest
+    first by arm travel: `q0` with one or two joints turned by 10-90 deg, 256 Sobol
+    postures over the limits. None if none of the
+    nearest `tries` free ones has such a path."""
+    q0 = np.asarray(q0, dtype=float)
+    lo, hi = robot.limits.lower, robot.limits.upper
+    steps = np.radians([10.0, -10.0, 20.0, -20.0, 45.0, -45.0, 90.0, -90.0])
+    near = []
+    for i in range(robot.dof):
+        for a in steps:
+            q = q0.copy()
+            q[i] += a
+            near.append(q)
+            for j in range(i + 1, robot.dof):
+                for b in steps[:4]:
+                    q2 = q.copy()
+                    q2[j] += b
+                    near.append(q2)
+    from scipy.stats import qmc
+
+    sobol = lo + qmc.Sobol(d=robot.dof, scramble=True, seed=0).random(256) * (hi - lo)
+    Q = np.clip(np.vstack([near, sobol]), lo, hi)
+    free = Q[checker.is_valid_batch(Q)]
+    if not len(free):
+        return None
+    w = robot.arm_radii()
+    free = free[np.argsort(np.abs(free - q0) @ w, kind="stable")]
+    touching = {(c.link, c.other) for c in checker.check(q0).contacts}
+    for q1 in free[:tries]:
+        path = _leaves_cleanly(checker, q0, q1, w, touching)
+        if path is not None:
+            return path
+    return None
+
+
+def _leaves_cleanly(checker: CollisionChecker, q0: Array, q1: Array, w: Array,
+                    touching: set[tuple[str, str]]) -> Array | None:
+    """The straight joint path q0 -> q1 sampled every `checker.max_step` of arm travel if
+    its touching postures are one stretch at the start touching only `touching`."""
+    n = max(2, int(np.ceil(float(np.abs(q1 - q0) @ w) / checker.max_step)) + 1)
+    path = q0 + np.linspace(0.0, 1.0, n)[:, None] * (q1 - q0)
+    ok = checker.is_valid_batch(path)
+    first_free = int(np.argmax(ok))
+    if not ok[-1] or not ok[first_free:].all():
+        return None
+    for q in path[1:first_free]:
+        if not {(c.link, c.other) for c in checker.check(q).contacts} <= touching:
+            return None
+    return path
 
 
 def _candidates(zero: Array, middle: Array, right_angles: Array, lo: Array,

@@ -181,6 +181,7 @@ class PlanningActions:
 
     def _plan(self, progress: Progress) -> dict:
         t0 = time.perf_counter()
+        self._require_free_start()
         self.last_run = None  # planned again: the last run's outcome is history
         backend = self._backend(progress.sub(0.0, 0.3, "world model"))
         planner = self._mission_planner(backend)

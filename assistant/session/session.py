@@ -36,6 +36,7 @@ from assistant.session.document import Document
 from assistant.session.events import (
     ErrorRaised,
     EventBus,
+    Notice,
     SceneChanged,
     StateChanged,
 )
@@ -49,6 +50,7 @@ from assistant.session.planning_part import PlanningActions
 from assistant.session.saving import Saving
 from assistant.session.scene_part import SceneQueries
 from assistant.session.setup_part import SetupActions
+from assistant.session.start_part import StartPostureActions
 from assistant.session.study_part import StudyActions
 from assistant.session.teach_part import TeachActions
 from assistant.session.types import (
@@ -64,7 +66,8 @@ Array = np.ndarray
 
 
 class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActions,
-              PlanningActions, SceneQueries, ExportActions, Persistence, Saving, StudyActions):
+              PlanningActions, SceneQueries, ExportActions, Persistence, Saving, StudyActions,
+              StartPostureActions):
     """Everything the operator does, headless or behind the web page: the state, the action
     plumbing and the workflow here; the actions by concern in the parts it mixes in."""
 
@@ -145,10 +148,10 @@ class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActi
         """Where the simulated robot starts: the zero posture (clipped to the limits) unless
         that puts a moving link below the mounting plane (a UR arm at zero lies stretched
         over its table), else the nearest posture that keeps every moving link 50 mm above
-        it (`home.raised_posture`)."""
+        it (`home.raised_posture`); free of the cell's objects when there are any."""
         from assistant.session.home import raised_posture
 
-        return raised_posture(self.robot)
+        return raised_posture(self.robot, self.cell.collision_objects_in_base())
 
     def T_world_base(self) -> Array:
         return np.asarray(self.cell.T_world_base, dtype=float)
@@ -199,6 +202,17 @@ class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActi
             self.trajectory = None
             self.plan_report = None
             self.program = None
+        if now.obstacles_key() != before.obstacles_key():
+            self._start_check()
+
+    def _start_check(self) -> None:
+        """`_check_start_posture` after an edit; a check that cannot run (a lost link) is
+        said, and never undoes the edit."""
+        try:
+            self._check_start_posture()
+        except Exception as exc:  # noqa: BLE001 - the edit stands; the operator is told
+            self.bus.emit(Notice(f"the start posture could not be checked against the cell: "
+                                 f"{exc}"))
 
     def _obstacles_key(self) -> tuple:
         return (self.document().obstacles_key(), self.cell.robot_spec, self.world_settings)

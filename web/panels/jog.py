@@ -27,11 +27,17 @@ class JogPanel(Panel):
         self.move = self.gui.add_button("Move to the slider values")
         self.home = self.gui.add_button("Sliders to where the robot is")
         self.tcp_gizmo = self.gui.add_checkbox("TCP gizmo in the scene", False)
+        self.touching = self.gui.add_markdown("", visible=False)
+        self.free = self.gui.add_button("Move to a free posture", visible=False,
+                                        hint="Out of what the robot's posture touches, to "
+                                             "the nearest free posture, touching nothing new")
         self._gizmo: viser.TransformControlsHandle | None = None
         self._robot_key: Any = None
         self.bind(self.move, lambda e: self._move(), motion=True)
         self.bind(self.home, lambda e: self._sliders_to_robot())
         self.tcp_gizmo.on_update(lambda e: self._sync_gizmo())
+        self.bind(self.free, lambda e: self.session.move_to_free_posture(wait=False),
+                  motion=True)
 
     # ------------------------------------------------------------------ sliders
     def _build_sliders(self) -> None:
@@ -100,6 +106,18 @@ class JogPanel(Panel):
         idle = self.session.machine.mode.value == "idle"
         self.move.disabled = not idle
         self._sync_gizmo()
+        self._start_touching()
+
+    def _start_touching(self) -> None:
+        """The start posture's contacts (checked when the cell changes) and the way out."""
+        s = self.session
+        links = s.start_posture_links()
+        self.touching.visible = self.free.visible = bool(links)
+        self.free.disabled = s.machine.mode.value != "idle"
+        if links:
+            self.touching.content = (f"**The robot's posture touches something:** "
+                                     f"{s.start_posture_text()}. Move it to a free posture "
+                                     "before planning.")
 
     def show_for(self, state: str) -> None:
         super().show_for(state)
@@ -115,6 +133,8 @@ class JogPanel(Panel):
                 self._sliders_to_robot()
         elif isinstance(ev, SceneChanged) and ev.what in ("robot", "all"):
             self.refresh()
+        elif isinstance(ev, SceneChanged) and ev.what == "start":
+            self._start_touching()
 
 
 def _deg(v: float) -> str:

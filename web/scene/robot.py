@@ -1,4 +1,5 @@
-"""The robot: one mesh per link, posed from the joints on every `RobotMoved`, and its TCP."""
+"""The robot: one mesh per link, posed from the joints on every `RobotMoved`, and its TCP; the
+links a start posture touches the cell with are red."""
 
 from __future__ import annotations
 
@@ -8,13 +9,19 @@ from assistant.session.events import Event, RobotMoved, SceneChanged
 from web.scene.base import Layer, node_key
 from web.units import wxyz_position
 
+#: Links of a start posture that touches the cell (`Session.start_posture_links`).
+TOUCHING = (220, 40, 40)
+
 
 class RobotLayer(Layer):
     root = "/robot"
 
     def refresh(self) -> None:
         self.clear()
+        touching = set(self.session.start_posture_links())
         for name, mesh, color in self.session.robot_visuals():
+            if name in touching:  # the start posture touches the cell here: red
+                color = TOUCHING
             self._nodes[name] = self.scene.add_mesh_simple(
                 f"{self.root}/{node_key(name)}", np.asarray(mesh.vertices, np.float32),
                 np.asarray(mesh.faces, np.uint32), color=tuple(int(c) for c in color),
@@ -42,5 +49,5 @@ class RobotLayer(Layer):
     def on_event(self, ev: Event) -> None:
         if isinstance(ev, RobotMoved):
             self.pose(ev.q)
-        elif isinstance(ev, SceneChanged) and ev.what in ("robot", "all", "link"):
+        elif isinstance(ev, SceneChanged) and ev.what in ("robot", "all", "link", "start"):
             self.refresh()
