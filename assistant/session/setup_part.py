@@ -39,6 +39,8 @@ class SetupActions:
             self._q_sim = None
             self._drop_link()
             self._world = None
+            if self.cell.objects:
+                self._start_check()
         return robot
 
     def set_tool(self, tool: ToolSpec) -> Robot:
@@ -95,6 +97,17 @@ class SetupActions:
     def link_log_dir(self):  # noqa: ANN201
         """Where the links write their wire log: ``links/`` in the session folder."""
         return None if self.folder is None else self.folder / "links"
+
+    def self_collision_rule(self, *, compute: bool = True) -> list[str] | None:
+        """The robot's one self-collision rule in the operator's words, a line per kind of
+        decision (`collision.self_rule`; teach, plan, jog and the world model use it).
+        `compute=False`: None unless already known (memory or disk) - a mesh arm takes a
+        second or two to sample the first time."""
+        from assistant.collision.self_rule import link_words, self_collision_rule
+
+        robot = self.robot
+        rule = self_collision_rule(robot, compute=compute)
+        return None if rule is None else rule.lines(link_words(robot))
 
     def check_link(self):  # noqa: ANN201
         """The link's pre-flight checklist (`assistant.links.checklist`) for the chosen

@@ -48,6 +48,8 @@ class SetupPanel(Panel):
             self.tool_rad = g.add_number("Tool radius (mm)", 20.0, min=0.0, max=200.0, step=0.5)
             self.gripper = g.add_checkbox("Gripper", True)
             self.apply_robot = g.add_button("Use this robot")
+        with g.add_folder("Self-collision rule", expand_by_default=False):
+            self.rule_text = g.add_markdown("")
         self.link_folder = g.add_folder("Link to the robot")
         with self.link_folder:
             self.link_kind = g.add_dropdown("Link", tuple(LINK_LABELS[k] for k in KINDS))
@@ -157,6 +159,25 @@ class SetupPanel(Panel):
 
         threading.Thread(target=work, name="cellteach-link-check", daemon=True).start()
 
+    def _show_rule(self) -> None:
+        """The robot's self-collision rule (the one teach, plan and jog use); sampled off the
+        UI thread the first time a robot is seen."""
+        lines = self.session.self_collision_rule(compute=False)
+        if lines is not None:
+            self.rule_text.content = "\n".join(f"- {line}" for line in lines)
+            return
+        self.rule_text.content = "*Sampling the arm's postures for its self-collision rule...*"
+
+        def work() -> None:
+            try:
+                got = self.session.self_collision_rule()
+                text = "\n".join(f"- {line}" for line in got or [])
+            except Exception as exc:  # noqa: BLE001 - shown to the operator, page stays up
+                text = f"**The self-collision rule could not be worked out:** {exc}"
+            self.app.pump.post(lambda: setattr(self.rule_text, "content", text))
+
+        threading.Thread(target=work, name="cellteach-self-rule", daemon=True).start()
+
     def _connect(self, client) -> None:  # noqa: ANN001
         self.session.link()
         self.app.notifier.success("The robot link is connected.", client=client)
@@ -180,6 +201,7 @@ class SetupPanel(Panel):
             lines.append(f"*{r.dof}-axis arm: taught orientations are turned into the arm's "
                          "plane; the page says by how much.*")
         self.summary.content = "\n\n".join(lines)
+        self._show_rule()
         label = next((k for k, v in ROBOTS.items() if v == spec.kind), None)
         if label is not None:
             self.robot.value = label
