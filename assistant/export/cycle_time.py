@@ -74,6 +74,10 @@ class CycleTimeLimits:
 
     acceleration_factor: float = 4.0  # a_max = k * v_max per joint (1/s)
     jerk_factor: float | None = 10.0  # j_max = k * a_max per joint (1/s)
+    #: rad/s per joint where a dialect's controller runs slower than the robot's own joint
+    #: speeds (URScript's movej: every joint at most the leading axis' speed); never above
+    #: the robot's
+    velocity: tuple[float, ...] | None = None
     acceleration: tuple[float, ...] | None = None  # rad/s^2 per joint, overrides the factor
     jerk: tuple[float, ...] | None = None  # rad/s^3 per joint, overrides the factor
     tcp_acceleration: float = 2.0  # m/s^2, Cartesian moves
@@ -88,7 +92,8 @@ class CycleTimeLimits:
             v = getattr(self, f.name)
             vals = v if isinstance(v, tuple) else (v,)
             for x in vals:
-                if x is None and f.name in ("jerk_factor", "tcp_jerk", "acceleration", "jerk"):
+                if x is None and f.name in ("jerk_factor", "tcp_jerk", "acceleration", "jerk",
+                                            "velocity"):
                     continue
                 if not isinstance(x, (int, float)) or not math.isfinite(x) or x < 0 or (
                         x == 0 and f.name not in ("gripper_s", "output_s")):
@@ -104,6 +109,7 @@ class CycleTimeLimits:
             raise ExportError(f"robot {robot.name!r} has no joint speed limits for all its "
                               f"{n} joints (got {v.tolist()} rad/s): the cycle time cannot be "
                               "predicted; give each joint a <limit velocity> in rad/s")
+        v = np.minimum(v, self._per_joint(self.velocity, "velocity", n, v))
         a = self._per_joint(self.acceleration, "acceleration", n, v * self.acceleration_factor)
         j_default = np.full(n, np.inf) if self.jerk_factor is None else a * self.jerk_factor
         j = self._per_joint(self.jerk, "jerk", n, j_default)
@@ -161,6 +167,9 @@ class CycleTime:
     def assumptions(self) -> list[str]:
         lim = self.limits
         return [CAVEAT,
+                "joint speeds: the robot's own" if lim.velocity is None else
+                "joint speeds as the controller runs them (" + ", ".join(
+                    f"{np.degrees(v):.0f}" for v in lim.velocity) + " deg/s)",
                 f"joint acceleration {lim.acceleration_factor:g} x speed limit per second"
                 if lim.acceleration is None else "joint accelerations given per joint",
                 "no jerk limit" if lim.jerk_factor is None and lim.jerk is None else

@@ -1,7 +1,8 @@
 """What the session hands to the browser: files as bytes with names and MIME types.
 
 `export_files` checks that the dialect's controller runs a robot with this many axes, checks
-the program (limits, reach, drivable paths), writes the dialect,
+the program (limits, reach, drivable paths), lowers every Cartesian speed the joints cannot
+follow to what they can (`speed_limits`; said in the notes), writes the dialect,
 reads it straight back to prove the text says what was planned (positions within the number
 format, same moves), and bundles multi-file programs (MELFA .MB4 + .POS, KRL .src + .dat,
 split programs) into a zip too. The zip is deterministic (fixed timestamps), so the same
@@ -24,7 +25,8 @@ from assistant.export.errors import ExportError
 from assistant.export.names import legal_for
 from assistant.export.program import NeutralProgram
 from assistant.export.registry import get_dialect
-from assistant.export.simulate import target_pose
+from assistant.export.simulate import simulate, target_pose
+from assistant.export.speed_limits import clamp_speeds
 from assistant.robots.model import Robot
 from assistant.transforms import rotation_angle
 
@@ -86,9 +88,14 @@ def export_files(program: NeutralProgram, dialect: str | Dialect, robot: Robot, 
     check_axis_count(d, robot)
     program, renames = legal_for(program, d)
     sim = check_program(program, robot) if check else None
+    limits = dialect_limits(d, robot, cycle_limits)
+    if sim is None:
+        sim = simulate(program, robot, max_step=limits.path_step)
+    # No Cartesian move faster than its joints allow, written as the cycle time runs it.
+    program, clamped = clamp_speeds(program, robot, sim, limits)
     lowered = d.lower(program)
     # The check's simulation is the lowered program's when lowering changed nothing.
-    cycle = predict_cycle_time(lowered, robot, cycle_limits,
+    cycle = predict_cycle_time(lowered, robot, limits,
                                simulation=sim if lowered is program else None)
     files, notes = _write(d, program, robot, cycle)
     if verify:
@@ -96,7 +103,17 @@ def export_files(program: NeutralProgram, dialect: str | Dialect, robot: Robot, 
     out = tuple(DownloadFile(f.name, f.data, _mime(f)) for f in files)
     zipped = _zip(program.name, d, files) if len(files) > 1 else None
     return ExportResult(d.name, program.name, out, zipped, lowered.primitive_count(),
-                        lowered.primitive_counts(), cycle, renames, notes)
+                        lowered.primitive_counts(), cycle, renames, clamped + notes)
+
+
+def dialect_limits(d: Dialect, robot: Robot,
+                   base: CycleTimeLimits | None = None) -> CycleTimeLimits:
+    """The limits the dialect's controller runs `robot` under (`cycle_limits` of a dialect
+    that writes absolute joint speeds), else `base`: what the program and its predicted
+    cycle time both use."""
+    base = base or CycleTimeLimits()
+    own = getattr(d, "cycle_limits", None)
+    return own(robot, base) if own is not None else base
 
 
 def _write(d: Dialect, program: NeutralProgram, robot: Robot,

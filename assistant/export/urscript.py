@@ -4,31 +4,37 @@ Poses are ``p[x, y, z, rx, ry, rz]`` in metres with the orientation as a rotatio
 (axis x angle, rad); joints are lists in rad. Joint moves go to the planned joint solution
 (``movej(P2_q, ...)``), so the arm configuration is exactly the planned one and needs no flags;
 linear and circular moves (``movel``, ``movec(via, to, ..., mode=0)``) keep the branch they
-start in, as on the controller. Speeds: movej v in rad/s (fraction x `joint_speed_max`),
-movel/movec v in m/s; blending r in m; accelerations as fractions of `joint_accel_max` /
-`tool_accel_max` (omitted: the controller's defaults).
+start in, as on the controller. Speeds: movej's v is the leading joint's speed in rad/s, so
+100 % is the robot's slowest joint limit (its URDF's, `cycle_limits`): no joint is ever
+commanded above its own limit, and the cycle time is predicted with every joint at that
+speed, as the controller runs it. movel/movec v in m/s (within the joints' limits:
+`speed_limits`); blending r in m; accelerations as fractions of `joint_accel_max` /
+`tool_accel_max` (the script manual's defaults, 1.4 rad/s^2 and 1.2 m/s^2; omitted when they
+are the controller's defaults).
 
 Outputs are ``set_standard_digital_out(n, b)``; gripper n is tool output n - 1
 (``set_tool_digital_out``, True = closed). A work frame is a pose variable the targets are
 composed with (``pose_trans(WORK, p[...])``); the tool is ``set_tcp``.
 
-Poses are written in the frame the controller uses, not the model's base link: the
-ROS-Industrial UR descriptions (example-robot-data's too) turn ``base_link`` 180 deg about z
-against the controller's base, which they carry as the fixed link ``base``. When the robot
-model has that link (`Robot.fixed_frame`), every pose and work frame is re-expressed in it
-(and read back out of it); other robots are written in their model base.
+Poses are written in the robot's program frame (`Robot.program_frame`), named in the
+header: the ROS-Industrial UR descriptions (example-robot-data's too) turn ``base_link`` 180
+deg about z against the controller's base, which they carry as the fixed leaf link ``base``
+under ``base_link``; every pose and work frame is re-expressed in it (and read back out of
+it). A link that is merely called "base" (Kinova's mounting block) is not that frame: such
+robots are written in their mounting frame unless their RobotSpec names another link.
 """
 
 from __future__ import annotations
 
+import math
 import re
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from assistant.export.cycle_time import CycleTime, predict_cycle_time
+from assistant.export.cycle_time import CycleTime, CycleTimeLimits, predict_cycle_time
 from assistant.export.dialect import (
     ProgramFile,
     ascii_text,
@@ -84,17 +90,17 @@ def ur_rules() -> DialectRules:
         reserved=_RESERVED, case_sensitive=True)
 
 
-#: The URDF link that coincides with the UR controller's base frame.
-CONTROLLER_BASE_LINK = "base"
+#: movej's and movel's accelerations when a program gives none (URScript manual).
+CONTROLLER_JOINT_ACCEL = 1.4
+CONTROLLER_TOOL_ACCEL = 1.2
 
 
 def controller_base(robot: Robot) -> tuple[Array, str]:
     """Pose of the frame the program's poses are in, in the model base, and its name: the
-    controller's base when the model carries it, else the model base itself."""
-    T = robot.fixed_frame(CONTROLLER_BASE_LINK)
-    if T is None:
-        return np.eye(4), "the robot base"
-    return np.asarray(T, dtype=float), "the controller's base frame"
+    robot's program frame (`Robot.program_frame`: a setting, the controller's base of a
+    ROS-Industrial description, else the mounting frame)."""
+    T, words = robot.program_frame()
+    return np.asarray(T, dtype=float), words
 
 
 def pose_literal(T: Array, what: str = "pose") -> str:
@@ -109,9 +115,13 @@ def pose_literal(T: Array, what: str = "pose") -> str:
 class URScriptDialect:
     """URScript writer and reader."""
 
-    joint_speed_max: float = 3.14  # rad/s written for a joint move at 100 %
-    joint_accel_max: float = 2.8  # rad/s^2 at 100 %
-    tool_accel_max: float = 2.5  # m/s^2 at 100 %
+    #: rad/s of the leading joint at 100 %, at most the robot's slowest joint limit (None:
+    #: that limit)
+    joint_speed_max: float | None = None
+    #: rad/s^2 (movej) and m/s^2 (movel, movec) at 100 %: the script manual's defaults,
+    #: lowered to the cycle time's own where those are lower
+    joint_accel_max: float = CONTROLLER_JOINT_ACCEL
+    tool_accel_max: float = CONTROLLER_TOOL_ACCEL
 
     name = "urscript"
     title = "Universal Robots URScript"
@@ -133,13 +143,38 @@ class URScriptDialect:
         """movep exists but blends with circles; splines are written as blended movel."""
         return lower_splines(program)
 
+    def cycle_limits(self, robot: Robot, base: CycleTimeLimits) -> CycleTimeLimits:
+        """The limits the controller runs this program under: every joint at most the
+        leading joint's speed (the robot's slowest limit) and acceleration; the TCP at most
+        `tool_accel_max`. The writer turns fractions into these numbers and the cycle time
+        is predicted on them."""
+        v = base.joint_limits(robot)[0]
+        a = base.joint_limits(robot)[1]
+        v_lead = float(v.min()) if self.joint_speed_max is None else \
+            min(float(v.min()), float(self.joint_speed_max))
+        lead = replace(base, velocity=(v_lead,) * robot.dof)
+        a_lead = min(float(lead.joint_limits(robot)[1].min()), float(a.min()),
+                     float(self.joint_accel_max))
+        return replace(lead, acceleration=(a_lead,) * robot.dof,
+                       tcp_acceleration=min(base.tcp_acceleration, float(self.tool_accel_max)))
+
+    def _leads(self, robot: Robot, limits: CycleTimeLimits | None) -> tuple[float, float, float]:
+        """(leading joint speed rad/s, its acceleration rad/s^2, TCP acceleration m/s^2) at
+        100 %."""
+        lim = self.cycle_limits(robot, limits or CycleTimeLimits())
+        v, a, _ = lim.joint_limits(robot)
+        return float(v.min()), float(a.min()), float(lim.tcp_acceleration)
+
     # ====================================================================== writing
     def write(self, program: NeutralProgram, robot: Robot, *,
               cycle_time: CycleTime | None = None) -> list[ProgramFile]:
         check_axis_count(self, robot)
         program = self.lower(program)
         name = check_identifier(program.name, self.rules, what="program name", program=True)
-        cycle = (cycle_time or predict_cycle_time(program, robot)).header_text()
+        limits = self.cycle_limits(robot, cycle_time.limits if cycle_time is not None
+                                   else CycleTimeLimits())
+        cycle = (cycle_time or predict_cycle_time(program, robot, limits)).header_text()
+        leads = self._leads(robot, limits)
         work = None if program.work.is_identity else self._ident(program.work.name, "work")
         T_model_ctrl, frame = controller_base(robot)
         T_ctrl_model = np.linalg.inv(T_model_ctrl)
@@ -147,7 +182,9 @@ class URScriptDialect:
                  f"  # {name}: generated by cellteach for {ascii_text(robot.name)}",
                  f"  # {cycle}",
                  "  # poses p[x, y, z, rx, ry, rz] in m and rad (rotation vector); joints in rad",
-                 f"  # poses in {frame}"]
+                 f"  # poses in {frame}",
+                 f"  # movej v is the leading joint's speed, at most {format_compact(leads[0], 4)}"
+                 " rad/s: the robot's slowest joint limit"]
         lines.append(f"  set_tcp({pose_literal(program.tool.T, 'tool')})  "
                      f"# {ascii_text(program.tool.name)}")
         if work:
@@ -155,11 +192,12 @@ class URScriptDialect:
                          f"{pose_literal(T_ctrl_model @ program.work.T, 'work frame')}")
         decl, names = self._declarations(program, robot, work, T_ctrl_model)
         lines += decl
+        modal = _Modal()
         for ins, step in step_changes(program.instructions):
             if step is not None:
                 lines.append(step_line("  # ", step, self.rules.max_line))
             if isinstance(ins, Move):
-                lines.append("  " + self._motion(ins, names))
+                lines.append("  " + self._motion(ins, names, leads, modal))
             elif isinstance(ins, Gripper):
                 word = "close" if ins.close else "open"
                 lines.append(f"  set_tool_digital_out({ins.hand - 1}, {ins.close})  "
@@ -217,14 +255,23 @@ class URScriptDialect:
                 names[key] = ident
         return lines, names
 
-    def _motion(self, m: Move, names: dict[tuple[str, bool], str]) -> str:
+    def _motion(self, m: Move, names: dict[tuple[str, bool], str],
+                leads: tuple[float, float, float], modal: _Modal) -> str:
+        """One motion with the speed and acceleration the cycle time runs it at: a move
+        without them keeps the last given (as the cycle time does); the controller's own
+        defaults would be other numbers, so they are written whenever they differ."""
+        joint = m.kind == MoveKind.JOINT
+        modal.take(m)
         opts = []
-        if m.acceleration is not None:
-            amax = self.joint_accel_max if m.kind == MoveKind.JOINT else self.tool_accel_max
-            opts.append(f"a={format_compact(m.acceleration * amax, 4, step=m.step)}")
-        if m.speed is not None:
-            v = m.speed * self.joint_speed_max if m.kind == MoveKind.JOINT else m.speed
-            opts.append(f"v={format_compact(v, 4, what='speed', step=m.step)}")
+        frac = modal.accel
+        amax = leads[1] if joint else leads[2]
+        default = CONTROLLER_JOINT_ACCEL if joint else CONTROLLER_TOOL_ACCEL
+        if m.acceleration is not None or abs(frac * amax - default) > 1e-9:
+            opts.append(f"a={_down(frac * amax, m.step)}")
+        speed = modal.joint if joint else modal.linear
+        if speed is not None:
+            v = speed * leads[0] if joint else speed
+            opts.append(f"v={_down(v, m.step, 'speed')}")
         if m.blend_radius > 0.0:
             opts.append(f"r={format_compact(m.blend_radius, 4, what='blend', step=m.step)}")
         tail = "".join(", " + o for o in opts)
@@ -246,6 +293,7 @@ class URScriptDialect:
             raise ExportError("no 'def name():' in the script")
         prog = NeutralProgram(mm.group(1))
         T_model_ctrl, _ = controller_base(robot)
+        v_lead, a_lead, tcp_a = self._leads(robot, None)
         poses: dict[str, Array] = {}  # in the controller's frame, as written
         joints: dict[str, Array] = {}
         cache: dict[tuple[str, str], Position] = {}
@@ -303,17 +351,17 @@ class URScriptDialect:
 
                 if kind == "movej":
                     mv = Move(MoveKind.JOINT, position(pos[0], True),
-                              speed=None if v is None else v / self.joint_speed_max,
-                              acceleration=None if acc is None else acc / self.joint_accel_max,
+                              speed=None if v is None else v / v_lead,
+                              acceleration=None if acc is None else acc / a_lead,
                               blend_radius=r, step=step)
                 elif kind == "movel":
                     mv = Move(MoveKind.LINEAR, position(pos[0], False), speed=v,
-                              acceleration=None if acc is None else acc / self.tool_accel_max,
+                              acceleration=None if acc is None else acc / tcp_a,
                               blend_radius=r, step=step)
                 else:
                     mv = Move(MoveKind.CIRCULAR, position(pos[1], False),
                               position(pos[0], False), speed=v,
-                              acceleration=None if acc is None else acc / self.tool_accel_max,
+                              acceleration=None if acc is None else acc / tcp_a,
                               blend_radius=r, step=step)
                 prog.instructions.append(mv)
             elif m := re.fullmatch(r"set_tool_digital_out\((\d+),\s*(True|False)\)", line):
@@ -325,6 +373,29 @@ class URScriptDialect:
             else:
                 raise ExportError(f"cannot read {raw.strip()!r}")
         return prog
+
+
+class _Modal:
+    """The speeds and acceleration in force (a move without one keeps the last given)."""
+
+    def __init__(self) -> None:
+        self.joint: float | None = 1.0  # the cycle time's first joint move: full speed
+        self.linear: float | None = None
+        self.accel = 1.0
+
+    def take(self, m: Move) -> None:
+        if m.acceleration is not None:
+            self.accel = m.acceleration
+        if m.speed is not None:
+            if m.kind == MoveKind.JOINT:
+                self.joint = m.speed
+            else:
+                self.linear = m.speed
+
+
+def _down(x: float, step: str, what: str = "acceleration") -> str:
+    """Four decimals, rounded down: never a hair above the limit the value came from."""
+    return format_compact(math.floor(x * 1e4 * (1.0 + 1e-12)) / 1e4, 4, what=what, step=step)
 
 
 def _pose(text: str) -> Array:
