@@ -204,6 +204,15 @@ def check_position_names(program: NeutralProgram, rules: DialectRules) -> None:
 
 
 # ------------------------------------------------------------------------------ frames
+def base_words(robot: Robot) -> str:
+    """The frame a dialect writing in the model base puts its poses in (work frames are
+    given in it), for the header: "robot base: the robot's mounting frame (URDF link
+    'world')". URScript writes in the robot's program frame instead (its header says so)."""
+    link = getattr(robot, "base_link", None)
+    where = f" (URDF link '{ascii_text(str(link))}')" if link else ""
+    return f"robot base: the robot's mounting frame{where}"
+
+
 def pose_in_work(program: NeutralProgram, T_base_tool: Array) -> Array:
     """A base-frame target re-expressed in the program's work frame (what controllers store)."""
     return inv_T(np.asarray(program.work.T, dtype=float)) @ np.asarray(T_base_tool, float)

@@ -28,8 +28,6 @@ from assistant.transforms import inv_T, rotation_vector
 Array = np.ndarray
 
 REG_STARTED, REG_DONE, REG_TARGET = 24, 25, 26
-#: The URDF link that is the controller's base frame (ROS-Industrial UR descriptions).
-CONTROLLER_BASE_LINK = "base"
 _NAME = re.compile(r"^[A-Za-z_][A-Za-z0-9_]{0,30}$")
 
 
@@ -37,11 +35,11 @@ _BASES: dict[int, Array] = {}
 
 
 def controller_base(robot: Robot) -> Array:
-    """Pose of the controller's base frame in the model base (identity if not modelled)."""
+    """Pose of the controller's base frame in the model base: the robot's program frame
+    (`Robot.program_frame`, the one URScript programs are written in)."""
     key = id(robot)
     if key not in _BASES:  # robots are immutable; the emulator asks at 500 Hz
-        T = robot.fixed_frame(CONTROLLER_BASE_LINK)
-        _BASES[key] = np.eye(4) if T is None else np.asarray(T, dtype=float)
+        _BASES[key] = np.asarray(robot.program_frame()[0], dtype=float)
     return _BASES[key]
 
 

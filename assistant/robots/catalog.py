@@ -107,6 +107,9 @@ class RobotSpec:
     tool: ToolSpec = field(default_factory=ToolSpec)
     #: Optional per-joint (lower, upper) limits in degrees replacing the model's own.
     limits_deg: tuple[tuple[float, float], ...] | None = None
+    #: The URDF link programs write poses in (`URDFRobot.program_frame`); None: the
+    #: controller's base of a ROS-Industrial description, else the mounting frame.
+    program_frame: str | None = None
 
     def build(self) -> Robot:
         if self.kind == "rv2aj":
@@ -119,7 +122,8 @@ class RobotSpec:
 
             arm = CATALOG[self.kind]
             robot = URDFRobot.from_file(catalog_path(self.kind), base_link=arm.base_link,
-                                        tool_link=arm.tool_link, tool=self.tool.build())
+                                        tool_link=arm.tool_link, tool=self.tool.build(),
+                                        program_frame=self.program_frame)
             if self.limits_deg is not None:
                 robot = robot.with_limits(np.radians(np.array(self.limits_deg, dtype=float)))
             return robot
@@ -130,7 +134,7 @@ class RobotSpec:
 
             robot = URDFRobot.from_file(Path(self.urdf_path), package_dirs=self.package_dirs,
                                         base_link=self.base_link, tool_link=self.tool_link,
-                                        tool=self.tool.build())
+                                        tool=self.tool.build(), program_frame=self.program_frame)
             if self.limits_deg is not None:
                 robot = robot.with_limits(np.radians(np.array(self.limits_deg, dtype=float)))
             return robot
@@ -141,7 +145,8 @@ class RobotSpec:
         return {"kind": self.kind, "urdf_path": self.urdf_path,
                 "package_dirs": list(self.package_dirs), "base_link": self.base_link,
                 "tool_link": self.tool_link, "tool": self.tool.to_json(),
-                "limits_deg": [list(p) for p in self.limits_deg] if self.limits_deg else None}
+                "limits_deg": [list(p) for p in self.limits_deg] if self.limits_deg else None,
+                **({"program_frame": self.program_frame} if self.program_frame else {})}
 
     @staticmethod
     def from_json(d: dict[str, Any]) -> RobotSpec:
@@ -156,6 +161,7 @@ class RobotSpec:
             tool_link=d.get("tool_link"),
             tool=ToolSpec.from_json(d["tool"]) if d.get("tool") else ToolSpec(),
             limits_deg=tuple((float(a), float(b)) for a, b in lim) if lim else None,
+            program_frame=str(d["program_frame"]) if d.get("program_frame") else None,
         )
 
 

@@ -281,6 +281,12 @@ class Robot(abc.ABC):
         the frame a controller reports poses in); None when the model has no such frame."""
         return None
 
+    def program_frame(self) -> tuple[Array, str]:
+        """(T_base_frame, its name in words): the frame the robot's controller takes poses
+        in, as a program for it writes them. Default: the robot's mounting frame (the model
+        base) itself."""
+        return np.eye(4), "the robot's mounting frame"
+
     def arm_radii(self) -> Array:
         """Per joint, an upper bound (m) on the distance from its axis to any point beyond it.
 

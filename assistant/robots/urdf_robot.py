@@ -106,7 +106,8 @@ class URDFRobot(DLSInverseKinematics, Robot):
                  tool_link: str | None = None, tool: Tool | None = None,
                  limits: Array | None = None,
                  locked_positions: Mapping[str, float] | None = None,
-                 load_visual: bool = True, ik_settings: IKSettings | None = None):
+                 load_visual: bool = True, ik_settings: IKSettings | None = None,
+                 program_frame: str | None = None):
         self._doc = doc
         self.name = doc.name
         self.base_link = base_link or doc.root
@@ -137,14 +138,20 @@ class URDFRobot(DLSInverseKinematics, Robot):
         self.limits = JointLimits(lower, upper, np.array([j.velocity for j in chain]))
         self.links = self._build_links(path)
         self._local = threading.local()
+        self._program_frame = program_frame
+        if program_frame is not None and self.fixed_frame(program_frame) is None:
+            fixed = [n for n in doc.links if self.fixed_frame(n) is not None]
+            raise RobotModelError(f"{doc.source}: the program frame {program_frame!r} is not "
+                                  "a link fixed to the robot base (those are: "
+                                  f"{', '.join(sorted(fixed))})")
 
     # ------------------------------------------------------------------ construction
     @classmethod
     def from_file(cls, path: Path | str, *, package_dirs: Sequence[str | Path] = (),
                   base_link: str | None = None, tool_link: str | None = None,
                   tool: Tool | None = None, locked_positions: Mapping[str, float] | None = None,
-                  load_visual: bool = True, ik_settings: IKSettings | None = None
-                  ) -> URDFRobot:
+                  load_visual: bool = True, ik_settings: IKSettings | None = None,
+                  program_frame: str | None = None) -> URDFRobot:
         """Load a URDF file and its meshes.
 
         Args:
@@ -156,6 +163,7 @@ class URDFRobot(DLSInverseKinematics, Robot):
             locked_positions: values of joints off the chain (e.g. gripper opening); default
                 0 clamped into the joint's range.
             load_visual: False skips visual meshes (batch tools that never draw).
+            program_frame: the link programs write poses in (`program_frame`).
         Returns:
             The robot. Raises `RobotModelError` naming the file and element on bad input.
         """
@@ -167,7 +175,7 @@ class URDFRobot(DLSInverseKinematics, Robot):
         doc = parse_urdf(text, str(path), path.resolve().parent, package_dirs)
         return cls(doc, base_link=base_link, tool_link=tool_link, tool=tool,
                    locked_positions=locked_positions, load_visual=load_visual,
-                   ik_settings=ik_settings)
+                   ik_settings=ik_settings, program_frame=program_frame)
 
     @classmethod
     def from_string(cls, xml: str, *, base_dir: Path | str,
@@ -175,18 +183,19 @@ class URDFRobot(DLSInverseKinematics, Robot):
                     tool_link: str | None = None, tool: Tool | None = None,
                     locked_positions: Mapping[str, float] | None = None,
                     load_visual: bool = True, ik_settings: IKSettings | None = None,
-                    source: str = "<URDF string>") -> URDFRobot:
+                    source: str = "<URDF string>", program_frame: str | None = None,
+                    ) -> URDFRobot:
         """Like `from_file` for URDF text; relative mesh paths are resolved against base_dir."""
         doc = parse_urdf(xml, source, Path(base_dir).resolve(), package_dirs)
         return cls(doc, base_link=base_link, tool_link=tool_link, tool=tool,
                    locked_positions=locked_positions, load_visual=load_visual,
-                   ik_settings=ik_settings)
+                   ik_settings=ik_settings, program_frame=program_frame)
 
     def _derive(self, **changes) -> URDFRobot:
         kw = dict(base_link=self.base_link, tool_link=self.tool_link, tool=self.tool,
                   limits=np.column_stack([self.limits.lower, self.limits.upper]),
                   locked_positions=self.locked_positions, load_visual=self._load_visual,
-                  ik_settings=self.ik_settings)
+                  ik_settings=self.ik_settings, program_frame=self._program_frame)
         kw.update(changes)
         return URDFRobot(self._doc, **kw)
 
@@ -449,6 +458,27 @@ class URDFRobot(DLSInverseKinematics, Robot):
         if self._model.frames[self._model.getFrameId(name, pin.BODY)].parentJoint != 0:
             return None
         return self._T_base_root @ self._T_root_body[name]
+
+    def program_frame(self) -> tuple[Array, str]:
+        """The frame programs for this robot write poses in: the link set for it (RobotSpec
+        ``program_frame``), else the controller's base of a ROS-Industrial description (a
+        fixed leaf link ``base`` under ``base_link``, as the UR descriptions carry it turned
+        180 deg about z), else the mounting frame - the model base. A link that merely is
+        called "base" (Kinova's mounting block, SO-100's base) is the mounting frame."""
+        name, why = self._program_frame, "this robot's program frame setting"
+        if name is None and self._ros_industrial_base():
+            name, why = "base", "the controller's base frame, ROS-Industrial convention"
+        if name is None or name == self.base_link:
+            return np.eye(4), f"the robot's mounting frame (URDF link '{self.base_link}')"
+        T = self.fixed_frame(name)
+        assert T is not None  # checked when the robot was built
+        return np.asarray(T, dtype=float), f"URDF link '{name}' ({why})"
+
+    def _ros_industrial_base(self) -> bool:
+        doc = self._doc
+        joint = doc.parent_joint.get("base")
+        return (joint is not None and joint.type == "fixed" and joint.parent == "base_link"
+                and not doc.children.get("base") and self.fixed_frame("base") is not None)
 
     def link_poses(self, q: Array) -> Array:
         q = self._check_q(q)

@@ -172,7 +172,7 @@ def test_work_frame_round_trips(robot_for, programs, dialect):
     files = get_dialect(dialect).write(program_in_work_frame, robot)
     text = "\n".join(f.text for f in files)
     assert {"krl": "$BASE = {X 50.000", "rapid": "wobjdata wTable", "urscript": "TABLE = p[",
-            "fanuc": "!UFRAME[1] table ;\n  14:  !X 50.000 Y -20.000",
+            "fanuc": "!UFRAME[1] table ;\n  16:  !X 50.000 Y -20.000",
             "yaskawa": "'USER 1 table\n'X 50.000 Y -20.000"}[dialect] in text
 
 
@@ -304,7 +304,7 @@ def test_urscript_round_trip_on_a_ur5(ur5):
     x, y, z = (float(v) for v in m.group(1).split(",")[:3])
     assert np.allclose([x, y, z], [-b.T_base_tool[0, 3], -b.T_base_tool[1, 3],
                                    b.T_base_tool[2, 3]], atol=1e-6)
-    assert "# poses in the controller's base frame" in text
+    assert "# poses in URDF link 'base' (the controller's base frame" in text
 
 
 def test_dialects_implement_the_protocol():
