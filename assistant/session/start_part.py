@@ -48,9 +48,11 @@ class StartPostureActions:
         before = getattr(self, "_start_problem", None)
         self._start_problem, self._start_links = problem, links
         if problem is not None and problem != before:
-            self.bus.emit(Notice(f"The start posture touches something: {problem}. Move the "
-                                 "robot to a free posture (Jog the robot: Move to a free "
-                                 "posture) before planning"))
+            objects = sorted({c.other for c in report.contacts if not c.self_collision})
+            place = f"place {', '.join(objects)} elsewhere or " if objects else ""
+            self.bus.emit(Notice(f"The start posture touches something: {problem}. Before "
+                                 f"planning, {place}move the robot to a free posture (Jog the "
+                                 "robot: Move to a free posture)"))
         if problem != before:
             self.bus.emit(SceneChanged("start"))
 

@@ -132,7 +132,9 @@ def test_events_announce_state_and_scene_changes(empty_session, o1_dxf):
     s.import_cad(o1_dxf, "O1.dxf", name="O1", units="mm")
     kinds = [type(e) for e in events]
     assert StateChanged in kinds and SceneChanged in kinds
-    assert [e.what for e in events if isinstance(e, SceneChanged)] == ["objects"]
+    # O1 lands at the world origin, on the robot: the start posture touches it ("start")
+    assert [e.what for e in events if isinstance(e, SceneChanged)] == ["start", "objects"]
+    assert any(isinstance(e, Notice) and "place O1 elsewhere" in e.message for e in events)
 
 
 @pytest.mark.parametrize("damage,match", [
