@@ -205,9 +205,13 @@ def check_position_names(program: NeutralProgram, rules: DialectRules) -> None:
 
 # ------------------------------------------------------------------------------ frames
 def base_words(robot: Robot) -> str:
-    """The frame a dialect writing in the model base puts its poses in (work frames are
-    given in it), for the header: "robot base: the robot's mounting frame (URDF link
-    'world')". URScript writes in the robot's program frame instead (its header says so)."""
+    """The frame a dialect's poses are in (work frames are given in it), for the header:
+    "robot base: URDF link 'base' (the controller's base frame, ...)". `export_files` hands
+    the writers the robot as seen from its program frame (`program_frame.in_program_frame`);
+    a robot given as it is (its model base) is named by its mounting frame."""
+    T, words = robot.program_frame()
+    if np.allclose(T, np.eye(4), atol=1e-12):
+        return f"robot base: {ascii_text(words)}"
     link = getattr(robot, "base_link", None)
     where = f" (URDF link '{ascii_text(str(link))}')" if link else ""
     return f"robot base: the robot's mounting frame{where}"

@@ -24,6 +24,7 @@ from assistant.export.dialect import Dialect, ProgramFile, check_axis_count
 from assistant.export.errors import ExportError
 from assistant.export.names import legal_for
 from assistant.export.program import NeutralProgram
+from assistant.export.program_frame import in_program_frame
 from assistant.export.registry import get_dialect
 from assistant.export.simulate import simulate, target_pose
 from assistant.export.speed_limits import clamp_speeds
@@ -87,6 +88,8 @@ def export_files(program: NeutralProgram, dialect: str | Dialect, robot: Robot, 
     d = get_dialect(dialect)
     check_axis_count(d, robot)
     program, renames = legal_for(program, d)
+    # Written, checked and read back in the frame the robot's controller takes poses in.
+    program, robot = in_program_frame(program, robot)
     sim = check_program(program, robot) if check else None
     limits = dialect_limits(d, robot, cycle_limits)
     if sim is None:

@@ -246,12 +246,13 @@ class AbbRwsLink(OperatorButton, RobotLink):
         return np.radians(rp.numbers(st, rp.RAX[:self.robot.dof], "jointtarget"))
 
     def current_pose(self) -> Array:
-        """The TCP of our model's tool: the controller's tool0 (flange) pose times our tool."""
+        """The TCP of our model's tool: the controller's tool0 (flange) pose, counted from its
+        base (the robot's program frame), in our model base, times our tool."""
         st = self.get_state(f"rw/motionsystem/mechunits/{self.mechunit}/robtarget?tool=tool0"
                             "&wobj=wobj0&coordinate=Base", "ms-robtargets")
         T = rp.pose_from(rp.numbers(st, ("x", "y", "z"), "robtarget"),
                          rp.numbers(st, ("q1", "q2", "q3", "q4"), "robtarget"))
-        return T @ self.robot.T_flange_tool
+        return np.asarray(self.robot.program_frame()[0]) @ T @ self.robot.T_flange_tool
 
     def request_mastership(self) -> None:
         self.request("POST", self.rws.mastership("request"), {}, timeout_s=self.load_timeout_s)

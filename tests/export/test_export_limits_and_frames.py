@@ -212,3 +212,31 @@ def test_a_ros_industrial_base_is_the_ur_controllers_frame(ur10):
     T, words = so.program_frame()
     assert words == "the robot's mounting frame (URDF link 'base')"
     np.testing.assert_allclose(T, np.eye(4))
+
+
+def test_every_dialect_writes_in_the_controllers_frame_and_names_it():
+    """The FANUC LR Mate 200iD of the catalogue: FANUC's world frame (user frame 0) is 330 mm
+    up on the J1 axis (its URDF's link "base"). Exported through `export_files`, a position's
+    Z is the mounting-frame Z less 330 mm, the header says which frame, and the program reads
+    back onto the plan (export_files verifies it in that frame)."""
+    from grammars import check_report
+
+    lrmate = RobotSpec(kind="fanuc_lrmate200id", tool=ToolSpec.straight(0.1)).build()
+    T_frame, words = lrmate.program_frame()
+    assert T_frame[2, 3] == pytest.approx(0.330) and "URDF link 'base'" in words
+    prog = program_from_trajectory(fast_trajectory(lrmate), lrmate, name="lrmate")
+    planned = {p.name: p.T_base_tool for p in prog.positions() if p.T_base_tool is not None}
+    for dialect in ("fanuc", "krl", "rapid", "yaskawa", "urscript", "melfa"):
+        res = export_files(prog, dialect, lrmate)
+        text = "\n".join(f.data.decode("ascii") for f in res.files).replace("\r\n", "\n")
+        # FANUC and INFORM comments hold 32 characters: their lines joined
+        pattern = {"fanuc": r"^\s*\d+:\s*!(.*?)\s*;\s*$", "yaskawa": r"^'(.*)$"}.get(dialect)
+        flat = text if pattern is None else " ".join(
+            m.group(1) for m in re.finditer(pattern, text, re.M))
+        assert "URDF link 'base' (the controller's base frame" in flat, dialect
+        if dialect == "fanuc":
+            rep = check_report("fanuc", {f.name: f.data.decode("ascii") for f in res.files})
+            z = {t["name"]: t["values"][2] for t in rep.targets if t["kind"] == "cartesian"}
+            assert z, rep.targets
+            for name, value in z.items():
+                assert value == pytest.approx((planned[name][2, 3] - 0.330) * 1000, abs=1e-3)

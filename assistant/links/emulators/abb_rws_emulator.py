@@ -42,6 +42,7 @@ from assistant.links.emulators.abb_rws_events import SubscriptionHub, elog_event
 from assistant.links.emulators.arm import EmulatedArm
 from assistant.links.emulators.faults import Faults, Received
 from assistant.links.emulators.until_stopped import wait_until_stopped
+from assistant.robots.framed import controller_view
 from assistant.robots.model import Robot
 
 Array = np.ndarray
@@ -91,7 +92,9 @@ class AbbRwsEmulator:
         self.arm = EmulatedArm(robot, hidden_obstacles=hidden_obstacles, time_scale=time_scale,
                                tick_s=tick_s, start_q=start_q, faults=self.faults,
                                on_drop=self._on_drop)
-        self.rapid = RapidController(robot, self.arm, time_scale)
+        #: The arm as the controller counts poses: from the robot's program frame.
+        self.view = controller_view(robot)
+        self.rapid = RapidController(self.view, self.arm, time_scale)
         self.rapid.on_exec_change = lambda st: self.events.publish(
             "/rw/rapid/execution;ctrlexecstate", exec_event(st))
         self.rapid.on_log = lambda n: self.events.publish("/rw/elog/0", elog_event(n))
@@ -350,11 +353,11 @@ class AbbRwsEmulator:
         if coord not in ("Base", "World", "Wobj"):
             raise RwsError(400, rp.RC_BAD_REQUEST, f"coordinate {coord} not supported")
         joints = self.arm.q
-        flange = self.robot.fk(joints) @ np.linalg.inv(self.robot.T_flange_tool)
+        flange = self.view.fk(joints) @ np.linalg.inv(self.view.T_flange_tool)
         T = flange @ self.rapid.frame(q.get("tool", "tool0"), "tooldata")
         if coord == "Wobj":
             T = np.linalg.inv(self.rapid.frame(q.get("wobj", "wobj0"), "wobjdata")) @ T
-        return rp.robtarget_state(T, confdata(self.robot, joints))
+        return rp.robtarget_state(T, confdata(self.view, joints))
 
     def _post(self, res: str, action: str, form: dict[str, str], s: Session) -> None:
         c, ses = self.rapid, self.sessions
