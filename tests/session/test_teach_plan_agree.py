@@ -1,7 +1,8 @@
 """Teach and plan share one self-collision/obstacle truth per arm.
 
-Over every arm of the suite (UR3/5/10, Panda, SO-100 from example-robot-data, the KUKA KR 6
-R900 sixx of the robot catalogue, the built-in RV-2AJ): poses of random postures are taught
+Over every arm of the suite (UR3/5/10, Panda, SO-100 from example-robot-data, every arm of
+the robot catalogue - KUKA KR 6 R900 sixx, ABB IRB 1200, FANUC LR Mate 200iD - and the
+built-in RV-2AJ): poses of random postures are taught
 through the session, then handed to the planner's start/goal check (`MissionPlanner._solve`,
 the call `plan_mission` makes) with the cell's objects. A pose teach accepts silently the
 planner solves; one teach refuses (the arm touches itself in every posture) the planner
@@ -16,7 +17,7 @@ import pytest
 
 from assistant.planning import MissionPlanner
 from assistant.planning.locations import LocationError, LocationProblem
-from assistant.robots.catalog import RobotSpec, ToolSpec, installed_robot_urdf
+from assistant.robots.catalog import CATALOG, RobotSpec, ToolSpec, installed_robot_urdf
 from assistant.session import Session
 from assistant.session.events import Notice
 from assistant.session.types import SessionError
@@ -29,8 +30,8 @@ ARMS = {
     "UR10": ("ur_description/urdf/ur10_robot.urdf", None),
     "Panda": ("panda_description/urdf/panda.urdf", "panda_hand"),
     "SO-100": ("so_arm_description/urdf/so100.urdf", None),  # as the set-up page loads it
-    "KR 6 R900": (None, None),
     "RV-2AJ": (None, None),
+    **{key: (None, None) for key in CATALOG},  # the industrial arms of the robot catalogue
 }
 POSTURES = 10
 
@@ -40,8 +41,8 @@ def arm_spec(name: str) -> RobotSpec:
     tool = ToolSpec.straight(0.06 if name == "SO-100" else 0.1, 0.015)
     if name == "RV-2AJ":
         return RobotSpec(kind="rv2aj", tool=tool)
-    if name == "KR 6 R900":
-        return RobotSpec(kind="kuka_kr6_r900_sixx", tool=tool)
+    if name in CATALOG:
+        return RobotSpec(kind=name, tool=tool)
     urdf, share = installed_robot_urdf(ERD + rel)
     return RobotSpec(kind="urdf", urdf_path=str(urdf), package_dirs=(str(share),),
                      tool_link=tool_link, tool=tool)
