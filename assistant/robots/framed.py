@@ -36,6 +36,11 @@ class FramedRobot(Robot):
         self.tool = getattr(robot, "tool", None)
         self.ik_settings = getattr(robot, "ik_settings", None)
 
+    @property
+    def T_base_frame(self) -> Array:
+        """Where the view's base (the program frame) is in the robot's model base."""
+        return self._T.copy()
+
     def program_frame(self) -> tuple[Array, str]:
         return np.eye(4), self._words
 

@@ -31,6 +31,7 @@ from assistant.export.dialect import ProgramFile
 from assistant.export.fanuc import config_back
 from assistant.export.simulate import simulate
 from assistant.export.yaskawa import rconf_back
+from assistant.robots.framed import controller_view
 
 GOLDEN = Path(__file__).resolve().parent / "golden"
 CASES = [(d, c) for d in ("fanuc", "yaskawa") for c in ("ur5_cell", "ur10_cell")]
@@ -41,7 +42,9 @@ JOINTS = 1e-3  # rad
 
 @pytest.fixture(scope="module")
 def robots(tmp_path_factory):
-    """cell -> its robot (tool included), as the sample cell sets it up."""
+    """cell -> its robot (tool included), as the sample cell sets it up, seen from its program
+    frame (the UR controller's base: the programs count poses from there, `export_files`
+    writes them so; plan.json keeps the model base)."""
     from assistant.session import Session
 
     made = {}
@@ -49,7 +52,7 @@ def robots(tmp_path_factory):
     def get(cell: str):
         if cell not in made:
             s = Session.from_sample(cell, tmp_path_factory.mktemp(cell))
-            made[cell] = s.robot
+            made[cell] = controller_view(s.robot)
             s.close()
         return made[cell]
 
@@ -99,10 +102,12 @@ def test_the_grammar_reads_the_cell_program_back_onto_the_plan(robots, dialect, 
         pairs = [(t, by_name[t["name"]]) for t in rep.targets]
     else:  # INFORM numbers them in the order of first use
         pairs = list(zip(rep.targets, planned, strict=True))
+    T_frame = getattr(robot, "T_base_frame", np.eye(4))  # the program frame in the model base
     for t, p in pairs:
         q_plan = np.asarray(p["q"])
-        T_plan = robot.fk(q_plan)
-        assert _off(T_plan, np.asarray(p["T_base_tool"]))[0] < 1e-9  # the plan is consistent
+        T_plan = robot.fk(q_plan)  # in the program frame
+        in_frame = np.linalg.inv(T_frame) @ np.asarray(p["T_base_tool"])
+        assert _off(T_plan, in_frame)[0] < 1e-9  # the plan is consistent
         if t["kind"] == "joint":
             q = np.radians(t["values"])
             assert np.max(np.abs(q - q_plan)) < JOINTS
