@@ -20,6 +20,7 @@ from abb_robot_client import rws  # the vendor's client: a test extra, never ski
 
 from assistant.links import abb_rws_protocol as rp
 from assistant.links.emulators.abb_rws_emulator import AbbRwsEmulator
+from assistant.robots.framed import controller_view
 
 
 @pytest.fixture(scope="module")
@@ -55,7 +56,7 @@ def test_connect_and_read_state(emu, client, robot):
     # 6 decimals of a degree on the wire
     assert np.allclose(np.radians(jt.robax), HOME, atol=1e-7) and np.all(jt.extax == 9e9)
     rt = client.get_robtarget()
-    T = robot.fk(HOME)
+    T = controller_view(robot).fk(HOME)  # counted from the UR5 controller's base frame
     assert np.allclose(rt.trans, T[:3, 3] * 1000.0, atol=1e-3)
     assert np.allclose(rp.pose_from(rt.trans, rt.rot), T, atol=1e-6)
     assert list(rt.robconf[:3]) == [0, -1, 0]  # quadrants of axes 1, 4 (-90 deg), 6

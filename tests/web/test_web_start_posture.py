@@ -11,6 +11,8 @@ from assistant.session import Session
 from assistant.transforms import make_T
 from web.scene.robot import TOUCHING
 
+PAGE = 1  # a page's id, as web.authority gives them
+
 
 def wait_for(cond, timeout: float = 60.0) -> bool:
     end = time.monotonic() + timeout
@@ -45,7 +47,12 @@ def test_the_rule_is_shown_and_a_touching_start_is_red_with_a_way_out(tmp_path):
         layer = app.scene_layers.robot
         red = {n for n, h in layer._nodes.items() if tuple(getattr(h, "color", ())) == TOUCHING}
         assert red and red <= set(session.start_posture_links())
-        session.move_to_free_posture()
+        # the way out is motion: only the page holding motion authority starts it (no
+        # browser here: a stand-in page takes it, and no heartbeat asks it to answer)
+        app.heartbeat.stop()
+        assert session.hold.take(PAGE)
+        with session.hold.acting(PAGE):
+            session.move_to_free_posture()
         assert app.wait_idle(30)
         assert not jog.free.visible
     finally:
