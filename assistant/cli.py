@@ -129,7 +129,7 @@ def _link_args(sub: argparse._SubParsersAction) -> None:
 
 def cmd_emulate(args: argparse.Namespace) -> int:
     from assistant.links.emulators.launch import start
-    from assistant.links.emulators.until_stopped import wait_until_stopped
+    from assistant.links.emulators.until_stopped import install_stop_handlers, wait_until_stopped
 
     if args.remote and args.local_mode:
         print("cellteach: --remote and --local-mode exclude each other", file=sys.stderr)
@@ -142,6 +142,7 @@ def cmd_emulate(args: argparse.Namespace) -> int:
               "--any-port picks free ones)", file=sys.stderr)
         return 2
     try:
+        install_stop_handlers()
         for line in running.lines():
             print(line, flush=True)
         wait_until_stopped()

@@ -41,7 +41,7 @@ from assistant.links.emulators.abb_rws_auth import DigestSessions, Session
 from assistant.links.emulators.abb_rws_events import SubscriptionHub, elog_event, exec_event
 from assistant.links.emulators.arm import EmulatedArm
 from assistant.links.emulators.faults import Faults, Received
-from assistant.links.emulators.until_stopped import wait_until_stopped
+from assistant.links.emulators.until_stopped import install_stop_handlers, wait_until_stopped
 from assistant.robots.framed import controller_view
 from assistant.robots.model import Robot
 
@@ -477,6 +477,7 @@ def main(argv: list[str] | None = None) -> None:
     emu = AbbRwsEmulator(robot, hidden_obstacles=args.hidden_box, host=args.host,
                          port=args.port, time_scale=args.time_scale)
     with emu:
+        install_stop_handlers()
         print(f"ABB RWS emulator on {emu.base_url} (Default User / robotics); Ctrl-C to stop",
               flush=True)
         wait_until_stopped()

@@ -34,7 +34,7 @@ from assistant.links.emulators.arm import EmulatedArm, solve_wire_pose
 from assistant.links.emulators.cartesian import arc_poses, line_poses
 from assistant.links.emulators.faults import Faults, Received
 from assistant.links.emulators.krl_program import KrlError, KrlMotion, parse_dat, parse_motions
-from assistant.links.emulators.until_stopped import wait_until_stopped
+from assistant.links.emulators.until_stopped import install_stop_handlers, wait_until_stopped
 from assistant.robots.model import Robot
 
 Array = np.ndarray
@@ -348,6 +348,7 @@ def main(argv: list[str] | None = None) -> None:
     emu = KukaBridgeEmulator(RV2AJ(), hidden_obstacles=args.hidden_box, host=args.host,
                              port=args.port, time_scale=args.time_scale)
     with emu:
+        install_stop_handlers()
         print(f"KUKA bridge emulator on http://{args.host}:{emu.port}/krl/; Ctrl-C to stop",
               flush=True)
         wait_until_stopped()

@@ -303,7 +303,7 @@ class KukaKrcEmulator:
 
 
 def main(argv: list[str] | None = None) -> None:
-    from assistant.links.emulators.until_stopped import wait_until_stopped
+    from assistant.links.emulators.until_stopped import install_stop_handlers, wait_until_stopped
 
     ap = argparse.ArgumentParser(description="KUKA KR C4 with the cellteach bridge "
                                  "(KR 6 R900 sixx model)")
@@ -312,6 +312,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--time-scale", type=float, default=1.0)
     args = ap.parse_args(argv)
     with KukaKrcEmulator(host=args.host, port=args.port, time_scale=args.time_scale) as emu:
+        install_stop_handlers()
         print(f"KUKA bridge + KR C4 emulator on http://{args.host}:{emu.port}/krl/; "
               "Ctrl-C to stop", flush=True)
         wait_until_stopped()

@@ -40,7 +40,7 @@ from assistant.links.emulators.melfa_program import (
     ProgramSyntaxError,
 )
 from assistant.links.emulators.melfa_sockets import POLL_S, DataLinkPort, LineConnection
-from assistant.links.emulators.until_stopped import wait_until_stopped
+from assistant.links.emulators.until_stopped import install_stop_handlers, wait_until_stopped
 from assistant.links.melfa_protocol import DState
 from assistant.robots.model import Robot
 
@@ -421,6 +421,7 @@ def main(argv: list[str] | None = None) -> None:
                         time_scale=args.time_scale)
     emu.faults.delay_replies(args.reply_delay_ms / 1000.0)
     with emu:
+        install_stop_handlers()
         print(f"MELFA emulator: commands on {args.host}:{emu.port}, COM2: data link on "
               f"{args.host}:{emu.datalink_port()}; Ctrl-C to stop", flush=True)
         wait_until_stopped()

@@ -9,18 +9,24 @@ that stops it with Ctrl-C would fail whenever the test run itself is started tha
 from __future__ import annotations
 
 import signal
-import time
+import threading
+
+_stop = threading.Event()
+
+
+def install_stop_handlers() -> None:
+    """Take SIGINT and SIGTERM from here on: call it before the line that says the emulator is
+    ready, so a Ctrl-C right after that line is a clean stop, not an interrupted start. The
+    handlers only note the request (nothing is raised in the middle of the caller's work)."""
+    def stop(signum: int, frame: object) -> None:
+        _stop.set()
+
+    signal.signal(signal.SIGINT, stop)
+    signal.signal(signal.SIGTERM, stop)
 
 
 def wait_until_stopped() -> None:
     """Block until SIGINT or SIGTERM arrives (the caller's `with` block then closes)."""
-    def stop(signum: int, frame: object) -> None:
-        raise KeyboardInterrupt
-
-    signal.signal(signal.SIGINT, stop)
-    signal.signal(signal.SIGTERM, stop)
-    try:
-        while True:
-            time.sleep(1.0)
-    except KeyboardInterrupt:
+    install_stop_handlers()  # idempotent: for a caller that did not install them first
+    while not _stop.wait(0.2):
         pass

@@ -524,9 +524,10 @@ def main(argv: list[str] | None = None) -> None:
                      script_port=args.script_port, dashboard_port=args.dashboard_port,
                      primary_port=args.primary_port, time_scale=args.time_scale, start_q=q0,
                      faults=faults, local_mode=not args.remote)
-    from assistant.links.emulators.until_stopped import wait_until_stopped
+    from assistant.links.emulators.until_stopped import install_stop_handlers, wait_until_stopped
 
     with emu:
+        install_stop_handlers()
         print(f"UR emulator on {args.host}: rtde :{emu.rtde_port} primary :{emu.primary_port} "
               f"script :{emu.script_port} dashboard :{emu.dashboard_port}; Ctrl-C to stop",
               flush=True)
