@@ -57,7 +57,8 @@ def _solve(obj: list[np.ndarray], img: list[np.ndarray], size: tuple[int, int],
         None, flags=flags,
         criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 100, 1e-10))
     normals = np.array([cv2.Rodrigues(r)[0][:, 2] for r in rvecs])
-    spread = np.degrees(np.arccos(np.clip(normals @ normals.T, -1.0, 1.0))).max()
+    cross = np.linalg.norm(np.cross(normals[:, None, :], normals[None, :, :]), axis=2)
+    spread = np.degrees(np.arctan2(cross, normals @ normals.T)).max()  # atan2: well conditioned
     if spread < min_tilt_spread_deg:
         raise CalibrationError(
             f"the views are degenerate: the board faces the same way in all of them (within "

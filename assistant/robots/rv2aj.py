@@ -328,7 +328,8 @@ class RV2AJ(Robot):
             A = rot_z(q1) @ rot_y(s_pitch) @ _R0
             Mz = A.T @ R
             q6 = np.arctan2(Mz[1, 0], Mz[0, 0])
-            elbow = float(np.arccos(D))
+            # atan2 of sin and cos: the elbow angle without arccos's loss near D = +-1
+            elbow = float(np.arctan2(np.sqrt(max(0.0, (1.0 - D) * (1.0 + D))), D))
             for q3 in (elbow, -elbow) if elbow != 0.0 else (elbow,):
                 q2 = np.arctan2(rw, zw) - np.arctan2(L3 * np.sin(q3), L2 + L3 * np.cos(q3))
                 q5 = s_pitch - q2 - q3

@@ -191,11 +191,18 @@ def _candidates(T: Array, R_ft: Array, T_tf: Array, lower: Array, upper: Array, 
                 c2 = R_tool[2, 0] * t0 + R_tool[2, 1] * t1 + R_tool[2, 2] * t2
                 if not abs(c0 * n0 + c1 * n1 + c2 * 0.0) <= tol:
                     ex = False
+                # M = R_tool^T Rt: angle = atan2(|axis part|, trace - 1), not arccos of
+                # the trace (which loses half the digits at small angles)
                 tr = 0.0
                 for r in range(3):
-                    for c in range(3):
-                        tr += R_tool[r, c] * Rt[r, c]
-                angle[i] = np.arccos(min(max((tr - 1.0) / 2.0, -1.0), 1.0))
+                    tr += R_tool[0, r] * Rt[0, r] + R_tool[1, r] * Rt[1, r] + \
+                        R_tool[2, r] * Rt[2, r]
+                v0 = v1 = v2 = 0.0
+                for r in range(3):
+                    v0 += R_tool[r, 2] * Rt[r, 1] - R_tool[r, 1] * Rt[r, 2]
+                    v1 += R_tool[r, 0] * Rt[r, 2] - R_tool[r, 2] * Rt[r, 0]
+                    v2 += R_tool[r, 1] * Rt[r, 0] - R_tool[r, 0] * Rt[r, 1]
+                angle[i] = np.arctan2(np.sqrt(v0 * v0 + v1 * v1 + v2 * v2), tr - 1.0)
         # Flange pose and the branches of `RV2AJ._ik_flange_all`.
         p0 = px + (R_tool[0, 0] * T_tf[0, 3] + R_tool[0, 1] * T_tf[1, 3]
                    + R_tool[0, 2] * T_tf[2, 3])
@@ -225,7 +232,7 @@ def _candidates(T: Array, R_ft: Array, T_tf: Array, lower: Array, upper: Array, 
             mm3_into(RzRy, R0, A)
             q6 = np.arctan2(A[0, 1] * R[0, 0] + A[1, 1] * R[1, 0] + A[2, 1] * R[2, 0],
                             A[0, 0] * R[0, 0] + A[1, 0] * R[1, 0] + A[2, 0] * R[2, 0])
-            elbow = np.arccos(D)
+            elbow = np.arctan2(np.sqrt(max(0.0, (1.0 - D) * (1.0 + D))), D)  # not arccos
             for sign in (1.0, -1.0):
                 q3 = sign * elbow
                 q2 = np.arctan2(rw, zw) - np.arctan2(L3 * np.sin(q3), L2 + L3 * np.cos(q3))

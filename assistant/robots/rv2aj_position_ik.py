@@ -46,7 +46,8 @@ def _planar(tx: float, ty: float, tz: float, seed: tuple, pitch: float, q6: floa
     wz = tz - L1 - le * np.cos(pitch)
     D = (wr * wr + wz * wz - L2 * L2 - L3 * L3) / (2.0 * L2 * L3)
     reach = abs(D) <= 1.0
-    ac = np.arccos(min(max(D, -1.0), 1.0))
+    Dc = min(max(D, -1.0), 1.0)
+    ac = np.arctan2(np.sqrt((1.0 - Dc) * (1.0 + Dc)), Dc)  # not arccos: exact near +-1
     q3 = ac if abs(ac - seed[2]) <= abs(-ac - seed[2]) else -ac
     q2 = np.arctan2(wr, wz) - np.arctan2(L3 * np.sin(q3), L2 + L3 * np.cos(q3))
     q2 = seed[1] + wrap_pi(q2 - seed[1])

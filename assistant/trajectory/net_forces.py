@@ -38,7 +38,8 @@ def _turn(P: Array, j: int) -> tuple[float, float, float, float]:
     a0, a1, a2 = a0 / na, a1 / na, a2 / na
     b0, b1, b2 = b0 / nb, b1 / nb, b2 / nb
     c = a0 * b0 + a1 * b1 + a2 * b2
-    gam = math.acos(min(max(c, -1.0), 1.0))
+    x0, x1, x2 = a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+    gam = math.atan2(math.sqrt(x0 * x0 + x1 * x1 + x2 * x2), c)  # well conditioned near 0
     s0 = (P[j - 1, 0] + P[j + 1, 0]) - 2.0 * P[j, 0]
     s1 = (P[j - 1, 1] + P[j + 1, 1]) - 2.0 * P[j, 1]
     s2 = (P[j - 1, 2] + P[j + 1, 2]) - 2.0 * P[j, 2]

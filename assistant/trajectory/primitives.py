@@ -207,10 +207,9 @@ def finished_fit(prims: list[Primitive], nodes: Array, breaks: int) -> Primitive
         if a.kind == PrimitiveKind.LINE and b.kind == PrimitiveKind.LINE:
             tangency.append(None)
         else:
-            c = float(a.tangent_end @ b.tangent_start)
-            # np.clip's bounds as floats (np.clip of one number costs ~5 us); NaN stays NaN
-            c = c if c != c else min(1.0, max(-1.0, c))
-            tangency.append(float(np.arccos(c)))
+            # atan2(|a x b|, a . b): exact near 0 where arccos of the dot loses half the digits
+            ta, tb = a.tangent_end, b.tangent_start
+            tangency.append(float(np.arctan2(np.linalg.norm(np.cross(ta, tb)), ta @ tb)))
     return PrimitiveFit(prims, dev, tangency, breaks)
 
 

@@ -23,6 +23,7 @@ from assistant.links.arm_motion import Advance, PathFollower
 from assistant.links.emulators.faults import Faults
 from assistant.links.timing import time_parametrize
 from assistant.robots.model import IKFailure, Robot
+from assistant.transforms import rotation_angle
 
 Array = np.ndarray
 
@@ -278,7 +279,7 @@ def solve_wire_pose(robot: Robot, T_base_tool: Array, seed: Array,
     if not res.ok and res.failure == IKFailure.ORIENTATION and \
             res.nearest_T_base_tool is not None:
         R_err = res.nearest_T_base_tool[:3, :3].T @ np.asarray(T_base_tool)[:3, :3]
-        angle = float(np.arccos(np.clip((np.trace(R_err) - 1.0) / 2.0, -1.0, 1.0)))
+        angle = rotation_angle(R_err)
         if angle <= project_tol_rad:
             res = robot.ik(res.nearest_T_base_tool, seed)
     if not res.ok:
