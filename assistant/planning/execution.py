@@ -32,6 +32,7 @@ from __future__ import annotations
 import contextlib
 import statistics
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from enum import Enum
 
@@ -230,24 +231,33 @@ class MissionExecutor:
     # ------------------------------------------------------------------ main loop
     def _go(self, progress: Progress | None) -> ExecutionReport:
         self._progress = progress or Progress("execute mission")
+        return self._ended(self._explore_and_finish, "end")
+
+    def _explore_and_finish(self) -> None:
+        rep = self.report
+        if self._resume_pending:
+            self._resume_pending = False
+            self._resume_piece()
+        if self._phase == _Phase.EXPLORE:
+            if self._queue is None:
+                self._start_explore()
+            self._drive_queue(final=False)
+            self._phase, self._queue = _Phase.FINAL, None
+            rep.log.append("goal reached with the exploring plan")
+        if self._phase == _Phase.FINAL and self.config.plan_final:
+            self._final_phase()
+        rep.end = EndReason.COMPLETED
+        rep.reason = "mission executed; " + self._final_words()
+        self._phase = _Phase.DONE
+
+    def _ended(self, body: Callable[[], None], what: str) -> ExecutionReport:
+        """Run `body` while this executor drives; every way out ends the report with a
+        reason (an `_End`, a cancellation) and a log line."""
         rep = self.report
         rep.end, rep.reason = None, ""
         self._running = True
         try:
-            if self._resume_pending:
-                self._resume_pending = False
-                self._resume_piece()
-            if self._phase == _Phase.EXPLORE:
-                if self._queue is None:
-                    self._start_explore()
-                self._drive_queue(final=False)
-                self._phase, self._queue = _Phase.FINAL, None
-                rep.log.append("goal reached with the exploring plan")
-            if self._phase == _Phase.FINAL and self.config.plan_final:
-                self._final_phase()
-            rep.end = EndReason.COMPLETED
-            rep.reason = "mission executed; " + self._final_words()
-            self._phase = _Phase.DONE
+            body()
         except _End as end:
             rep.end, rep.reason = end.reason, end.message
         except Cancelled:
@@ -255,7 +265,7 @@ class MissionExecutor:
             rep.end, rep.reason = EndReason.CANCELLED, f"cancelled at {self._where()}"
         finally:
             self._running = False
-        rep.log.append(f"end: {rep.end.value} - {rep.reason}")
+        rep.log.append(f"{what}: {rep.end.value} - {rep.reason}")
         return rep
 
     def drive_final(self, progress: Progress | None = None) -> ExecutionReport:
@@ -269,36 +279,28 @@ class MissionExecutor:
         if not self.link.connected:
             self.link.connect()
         self._progress = progress or Progress("drive the final program")
-        rep.end, rep.reason = None, ""
-        self._running = True
+        return self._ended(self._drive_final_once, "final drive end")
+
+    def _drive_final_once(self) -> None:
+        rep = self.report
+        final = rep.final_plan
+        assert final is not None
+        items = self._approach(self._current_joints(), final.pieces[0].q_start,
+                               "to the final program's start")
+        self._queue = items + [_Item(p, False, self._world_version()) for p in final.pieces]
+        self._index, self._phase = 0, _Phase.FINAL
         try:
-            final = rep.final_plan
-            items = self._approach(self._current_joints(), final.pieces[0].q_start,
-                                   "to the final program's start")
-            self._queue = items + [_Item(p, False, self._world_version()) for p in final.pieces]
-            self._index, self._phase = 0, _Phase.FINAL
-            try:
-                self._drive_queue(final=True)
-            except _RoundFailed:
-                self._queue = None
-                self._plan_final()
-                raise _End(EndReason.FINAL_NOT_VALIDATED,
-                           "the robot met something new on the final program: it is learnt "
-                           "and the final program planned again round it - drive it again "
-                           "to check it") from None
-            rep.final_validated = True
-            rep.end, rep.reason = EndReason.COMPLETED, "mission executed; " + \
-                self._final_words()
-            self._phase = _Phase.DONE
-        except _End as end:
-            rep.end, rep.reason = end.reason, end.message
-        except Cancelled:
-            self._safe_stop()
-            rep.end, rep.reason = EndReason.CANCELLED, f"cancelled at {self._where()}"
-        finally:
-            self._running = False
-        rep.log.append(f"final drive end: {rep.end.value} - {rep.reason}")
-        return rep
+            self._drive_queue(final=True)
+        except _RoundFailed:
+            self._queue = None
+            self._plan_final()
+            raise _End(EndReason.FINAL_NOT_VALIDATED,
+                       "the robot met something new on the final program: it is learnt "
+                       "and the final program planned again round it - drive it again "
+                       "to check it") from None
+        rep.final_validated = True
+        rep.end, rep.reason = EndReason.COMPLETED, "mission executed; " + self._final_words()
+        self._phase = _Phase.DONE
 
     def _final_words(self) -> str:
         rep = self.report
