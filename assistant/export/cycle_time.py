@@ -191,7 +191,7 @@ _MOVE_KINDS = {k.value for k in MoveKind}
 
 # ============================================================================ prediction
 @dataclass
-class _Seg:
+class ProfiledMove:
     """One move on its way to a profile."""
 
     ins_index: int
@@ -206,6 +206,30 @@ class _Seg:
     u_end: float = 0.0  # junction speed into the next move (Cartesian blends)
     seconds: float = 0.0
     ell_t: tuple[Array, Array] | None = None  # (t, TCP arc length) samples
+    sigma_t: tuple[Array, Array] | None = None  # (t, joint-path fraction): joint moves
+
+    def sample_times(self) -> Array:
+        """Time (s from the move's start) at which the arm passes each of the move's samples
+        `q`, on the move's profile; a blend's saving shortens the move evenly."""
+        n = len(self.q)
+        if n < 2 or self.seconds <= 0.0:
+            return np.zeros(n)
+        if self.cartesian and self.ell_t is not None:
+            t, e = self.ell_t
+            ell = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(self.tcp, axis=0), axis=1))]
+            out = np.interp(ell, np.maximum.accumulate(e), t)
+        elif self.sigma_t is not None:
+            t, sig = self.sigma_t
+            dq = self.q[-1] - self.q[0]
+            axis = int(np.argmax(np.abs(dq)))
+            frac = np.clip((self.q[:, axis] - self.q[0, axis]) / dq[axis], 0.0, 1.0)
+            out = np.interp(frac, np.maximum.accumulate(sig), t)
+        else:
+            out = np.linspace(0.0, self.seconds, n)
+        full = float(out[-1])
+        out = out * (self.seconds / full) if full > 0.0 else np.linspace(0.0, self.seconds, n)
+        out[0], out[-1] = 0.0, self.seconds
+        return np.maximum.accumulate(out)
 
 
 def predict_cycle_time(program: NeutralProgram, robot: Robot,
@@ -222,12 +246,22 @@ def predict_cycle_time(program: NeutralProgram, robot: Robot,
     """
     t_start = time.perf_counter()
     lim = limits or CycleTimeLimits()
+    segs = profiled_moves(program, robot, lim, simulation=simulation)
+    entries = _entries(program, segs, lim)
+    total = float(sum(e.seconds for e in entries))
+    return CycleTime(tuple(entries), total, lim, time.perf_counter() - t_start)
+
+
+def profiled_moves(program: NeutralProgram, robot: Robot, lim: CycleTimeLimits, *,
+                   simulation: Simulation | None = None) -> list[ProfiledMove]:
+    """Every move of `program` with its time profile: what `predict_cycle_time` sums, and
+    what the simulated robot follows to run at the program's pace (`pace.py`)."""
     v_max, a_max, j_max = lim.joint_limits(robot)
     _check_program(program)
     sim = simulation or simulate(program, _path_follower(robot), max_step=lim.path_step)
     if len(sim.moves) != len(program.moves()):
         raise ExportError("the simulation given is not this program's")
-    segs: list[_Seg] = []
+    segs: list[ProfiledMove] = []
     speed_j, speed_c, accel = 1.0, None, 1.0
     moves = program.moves()
     ins_index = [i for i, ins in enumerate(program.instructions) if isinstance(ins, Move)]
@@ -244,21 +278,19 @@ def predict_cycle_time(program: NeutralProgram, robot: Robot,
                 raise ExportError("a Cartesian move without a programmed speed", step=m.step)
             cap = min(speed_c, _joint_speed_cap(sm.q, sm.tcp, v_max, a_max * accel))
             j_tcp = math.inf if lim.tcp_jerk is None else lim.tcp_jerk
-            segs.append(_Seg(ins_index[k], m, sm.tcp, sm.q, length, cap,
-                             lim.tcp_acceleration * accel, j_tcp, True))
+            segs.append(ProfiledMove(ins_index[k], m, sm.tcp, sm.q, length, cap,
+                                     lim.tcp_acceleration * accel, j_tcp, True))
         else:  # joint moves; Cartesian moves that only turn the tool are timed like them
             sj = speed_j if m.kind == MoveKind.JOINT else 1.0
-            segs.append(_Seg(ins_index[k], m, sm.tcp, sm.q, length, v_max * sj, a_max * accel,
-                             j_max, False))
+            segs.append(ProfiledMove(ins_index[k], m, sm.tcp, sm.q, length, v_max * sj,
+                                     a_max * accel, j_max, False))
     _junction_speeds(program, segs)
     _cartesian_profiles(segs)
     for s in segs:
         if not s.cartesian:
             _joint_profile(s)
     _joint_blends(program, segs)
-    entries = _entries(program, segs, lim)
-    total = float(sum(e.seconds for e in entries))
-    return CycleTime(tuple(entries), total, lim, time.perf_counter() - t_start)
+    return segs
 
 
 def _path_follower(robot: Robot) -> Robot:
@@ -323,7 +355,7 @@ def _joint_speed_cap(q: Array, tcp: Array, v: Array, a: Array) -> float:
     return cap
 
 
-def _junction_speeds(program: NeutralProgram, segs: list[_Seg]) -> None:
+def _junction_speeds(program: NeutralProgram, segs: list[ProfiledMove]) -> None:
     """Speeds (m/s) at which blended Cartesian moves pass into the next one."""
     for k in range(len(segs) - 1):
         a, b = segs[k], segs[k + 1]
@@ -337,7 +369,7 @@ def _junction_speeds(program: NeutralProgram, segs: list[_Seg]) -> None:
         a.u_end = u
 
 
-def _adjacent(program: NeutralProgram, a: _Seg, b: _Seg) -> bool:
+def _adjacent(program: NeutralProgram, a: ProfiledMove, b: ProfiledMove) -> bool:
     """Nothing but comments between the two moves (a gripper action or wait stops the arm)."""
     between = program.instructions[a.ins_index + 1:b.ins_index]
     return all(isinstance(i, Comment) for i in between)
@@ -375,7 +407,7 @@ def _sample(traj: Trajectory, axis: int, n: int = 64) -> tuple[Array, Array]:
     return t, np.array([traj.at_time(float(x))[0][axis] for x in t])
 
 
-def _cartesian_profiles(segs: list[_Seg]) -> None:
+def _cartesian_profiles(segs: list[ProfiledMove]) -> None:
     """1-D profiles along each Cartesian move; junction speeds lowered until every profile
     stays inside its move (no overshoot past the junction, no backing up)."""
     cart = [k for k, s in enumerate(segs) if s.cartesian]
@@ -412,7 +444,7 @@ def _cartesian_profiles(segs: list[_Seg]) -> None:
         segs[k].ell_t = _sample(trajs[k], 0)
 
 
-def _joint_profile(s: _Seg) -> None:
+def _joint_profile(s: ProfiledMove) -> None:
     q0, q1 = s.q[0], s.q[-1]
     dq = q1 - q0
     if float(np.max(np.abs(dq))) < 1e-12:
@@ -425,11 +457,12 @@ def _joint_profile(s: _Seg) -> None:
     axis = int(np.argmax(np.abs(dq)))
     t, p = _sample(traj, axis)
     sigma = np.clip((p - q0[axis]) / dq[axis], 0.0, 1.0)
+    s.sigma_t = (t, sigma)
     ell = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(s.tcp, axis=0), axis=1))]
     s.ell_t = (t, np.interp(sigma, np.linspace(0.0, 1.0, len(ell)), ell))
 
 
-def _joint_blends(program: NeutralProgram, segs: list[_Seg]) -> None:
+def _joint_blends(program: NeutralProgram, segs: list[ProfiledMove]) -> None:
     """Blends at joint moves: subtract the time saved within the blend zone (module doc)."""
     for k in range(len(segs) - 1):
         a, b = segs[k], segs[k + 1]
@@ -457,7 +490,8 @@ def _time_at(ell_t: tuple[Array, Array], ell: float) -> tuple[float, float]:
     return ti, float(np.interp(ti, t, speed))
 
 
-def _entries(program: NeutralProgram, segs: list[_Seg], lim: CycleTimeLimits) -> list[StepTime]:
+def _entries(program: NeutralProgram, segs: list[ProfiledMove],
+             lim: CycleTimeLimits) -> list[StepTime]:
     by_index = {s.ins_index: s for s in segs}
     out: list[StepTime] = []
     for i, ins in enumerate(program.instructions):

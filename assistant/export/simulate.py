@@ -88,7 +88,7 @@ def simulate(program: NeutralProgram, robot: Robot, q_start: Array | None = None
     for k, m in enumerate(moves):
         n = None if samples is None else samples[k]
         qs = _simulate_move(robot, m, q, max_step, n, mismatches)
-        out.append(SimulatedMove(k, m.step, m.kind, _tcp(robot, qs), qs))
+        out.append(SimulatedMove(k, m.step, m.kind, tcp_points(robot, qs), qs))
         q = qs[-1]
     return Simulation(out, tuple(mismatches))
 
@@ -351,5 +351,6 @@ def _orientation_track(keys: list[Array], params: list[float]):
     return track
 
 
-def _tcp(robot: Robot, qs: Array) -> Array:
+def tcp_points(robot: Robot, qs: Array) -> Array:
+    """TCP positions (N, 3) of joint samples, base frame."""
     return np.asarray(robot.batch_fk(np.asarray(qs, dtype=float)).positions, dtype=float)

@@ -86,6 +86,18 @@ class RobotLink(abc.ABC):
         the configuration and path index where the robot stopped.
         """
 
+    def move_paced(self, joint_path: Array, t: Array, hold: Array, *,
+                   speed_scale: float = 1.0) -> LinkEvent:
+        """Move through the joint configurations at the program's pace: reach sample i at
+        `t[i]` s and stand there `hold[i]` s (a gripper action, a wait), as the controller
+        will run the program (`export.pace`).
+
+        The simulated robot follows the pace, so at 1x a run lasts the predicted cycle time.
+        A controller's own interpolator times its motions, so a controller link runs
+        `move_path` at `speed_scale` (the default here).
+        """
+        return self.move_path(joint_path, speed_scale=speed_scale)
+
     @abc.abstractmethod
     def stop(self) -> None:
         """Stop as soon as possible (from any thread)."""

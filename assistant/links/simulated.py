@@ -15,7 +15,7 @@ from __future__ import annotations
 import itertools
 import re
 import threading
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 
 import numpy as np
 
@@ -23,7 +23,14 @@ from assistant.collision.checker import CollisionChecker
 from assistant.collision.reports import ObstacleView
 from assistant.links.arm_motion import PathFollower
 from assistant.links.link import LinkError, LinkEvent, LinkEventKind, RobotLink
-from assistant.links.timing import Clock, RealClock, time_parametrize, validate_path
+from assistant.links.timing import (
+    Clock,
+    RealClock,
+    TimedPath,
+    paced,
+    time_parametrize,
+    validate_path,
+)
 from assistant.robots.model import Robot
 
 Array = np.ndarray
@@ -31,6 +38,9 @@ Array = np.ndarray
 #: Wall seconds per step of the motion loop at most: how soon a stop takes (and how often the
 #: pose is told) however slow the simulation runs.
 MAX_WALL_STEP_S = 0.02
+#: A motion step moves at most this many steps' time at once when the process fell behind
+#: (a stall longer than that is not made up: the arm does not jump).
+CATCH_UP_STEPS = 5
 
 
 class SimulatedRobot(RobotLink):
@@ -150,6 +160,27 @@ class SimulatedRobot(RobotLink):
 
     def move_path(self, joint_path: Array, *, speed_scale: float = 1.0) -> LinkEvent:
         path = validate_path(self.robot, joint_path)
+        time_parametrize(path[:1], self.robot.limits.velocity, speed_scale)  # checks the scale
+        return self._drive(path, lambda full: time_parametrize(
+            full, self.robot.limits.velocity, speed_scale))
+
+    def move_paced(self, joint_path: Array, t: Array, hold: Array, *,
+                   speed_scale: float = 1.0) -> LinkEvent:
+        """Follows the program's pace at 100 % override (`speed_scale` is for controllers,
+        which time their own motions); the way in from where the arm stands, if any, at the
+        joints' speed limits."""
+        path = validate_path(self.robot, joint_path)
+        timed = paced(path, t, hold)
+
+        def with_lead(full: Array) -> TimedPath:
+            if len(full) == len(path):
+                return timed
+            lead = time_parametrize(full[:2], self.robot.limits.velocity, 1.0).duration
+            return TimedPath(np.vstack([full[:1], timed.q]), np.r_[0.0, timed.t + lead],
+                             np.r_[0, timed.source + 1])
+        return self._drive(path, with_lead)
+
+    def _drive(self, path: Array, timing: Callable[[Array], TimedPath]) -> LinkEvent:
         if not self._connected:
             raise LinkError("simulated robot is not connected; call connect() first")
         # Cleared before taking the lock, so a stop or button press racing the start counts.
@@ -158,7 +189,7 @@ class SimulatedRobot(RobotLink):
         if not self._moving.acquire(blocking=False):
             raise LinkError("the robot is already moving")
         try:
-            return self._run(path, speed_scale)
+            return self._run(path, timing)
         finally:
             self._moving.release()
 
@@ -172,19 +203,24 @@ class SimulatedRobot(RobotLink):
         return unique
 
     # ------------------------------------------------------------------ motion loop
-    def _run(self, path: Array, speed_scale: float) -> LinkEvent:
+    def _run(self, path: Array, timing: Callable[[Array], TimedPath]) -> LinkEvent:
         # The robot first goes from where it is to the path's first point (index 0).
         lead = 0 if np.allclose(path[0], self._q, atol=1e-9) else 1
         full = path if lead == 0 else np.vstack([self._q[None], path])
-        timed = time_parametrize(full, self.robot.limits.velocity, speed_scale)
+        timed = timing(full)
         follower = PathFollower(timed, self._checker)
 
         def index(seg: int) -> int:
-            return int(max(0, seg - lead))
+            return int(max(0, timed.path_index(min(seg, len(timed.q) - 1)) - lead))
 
         start_hit = follower.check_start()
         if start_hit is not None:
             return self._finish_collision(follower.q, 0, start_hit.report, started=True)
+        # The arm is where the clock says: each step waits for its due time and then moves
+        # as far as the clock went, so the loop's own work (checks, listeners) does not slow
+        # the run down (a 1x run lasts its time); a stalled process catches up at most
+        # CATCH_UP_STEPS steps at once.
+        t_start = self.clock.now()
         while True:
             if self._stop.is_set():
                 return self._finish(LinkEventKind.STOPPED, index(follower.segment),
@@ -192,8 +228,15 @@ class SimulatedRobot(RobotLink):
             if self._indicate.is_set():
                 return self._finish(LinkEventKind.COLLISION_INDICATED, index(follower.segment),
                                     self._indicate_msg, {"source": "operator"})
-            adv = follower.advance(self._step_s())
-            self.clock.sleep(adv.used_s)
+            left = follower.timed.duration - follower.t
+            step = min(self._step_s(), left) if left > 0.0 else self._step_s()
+            wait = t_start + follower.t + step - self.clock.now()
+            if wait > 0.0:
+                self.clock.sleep(wait)
+            dt = min(self.clock.now() - t_start - follower.t, CATCH_UP_STEPS * step)
+            adv = follower.advance(max(dt, step))
+            if dt > CATCH_UP_STEPS * step - 1e-12:  # behind: the clock restarts here
+                t_start = self.clock.now() - follower.t
             self._q = adv.q
             if adv.collision is not None:
                 if self.wait_for_operator:

@@ -66,10 +66,19 @@ class VirtualClock:
 
 @dataclass(frozen=True)
 class TimedPath:
-    """Joint vertices `q` (N, dof) reached at cumulative times `t` (N,), t[0] = 0."""
+    """Joint vertices `q` (N, dof) reached at cumulative times `t` (N,), t[0] = 0.
+
+    `source[i]`: the caller's path index of vertex i (None: the same index). A hold (the arm
+    standing at a vertex for a gripper action) is the vertex twice, both with one source.
+    """
 
     q: Array
     t: Array
+    source: Array | None = None
+
+    def path_index(self, vertex: int) -> int:
+        """The caller's path index of vertex (or segment) `vertex`."""
+        return int(vertex if self.source is None else self.source[int(vertex)])
 
     @property
     def duration(self) -> float:
@@ -128,6 +137,32 @@ def validate_path(robot: Robot, joint_path: Array) -> Array:
         raise LinkError(f"target {i} of the joint path is outside the joint limits ({why}); "
                         "nothing was sent")
     return P
+
+
+def paced(path: Array, t: Array, hold: Array, override: float = 1.0) -> TimedPath:
+    """The path at the program's pace: vertex i reached at `t[i]` and held `hold[i]` seconds,
+    every time stretched by 1 / `override` (the pendant's speed override, in (0, 1])."""
+    if not 0.0 < override <= 1.0:
+        raise LinkError(f"speed override must be in (0, 1], got {override}")
+    P = np.asarray(path, dtype=float)
+    T = np.asarray(t, dtype=float)
+    H = np.asarray(hold, dtype=float)
+    if T.shape != (len(P),) or H.shape != (len(P),) or not (np.all(np.isfinite(T))
+                                                           and np.all(np.isfinite(H))):
+        raise LinkError(f"pace must give a finite time and hold per path point ({len(P)})")
+    if np.any(np.diff(T) < 0.0) or np.any(H < 0.0):
+        raise LinkError("pace times must not run backwards")
+    rep = np.where(H > 0.0, 2, 1)
+    src = np.repeat(np.arange(len(P)), rep)
+    q = P[src]
+    times = np.empty(len(src))
+    k = 0
+    for i in range(len(P)):
+        times[k] = T[i]
+        if rep[i] == 2:
+            times[k + 1] = T[i] + H[i]
+        k += rep[i]
+    return TimedPath(q, (times - times[0]) / override, src)
 
 
 def time_parametrize(path: Array, velocity: Array, speed_scale: float = 1.0) -> TimedPath:

@@ -43,6 +43,7 @@ from assistant.mission.model import Mission
 from assistant.planning.backoff import leads_on, retreat_candidates, retreat_index, splice
 from assistant.planning.config import ExecutionConfig
 from assistant.planning.mission_planner import MissionPlan, MissionPlanner, TransferResult
+from assistant.planning.pace_drive import PaceCache
 from assistant.planning.pieces import PieceKind, PlanPiece
 from assistant.progress import Cancelled, Progress
 
@@ -132,6 +133,9 @@ class _Item:
     piece: PlanPiece
     repairable: bool
     world_version: tuple[int, int]
+    #: Part of the program: driven at its pace. The way to the program's start is not (no
+    #: program contains it): timed by the joints' limits at the run's speed.
+    in_program: bool = True
 
 
 class _End(Exception):
@@ -162,6 +166,7 @@ class MissionExecutor:
         self.link = link
         self.config = config or ExecutionConfig()
         self.robot = planner.robot
+        self._paces = PaceCache(planner.robot)
         self.radii = self.robot.arm_radii()
         self.report = ExecutionReport()
         self._mission: Mission | None = None
@@ -380,7 +385,7 @@ class MissionExecutor:
         if not tr.ok:
             raise _End(EndReason.PLAN_FAILED, f"{label}: {tr.report.reason}")
         assert tr.piece is not None
-        return [_Item(tr.piece, True, self._world_version())]
+        return [_Item(tr.piece, True, self._world_version(), in_program=False)]
 
     # ------------------------------------------------------------------ pieces
     def _drive_queue(self, *, final: bool) -> None:
@@ -401,7 +406,7 @@ class MissionExecutor:
             self._index += 1
 
     def _drive_application(self, item: _Item, final: bool) -> None:
-        ev = self._move(item.piece.dense(), final)
+        ev = self._move(item.piece.dense(), final, item)
         if ev.kind == LinkEventKind.COLLISION_INDICATED:
             self._record(ev, item.piece)
             raise _End(EndReason.MISSION_COLLIDES,
@@ -420,7 +425,7 @@ class MissionExecutor:
         # again - the robot would shuttle between two indications until the budget ends.
         history: Array | None = None
         while True:
-            ev = self._move(path, final)
+            ev = self._move(path, final, item)
             if ev.kind == LinkEventKind.REACHED:
                 return
             if ev.kind != LinkEventKind.COLLISION_INDICATED:
@@ -544,12 +549,19 @@ class MissionExecutor:
             self._queue[self._index] = new
 
     # ------------------------------------------------------------------ link
-    def _move(self, path: Array, final: bool) -> LinkEvent:
+    def _move(self, path: Array, final: bool, item: _Item) -> LinkEvent:
+        """Drive `path` (ending on the item's piece) at the program's pace where it is the
+        piece (`pace_drive`); a controller link times it itself at the run's speed."""
         speed = self.config.speed_final if final else self.config.speed_exploring
         assert self._progress is not None
         self._progress.check()
+        path = np.asarray(path, dtype=float)
+        pace = self._paces.drive_pace(path, item.piece, speed) if item.in_program else None
         try:
-            ev = self.link.move_path(np.asarray(path, dtype=float), speed_scale=speed)
+            if pace is None:
+                ev = self.link.move_path(path, speed_scale=speed)
+            else:
+                ev = self.link.move_paced(path, pace.t, pace.hold, speed_scale=speed)
         except LinkLost as exc:
             raise _End(EndReason.LINK_LOST, f"connection lost: {exc}") from exc
         except LinkError as exc:

@@ -146,9 +146,14 @@ class FlakyLink:
         return self.inner.connected
 
     def move_path(self, joint_path, *, speed_scale=1.0):
+        return self.move_paced(joint_path, None, None, speed_scale=speed_scale)
+
+    def move_paced(self, joint_path, t, hold, *, speed_scale=1.0):
         self.calls += 1
         if self.calls != self.fail_on:
-            return self.inner.move_path(joint_path, speed_scale=speed_scale)
+            if t is None:
+                return self.inner.move_path(joint_path, speed_scale=speed_scale)
+            return self.inner.move_paced(joint_path, t, hold, speed_scale=speed_scale)
         half = np.asarray(joint_path)[: max(2, len(joint_path) // 2)]
         self.inner.move_path(half, speed_scale=speed_scale)
         self.inner.close()
