@@ -38,9 +38,10 @@ Array = np.ndarray
 #: Wall seconds per step of the motion loop at most: how soon a stop takes (and how often the
 #: pose is told) however slow the simulation runs.
 MAX_WALL_STEP_S = 0.02
-#: A motion step moves at most this many steps' time at once when the process fell behind
-#: (a stall longer than that is not made up: the arm does not jump).
-CATCH_UP_STEPS = 5
+#: A motion step makes up at most this much wall time when the process fell behind (the
+#: page's listeners on a loaded machine: 0.1-0.2 s); a longer stall is not made up, so the
+#: arm never jumps further than a real one moves in that time.
+CATCH_UP_WALL_S = 0.5
 
 
 class SimulatedRobot(RobotLink):
@@ -219,8 +220,9 @@ class SimulatedRobot(RobotLink):
         # The arm is where the clock says: each step waits for its due time and then moves
         # as far as the clock went, so the loop's own work (checks, listeners) does not slow
         # the run down (a 1x run lasts its time); a stalled process catches up at most
-        # CATCH_UP_STEPS steps at once.
+        # CATCH_UP_WALL_S at once.
         t_start = self.clock.now()
+        catch_up = CATCH_UP_WALL_S * float(getattr(self.clock, "time_scale", 1.0))
         while True:
             if self._stop.is_set():
                 return self._finish(LinkEventKind.STOPPED, index(follower.segment),
@@ -233,9 +235,9 @@ class SimulatedRobot(RobotLink):
             wait = t_start + follower.t + step - self.clock.now()
             if wait > 0.0:
                 self.clock.sleep(wait)
-            dt = min(self.clock.now() - t_start - follower.t, CATCH_UP_STEPS * step)
-            adv = follower.advance(max(dt, step))
-            if dt > CATCH_UP_STEPS * step - 1e-12:  # behind: the clock restarts here
+            behind = self.clock.now() - t_start - follower.t
+            adv = follower.advance(min(max(behind, step), max(catch_up, step)))
+            if behind > catch_up:  # too far behind: the clock restarts here
                 t_start = self.clock.now() - follower.t
             self._q = adv.q
             if adv.collision is not None:

@@ -12,59 +12,18 @@ from __future__ import annotations
 
 import time
 
-import numpy as np
 import pytest
+from run_watch import Watch, program_seconds, revisits, taught_points
 from thesis_page import press_collision_at_each_halt
 from web_ui import UI
 
 from assistant.session import Session
-from assistant.session.events import CollisionRecorded, RobotMoved
 from workflow.machine import Mode
 
 pytestmark = pytest.mark.browser
 
 #: Planning, a run at 1x with its halts and the final drive on a loaded 2-core machine.
 LONG_MS = 240_000
-#: A taught location is reached within this (m): the arm stops on it to well under 1 mm.
-AT_M = 0.001
-#: ... left once the TCP is this far away (m), and revisited if it comes this close again.
-LEFT_M = 0.02
-REVISIT_M = 0.005
-
-
-class Watch:
-    """Every pose the session publishes (wall time, TCP in the world) and every Collision!."""
-
-    def __init__(self, session: Session):
-        self.session = session
-        self.robot = session.robot
-        self.T_wb = session.T_world_base()
-        self.poses: list[tuple[float, np.ndarray]] = []
-        self.collisions: list[float] = []
-        session.bus.subscribe(self._on)
-
-    def _on(self, ev: object) -> None:
-        if isinstance(ev, RobotMoved):
-            p = self.T_wb @ np.r_[self.robot.fk(np.asarray(ev.q, dtype=float))[:3, 3], 1.0]
-            self.poses.append((time.monotonic(), p[:3]))
-        elif isinstance(ev, CollisionRecorded):
-            self.collisions.append(time.monotonic())
-
-
-def _revisits(watch: Watch, taught: dict[str, np.ndarray], after: float) -> list[str]:
-    """Taught locations reached and left before `after`, come close again after it."""
-    before = [p for t, p in watch.poses if t <= after]
-    later = [p for t, p in watch.poses if t > after]
-    out = []
-    for name, x in taught.items():
-        d = np.array([np.linalg.norm(p - x) for p in before])
-        reached = np.nonzero(d <= AT_M)[0]
-        if not len(reached) or not np.any(d[reached[0]:] >= LEFT_M):
-            continue  # never reached, or still there: not completed work
-        back = min((float(np.linalg.norm(p - x)) for p in later), default=np.inf)
-        if back <= REVISIT_M:
-            out.append(f"{name} ({back * 1000:.1f} mm)")
-    return out
 
 
 def test_after_the_last_collision_nothing_is_repeated_and_1x_is_the_programs_pace(
@@ -86,11 +45,9 @@ def test_after_the_last_collision_nothing_is_repeated_and_1x_is_the_programs_pac
     ui.wait_text("Goal reached: the robot is at P10", timeout=LONG_MS)
     assert presses > 0 and len(watch.collisions) == presses  # the hidden O3 was met
 
-    taught = {}
-    for name, loc in session.locations.items():
-        taught[name] = np.asarray(loc.T_world_tool, dtype=float)[:3, 3]
+    taught = taught_points(session)
     assert {"P1", "P10"} <= set(taught)
-    assert _revisits(watch, taught, watch.collisions[-1]) == []
+    assert revisits(watch, taught, watch.collisions[-1]) == []
 
     # The holder drives the final program once, at 1x real time.
     n_before = len(watch.poses)
@@ -104,11 +61,6 @@ def test_after_the_last_collision_nothing_is_repeated_and_1x_is_the_programs_pac
     ui.click("Next")
     ui.wait_enabled("Download", timeout=LONG_MS)
     predicted = session.program.cycle_time.total_s
-    drive = watch.poses[n_before:]
-    p1, p10 = taught["P1"], taught["P10"]
-    at_p1 = [t for t, p in drive if np.linalg.norm(p - p1) <= AT_M]
-    at_p10 = [t for t, p in drive if np.linalg.norm(p - p10) <= AT_M]
-    assert at_p1 and at_p10, "the final drive did not pass P1 and end at P10"
-    # from the moment the arm leaves P1 (the program's start) to its arrival at P10
-    ran = min(t for t in at_p10 if t > at_p1[-1]) - at_p1[-1]
+    ran = program_seconds(watch, taught["P1"], taught["P10"], n_before)
+    print(f"final drive P1 -> P10 at 1x: {ran:.2f} s, predicted {predicted:.2f} s")
     assert ran == pytest.approx(predicted, rel=0.10), (ran, predicted)
