@@ -83,6 +83,9 @@ class App:
     _swap_lock: threading.Lock = field(default_factory=threading.Lock, init=False)
     #: An execution just finished well: its final PlanReady is no news to announce.
     _executed: bool = field(init=False, default=False)
+    #: The session's mode as last dispatched: a plan made while the robot moves is the run's
+    #: own (its exploring plan, a re-plan), not news to announce.
+    _mode: str = field(init=False, default="")
 
     def __post_init__(self) -> None:
         operator_pace(self._session)
@@ -166,8 +169,10 @@ class App:
         if isinstance(ev, SaveStateChanged):
             self.toolbar.saved(ev.saved, ev.reason)
         self.scene_layers.on_event(ev)
-        if isinstance(ev, StateChanged) and ev.mode == "moving":
-            self.notifier.clear_done()  # a run starts: "planned" and the like are history
+        if isinstance(ev, StateChanged):
+            if ev.mode == "moving" and self._mode != "moving":
+                self.notifier.clear_done()  # a run starts: "planned" and the like are history
+            self._mode = ev.mode
         if isinstance(ev, StateChanged):
             entered = ev.state != self._shown_state
             if entered:  # the step moved on: earlier errors are stale
@@ -198,7 +203,7 @@ class App:
         elif isinstance(ev, PlanReady):
             if self._executed:  # the verified final plan of a run: announced as the goal
                 self._executed = False
-            else:
+            elif self._mode != "moving":
                 self.notifier.success("The mission is planned: the path is drawn in the scene.")
         elif isinstance(ev, ProgramReady):
             self.notifier.success(f"{ev.dialect} program written: {', '.join(ev.files)}")

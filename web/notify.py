@@ -52,9 +52,11 @@ class Notifier:
         #: "Done" notifications on screen, until a new phase begins (`clear_done`).
         self._done: list[viser.NotificationHandle] = []
         self._status_kind = ""
+        #: Pages whose own status line shows a "Done" (the action was theirs).
+        self._done_pages: dict[int, viser.ClientHandle] = {}
         #: Called with (kind, text, client) for every message (the toolbar's status lines:
-        #: client None is the shared one); kind "clear" with "" and client None when shown
-        #: messages are superseded (every status line forgets them).
+        #: client None is the shared one); kind "clear" with "" when shown messages are
+        #: superseded (client None: every status line forgets them; else that page's own).
         self.on_message: Callable[[str, str, viser.ClientHandle | None], None] | None = None
 
     # ------------------------------------------------------------------ dedup
@@ -70,7 +72,9 @@ class Notifier:
         with self._lock:
             errors, self._errors = self._errors, []
             self._recent.clear()
-            was_error, self._status_kind = self._status_kind == "error", ""
+            was_error = self._status_kind == "error"
+            if was_error:  # a "Done" line stays until its phase ends (`clear_done`)
+                self._status_kind = ""
         _remove(errors)
         if was_error and self.on_message is not None:
             self.on_message("clear", "", None)
@@ -103,6 +107,9 @@ class Notifier:
         with self._lock:
             self._done.extend(shown)
         self._status("ok", message, client)
+        if client is not None:
+            with self._lock:
+                self._done_pages[id(client)] = client
 
     def clear_done(self) -> None:
         """A new phase begins (a run starts): what the last one finished is history - its
@@ -112,11 +119,18 @@ class Notifier:
             was_ok = self._status_kind == "ok"
             if was_ok:
                 self._status_kind = ""
+            pages, self._done_pages = list(self._done_pages.values()), {}
         _remove(done)
-        if was_ok and self.on_message is not None:
-            self.on_message("clear", "", None)
+        if self.on_message is not None:
+            if was_ok:
+                self.on_message("clear", "", None)
+            for page in pages:  # the page's own "Done" line (its own action's outcome)
+                self.on_message("clear", "", page)
 
     def _status(self, kind: str, text: str, client: viser.ClientHandle | None) -> None:
+        if client is not None and kind != "ok":
+            with self._lock:  # the page's line shows something newer than its "Done"
+                self._done_pages.pop(id(client), None)
         if client is None:
             self._status_kind = kind
             text = self._redact(text)

@@ -150,6 +150,11 @@ class Toolbar:
     def _on_message(self, kind: str, text: str, client: viser.ClientHandle | None) -> None:
         """A message into the shared status line (client None) or that page's own."""
         if kind == "clear":
+            if client is not None:
+                mine = self.my_status.of(client)
+                if mine is not None:
+                    _set(mine, content="")
+                return
             self.status.content = ""
             for mine in self.my_status.all():
                 _set(mine, content="")

@@ -50,6 +50,10 @@ def test_a_run_at_the_chosen_pace_ends_with_the_goal_and_the_learnt_obstacle(
         ui.wait_text("The robot has stopped against something the model does not know.")
         assert ui.page.locator(".mantine-Notification-root",
                                has_text="stopped against").count() == 0
+        # the finished phase does not linger: the plan's "Done" line went when the run began
+        ui.page.wait_for_function(
+            "() => !document.body.innerText.includes('The mission is planned')",
+            timeout=30_000, polling=200)
 
     presses = press_collision_at_each_halt(ui, lambda: ui.page.keyboard.press("Space"),
                                            first=halted_once)
