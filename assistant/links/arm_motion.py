@@ -1,10 +1,12 @@
 """Following a timed joint path step by step, stopping before the arm touches an obstacle.
 
-The simulated robot and both emulators move their model with a `PathFollower`: each step
-sweeps the arm from where it is to where time says it should be and checks that swept motion
-(through every path vertex in between) with an exact FCL `CollisionChecker`. On contact it
-stops at the last free sample, which is what an operator pressing the Collision! button (or
-a controller's collision detection) achieves on a real cell, minus the braking distance.
+The simulated robot and both emulators move their model with a `PathFollower`: each path
+segment is checked once, whole, with an exact FCL `CollisionChecker` when the arm enters it;
+on contact the arm stops at the segment's last free sample when time reaches it, which is
+what an operator pressing the Collision! button (or a controller's collision detection)
+achieves on a real cell, minus the braking distance. Checking whole segments makes where the
+arm stops independent of how time is cut into steps (a loaded machine's longer steps, 1x or
+20x): the same path stops at the same posture.
 """
 
 from __future__ import annotations
@@ -44,7 +46,7 @@ class Advance:
 
 
 class PathFollower:
-    """Walks a `TimedPath` in time; each `advance(dt)` is checked against the obstacles."""
+    """Walks a `TimedPath` in time; each segment is checked against the obstacles once."""
 
     def __init__(self, timed: TimedPath, checker: CollisionChecker | None = None):
         self.timed = timed
@@ -53,6 +55,8 @@ class PathFollower:
         self.q = timed.q[0].copy()
         self.finished = len(timed.q) < 2 or timed.duration <= 0.0
         self.stopped_by_contact = False
+        #: segment -> None (free) or (last free fraction, the check that met the contact)
+        self._contacts: dict[int, tuple[float, MotionCheck] | None] = {}
 
     @property
     def segment(self) -> int:
@@ -65,29 +69,35 @@ class PathFollower:
         mc = self.checker.check_motion(self.q, self.q)
         return None if mc.valid else mc
 
+    def _contact(self, i: int) -> tuple[float, MotionCheck] | None:
+        if i not in self._contacts:
+            qa, qb = self.timed.q[i], self.timed.q[i + 1]
+            found = None
+            if self.checker is not None and not np.allclose(qa, qb, atol=1e-12):
+                mc = self.checker.check_motion(qa, qb)
+                if not mc.valid:
+                    f = float(mc.first_invalid_fraction or 0.0)
+                    found = (max(0.0, f - 1.0 / mc.samples), mc)
+            self._contacts[i] = found
+        return self._contacts[i]
+
     def advance(self, dt: float) -> Advance:
         if self.finished or self.stopped_by_contact:
             return Advance(self.q.copy(), self.segment, 0.0, self.finished)
         tp = self.timed
         t0, t1 = self.t, min(self.t + max(dt, 0.0), tp.duration)
-        q1, seg1 = tp.sample(t1)
-        if self.checker is not None:
-            # The swept motion passes through every vertex strictly between t0 and t1.
-            inner = [i for i in range(1, len(tp.t) - 1) if t0 < tp.t[i] < t1]
-            knots = [(t0, self.q)] + [(float(tp.t[i]), tp.q[i]) for i in inner] + [(t1, q1)]
-            for (ta, qa), (tb, qb) in zip(knots[:-1], knots[1:], strict=True):
-                if np.allclose(qa, qb, atol=1e-12):
-                    continue
-                mc = self.checker.check_motion(qa, qb)
-                if mc.valid:
-                    continue
-                f = float(mc.first_invalid_fraction or 0.0)
-                f_free = max(0.0, f - 1.0 / mc.samples)
-                q_free = qa + f_free * (qb - qa)
-                t_free = ta + f_free * (tb - ta)
-                self.q, self.t = q_free, t_free
+        for i in range(tp.segment_at(t0), tp.segment_at(t1) + 1):
+            hit = self._contact(i)
+            if hit is None:
+                continue
+            f_free, mc = hit
+            t_c = float(tp.t[i] + f_free * (tp.t[i + 1] - tp.t[i]))
+            if t_c <= t1:
+                self.q = tp.q[i] + f_free * (tp.q[i + 1] - tp.q[i])
+                self.t = max(t0, t_c)
                 self.stopped_by_contact = True
-                return Advance(q_free.copy(), tp.segment_at(t_free), t_free - t0, False, mc)
+                return Advance(self.q.copy(), i, self.t - t0, False, mc)
+        q1, seg1 = tp.sample(t1)
         self.q, self.t = q1, t1
         if t1 >= tp.duration:
             self.finished = True
