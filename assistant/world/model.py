@@ -424,7 +424,7 @@ class WorldModel:
                          "if nothing is there")
         else:
             i = len(self.collisions)
-            cells = self._region_leaves(region, start + protected)
+            cells = self._region_leaves(q, region, start + protected)
             self.collisions.append(RecordedCollision(q.copy(), cells, region))
             what = f"{indication_name(i)}: {self.describe_region(i)}"
             if region.cut_for:
@@ -438,12 +438,15 @@ class WorldModel:
         flipped = self.grid.flat_of_codes(upd.flipped.astype(np.uint64))
         return WorldChange(cells, np.unique(flipped), self._refill(flipped, None))
 
-    def _region_leaves(self, region: ContactRegion,
+    def _region_leaves(self, q: Array, region: ContactRegion,
                        protected: Sequence[tuple[str, Array]]) -> Array:
-        """The leaves the region's sphere centres lie in, which the roads then avoid; not
-        the leaves a protected posture's TCP is in."""
+        """Leaves the roads then avoid: those the arm filled at the stop and those the
+        region's centres lie in (`indications.indicated_cells`), but the leaves a protected
+        posture's TCP is in. They guide the search round the place (without them the lazy
+        search tries edge after edge through it); what is valid the region decides."""
         flat = self.grid.flat_of_points(region.centres)
-        flat = np.unique(flat[flat >= 0])
+        flat = np.union1d(flat[flat >= 0], indicated_cells(self.robot, self.grid, q,
+                                                           self.config.indication))
         Q = [np.atleast_2d(q) for _, q in protected]
         if Q:
             flat = np.setdiff1d(flat, self.tcp_cells(np.concatenate(Q)))

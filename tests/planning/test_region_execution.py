@@ -99,7 +99,11 @@ def test_a_goal_the_old_rule_lost_is_named_and_freed_by_forgetting(cell):
         planner.roadmap.forget_collision(0)
     assert not world.near_recorded_collision(Q_G[None])[0]
     # the new rule: reached, or the run names the indication that holds the goal
-    rep, link = drive(planner, robot, piece, hidden)
+    world.config = replace(world.config, indication=replace(indication, learn_regions=True))
+    try:
+        rep, link = drive(planner, robot, piece, hidden)
+    finally:
+        world.config = replace(world.config, indication=indication)
     learnt = [rc for rc in world.collisions if rc.region is not None]
     assert learnt and len(learnt) == len(world.collisions)
     if rep.end == EndReason.COMPLETED:
