@@ -22,11 +22,12 @@ The loop of the thesis (003 Listing 6, L5583-5627), piece by piece:
 
 Budgets (indications, re-plans, final rounds) and the roadmap's/net's own budgets make every
 run end with an `EndReason` and a sentence; every run ends within its bound of indications
-and seconds of planning (`run_bounds`), which the progress line shows. On a 6- or 7-axis arm
-an indication teaches the region the arm's links swept into in the last step before the
-stop (`world.contact_region`), never where a goal, a taught location or a path of the
-mission has the arm; when a re-plan finds no way on, the run names the learnt regions
-nearest to where it had to go, to be forgotten if nothing is there.
+and seconds of planning (`run_bounds`), which the progress line shows. With
+`IndicationConfig.learn_regions` an indication on a 6- or 7-axis arm teaches the region the
+arm's links swept into in the last step before the stop (`world.contact_region`), never where
+a goal, a taught location or a path of the mission has the arm; when a re-plan finds no way
+on, the run names the learnt regions nearest to where it had to go, to be forgotten if
+nothing is there.
 
 LINK_LOST, a stop on request and a cancellation leave a resumable state: the plan and the
 world are kept, `resume()` re-plans from `link.current_joints()`. Progress is reported per

@@ -9,8 +9,8 @@ not the whole hand's surroundings, not the coarse leaf the TCP was in, not a box
 anything, and can make a goal unreachable). The re-plan keeps `clearance` from the region.
 
 The region is a set of spheres (centres every `resolution` along the swept surfaces, radius
-`resolution`), checked by the same exact checker (FCL) as every obstacle. Two rules keep it
-honest:
+`resolution`), checked against the arm's capsules (`region_kernel`), the model it was learnt
+with. Two rules keep it honest:
 
 * It never holds the arm at the start of the last step (the arm was there, and the retreat
   goes back there), nor a protected posture - a goal, a taught location, a posture of a
@@ -19,6 +19,9 @@ honest:
 * Indicated again at the same place (a new region within `repeat_distance` of a learnt one),
   the learnt region grows: the union of both, each sphere `grow` larger per repeat - the
   obstacle is bigger than one step's sliver showed.
+
+Used when `IndicationConfig.learn_regions` is on (off by default: re-plans round a region
+are still slow on the UR5 sample cell, see docs/planning.md).
 """
 
 from __future__ import annotations
