@@ -107,9 +107,13 @@ class ExecutionConfig:
     speed_exploring: float = 0.3
     speed_final: float = 0.6
     #: Budgets: collision indications and re-plans over one `run` (each ends the run with a
-    #: clear reason when exceeded).
-    max_indications: int = 25
+    #: clear reason when exceeded). 20 indications: the issue's bound (the hidden-obstacle
+    #: benchmark's runs need far fewer).
+    max_indications: int = 20
     max_replans: int = 25
+    #: Seconds of planning a run may take (the first plan, re-plans, the final plan; not the
+    #: driving): every run ends within it, goal reached or with the reason (`run_bounds`).
+    max_planning_seconds: float = 120.0
     #: A re-planned path replaces a still-valid one only if it is shorter by more than
     #: `hysteresis_m` metres of TCP path AND by more than `hysteresis_ratio` of the old length.
     hysteresis_m: float = 0.05

@@ -21,10 +21,17 @@ The loop of the thesis (003 Listing 6, L5583-5627), piece by piece:
   (`ExecutionConfig.validate_final` makes `run` drive it in rounds by itself, for scripts.)
 
 Budgets (indications, re-plans, final rounds) and the roadmap's/net's own budgets make every
-run end with an `EndReason` and a sentence. LINK_LOST, a stop on request and a cancellation
-leave a resumable state: the plan and the world are kept, `resume()` re-plans from
-`link.current_joints()`. Progress is reported per piece; `cancel()` (or cancelling the
-`Progress`) stops the robot at once.
+run end with an `EndReason` and a sentence; every run ends within its bound of indications
+and seconds of planning (`run_bounds`), which the progress line shows. With
+`IndicationConfig.learn_regions` an indication on a 6- or 7-axis arm teaches the region the
+arm's links swept into in the last step before the stop (`world.contact_region`), never where
+a goal, a taught location or a path of the mission has the arm; when a re-plan finds no way
+on, the run names the learnt regions nearest to where it had to go, to be forgotten if
+nothing is there.
+
+LINK_LOST, a stop on request and a cancellation leave a resumable state: the plan and the
+world are kept, `resume()` re-plans from `link.current_joints()`. Progress is reported per
+piece; `cancel()` (or cancelling the `Progress`) stops the robot at once.
 """
 
 from __future__ import annotations
@@ -45,6 +52,7 @@ from assistant.planning.config import ExecutionConfig
 from assistant.planning.mission_planner import MissionPlan, MissionPlanner, TransferResult
 from assistant.planning.pace_drive import PaceCache
 from assistant.planning.pieces import PieceKind, PlanPiece
+from assistant.planning.run_bounds import PlanningTimeUp, RunBounds
 from assistant.progress import Cancelled, Progress
 
 Array = np.ndarray
@@ -57,6 +65,7 @@ class EndReason(str, Enum):
     MISSION_COLLIDES = "mission_collides"  # contact on an application path
     INDICATION_BUDGET = "indication_budget"
     REPLAN_BUDGET = "replan_budget"
+    PLANNING_BUDGET = "planning_budget"  # the run's seconds of planning are used up
     FINAL_NOT_VALIDATED = "final_not_validated"
     LINK_LOST = "link_lost"
     LINK_ERROR = "link_error"
@@ -180,7 +189,11 @@ class MissionExecutor:
         self._running = False
         self._given_plan: MissionPlan | None = None
         self._last_indication_s = 0.0
+        self.bounds = self._new_bounds()
         link.subscribe(self._on_event)
+
+    def _new_bounds(self) -> RunBounds:
+        return RunBounds(self.config.max_indications, self.config.max_planning_seconds)
 
     # ------------------------------------------------------------------ public
     def run(self, mission: Mission, T_world_base: Array, progress: Progress | None = None,
@@ -195,6 +208,7 @@ class MissionExecutor:
                 to the operator first); planned here if None.
         """
         self.report = ExecutionReport()
+        self.bounds = self._new_bounds()
         self._mission, self._T_wb = mission, np.asarray(T_world_base, dtype=float)
         self._phase, self._queue, self._index, self._final = _Phase.EXPLORE, None, 0, None
         self._resume_pending = False
@@ -265,6 +279,8 @@ class MissionExecutor:
             body()
         except _End as end:
             rep.end, rep.reason = end.reason, end.message
+        except PlanningTimeUp:
+            rep.end, rep.reason = EndReason.PLANNING_BUDGET, self._time_up_words()
         except Cancelled:
             self._safe_stop()
             rep.end, rep.reason = EndReason.CANCELLED, f"cancelled at {self._where()}"
@@ -283,6 +299,7 @@ class MissionExecutor:
             raise RuntimeError("nothing to drive: plan and run the mission first")
         if not self.link.connected:
             self.link.connect()
+        self.bounds = self._new_bounds()  # a run of its own
         self._progress = progress or Progress("drive the final program")
         return self._ended(self._drive_final_once, "final drive end")
 
@@ -321,8 +338,10 @@ class MissionExecutor:
         prog = self._progress
         assert prog is not None
         q_now = self._current_joints()
-        plan = self._given_plan or self.planner.plan_mission(
-            self._mission, self._T_wb, q_now, prog.sub(0.0, 0.1, "planning"), exploring=True)
+        with self.bounds.planning():
+            plan = self._given_plan or self.planner.plan_mission(
+                self._mission, self._T_wb, q_now,
+                self._bounded(prog.sub(0.0, 0.1, "planning"), "planning"), exploring=True)
         self._given_plan = None
         self.report.first_plan = plan
         if not plan.ok:
@@ -367,8 +386,11 @@ class MissionExecutor:
         first = rep.first_plan
         seed = first.pieces[0].q_start if first is not None and first.pieces else \
             self._current_joints()
-        final = self.planner.plan_mission(self._mission, self._T_wb, seed,
-                                          self._sub(0.8, 0.85, "final plan"), exploring=False)
+        with self.bounds.planning():
+            final = self.planner.plan_mission(
+                self._mission, self._T_wb, seed,
+                self._bounded(self._sub(0.8, 0.85, "final plan"), "final plan"),
+                exploring=False)
         if not final.ok:
             raise _End(EndReason.PLAN_FAILED, f"final plan: {final.report.reason}")
         self._final = rep.final_plan = final
@@ -381,9 +403,13 @@ class MissionExecutor:
         """A transfer from where the arm is to where the plan starts (if it is elsewhere)."""
         if float(np.abs(q_now - q_start).max()) <= 1e-6:
             return []
-        tr = self.planner.plan_transfer(q_now, q_start, exploring=True, label=label)
+        with self.bounds.planning():
+            tr = self.planner.plan_transfer(q_now, q_start, exploring=True, label=label,
+                                            progress=self._bounded(self._sub_here(label),
+                                                                   label))
         if not tr.ok:
-            raise _End(EndReason.PLAN_FAILED, f"{label}: {tr.report.reason}")
+            raise _End(EndReason.PLAN_FAILED, f"{label}: {tr.report.reason}"
+                       + self._blockers(q_start))
         assert tr.piece is not None
         return [_Item(tr.piece, True, self._world_version(), in_program=False)]
 
@@ -396,7 +422,8 @@ class MissionExecutor:
             span = (0.85, 1.0) if final else (0.1, 0.8)
             frac = span[0] + (span[1] - span[0]) * self._index / n
             assert self._progress is not None
-            self._progress.update(frac, f"driving {item.piece.label}")
+            self._progress.update(frac, self.bounds.line(f"driving {item.piece.label}",
+                                                         self.report.collision_indications))
             if item.repairable and item.world_version != self._world_version():
                 self._refresh(item)
             if item.piece.kind == PieceKind.APPLICATION:
@@ -406,9 +433,11 @@ class MissionExecutor:
             self._index += 1
 
     def _drive_application(self, item: _Item, final: bool) -> None:
-        ev = self._move(item.piece.dense(), final, item)
+        path = item.piece.dense()
+        ev = self._move(path, final, item)
         if ev.kind == LinkEventKind.COLLISION_INDICATED:
-            self._record(ev, item.piece)
+            with self.bounds.planning():
+                self._record(ev, item.piece, self._executed(path, ev))
             raise _End(EndReason.MISSION_COLLIDES,
                        f"collision on application path {item.piece.label} ({ev.message}): the "
                        "work itself collides - move the part or re-teach the path")
@@ -431,43 +460,20 @@ class MissionExecutor:
             if ev.kind != LinkEventKind.COLLISION_INDICATED:
                 self._other_end(ev)
             t0 = time.perf_counter()
-            q_stop = self._record(ev, item.piece)
-            if not item.repairable:
-                raise _RoundFailed()
-            if rep.replans >= cfg.max_replans:
-                raise _End(EndReason.REPLAN_BUDGET,
-                           f"re-plan budget of {cfg.max_replans} used up at {item.piece.label}")
-            rep.replans += 1
             drive = self._executed(path, ev)
             history = drive if history is None else np.concatenate([history, drive[1:]])
             executed = history
-            # retreat out of the indication's posture box, re-plan from there (or from
-            # further back); only then from the stop, and not on into the contact
-            blocked = self.planner.world.near_recorded_collision(executed)
-            tr = None
-            for k, i_try in enumerate(retreat_candidates(
-                    executed, retreat_index(executed, blocked), self.radii)):
-                tr = self.planner.plan_transfer(
-                    executed[i_try], item.piece.q_end, exploring=True, label=item.piece.label,
-                    progress=self._sub_here("re-planning") if k == 0 else None)
-                i_r = i_try
-                if tr.ok:
-                    break
-            assert tr is not None
-            if not tr.ok and i_r < len(executed) - 1:  # e.g. no way out backwards: try on
-                i_r = len(executed) - 1
-                on = self.planner.plan_transfer(q_stop, item.piece.q_end, exploring=True,
-                                                label=item.piece.label)
-                if on.ok and on.piece is not None and \
-                        leads_on(executed, on.piece.dense(), self.radii):
-                    raise _End(EndReason.NO_PATH, f"{item.piece.label}: no way on after the "
-                               f"collision indication - {tr.report.reason}; the only way on "
-                               "from where the robot stopped leads on into the contact")
-                tr = on
+            with self.bounds.planning():
+                q_stop = self._record(ev, item.piece, executed)
+                if not item.repairable:
+                    raise _RoundFailed()
+                if rep.replans >= cfg.max_replans:
+                    raise _End(EndReason.REPLAN_BUDGET, f"re-plan budget of "
+                               f"{cfg.max_replans} used up at {item.piece.label}")
+                rep.replans += 1
+                self.bounds.check()
+                tr, i_r = self._replan(item, executed, q_stop)
             t1 = time.perf_counter()
-            if not tr.ok or tr.piece is None:
-                raise _End(EndReason.NO_PATH, f"{item.piece.label}: no way on after the "
-                           f"collision indication - {tr.report.reason}")
             rep.replan_seconds.append(t1 - t0)
             rep.replan_roadmap_seconds.append(self._last_indication_s + tr.roadmap_seconds)
             retreat = executed[i_r:][::-1]
@@ -485,6 +491,41 @@ class MissionExecutor:
             item.world_version = self._world_version()
             path = go
 
+    def _replan(self, item: _Item, executed: Array, q_stop: Array,
+                ) -> tuple[TransferResult, int]:
+        """After an indication: retreat out of the indication's posture box and re-plan from
+        there (or from further back); only then from the stop, and not on into the contact.
+        Returns the new transfer and the index of executed it starts from."""
+        blocked = self.planner.world.near_recorded_collision(executed)
+        tr = None
+        i_r = len(executed) - 1
+        for i_try in retreat_candidates(executed, retreat_index(executed, blocked),
+                                        self.radii):
+            tr = self.planner.plan_transfer(
+                executed[i_try], item.piece.q_end, exploring=True, label=item.piece.label,
+                progress=self._bounded(self._sub_here("re-planning"), "re-planning"))
+            i_r = i_try
+            if tr.ok:
+                break
+        assert tr is not None
+        if not tr.ok and i_r < len(executed) - 1:  # e.g. no way out backwards: try on
+            i_r = len(executed) - 1
+            on = self.planner.plan_transfer(
+                q_stop, item.piece.q_end, exploring=True, label=item.piece.label,
+                progress=self._bounded(self._sub_here("re-planning"), "re-planning"))
+            if on.ok and on.piece is not None and \
+                    leads_on(executed, on.piece.dense(), self.radii):
+                raise _End(EndReason.NO_PATH, f"{item.piece.label}: no way on after the "
+                           f"collision indication - {tr.report.reason}; the only way on "
+                           "from where the robot stopped leads on into the contact"
+                           + self._blockers(item.piece.q_end))
+            tr = on
+        if not tr.ok or tr.piece is None:
+            raise _End(EndReason.NO_PATH, f"{item.piece.label}: no way on after the "
+                       f"collision indication - {tr.report.reason}"
+                       + self._blockers(item.piece.q_end))
+        return tr, i_r
+
     def _refresh(self, item: _Item) -> None:
         """The world changed since this transfer was planned: re-plan; switch if it is no
         longer valid, or if the new one is shorter past the hysteresis."""
@@ -493,22 +534,25 @@ class MissionExecutor:
         old = item.piece.dense()
         old = np.concatenate([q_now[None], old]) if np.abs(old[0] - q_now).max() > 1e-6 \
             else old
-        valid = self.planner.verifier.check_path(list(old)) is None
-        if rep.replans >= cfg.max_replans:
-            if valid:
-                item.world_version = self._world_version()
-                return
-            raise _End(EndReason.REPLAN_BUDGET,
-                       f"re-plan budget of {cfg.max_replans} used up at {item.piece.label}")
-        rep.replans += 1
-        tr: TransferResult = self.planner.plan_transfer(q_now, item.piece.q_end, exploring=True,
-                                                        label=item.piece.label,
-                                                        progress=self._sub_here("re-planning"))
+        with self.bounds.planning():
+            valid = self.planner.verifier.check_path(list(old)) is None
+            if rep.replans >= cfg.max_replans:
+                if valid:
+                    item.world_version = self._world_version()
+                    return
+                raise _End(EndReason.REPLAN_BUDGET,
+                           f"re-plan budget of {cfg.max_replans} used up at {item.piece.label}")
+            rep.replans += 1
+            self.bounds.check()
+            tr: TransferResult = self.planner.plan_transfer(
+                q_now, item.piece.q_end, exploring=True, label=item.piece.label,
+                progress=self._bounded(self._sub_here("re-planning"), "re-planning"))
         item.world_version = self._world_version()
         if not valid:
             if not tr.ok or tr.piece is None:
                 raise _End(EndReason.NO_PATH, f"{item.piece.label}: the planned path crosses "
-                           f"new evidence and no other was found - {tr.report.reason}")
+                           f"new evidence and no other was found - {tr.report.reason}"
+                           + self._blockers(item.piece.q_end))
             rep.log.append(f"{item.piece.label}: re-planned (the old path crosses new evidence)")
             item.piece = tr.piece
             return
@@ -538,10 +582,13 @@ class MissionExecutor:
             if not insert:
                 self._index += 1
             return
-        tr = self.planner.plan_transfer(q_now, target, exploring=True,
-                                        label=f"resume -> {item.piece.label}")
+        with self.bounds.planning():
+            tr = self.planner.plan_transfer(
+                q_now, target, exploring=True, label=f"resume -> {item.piece.label}",
+                progress=self._bounded(self._sub_here("re-planning"), "re-planning"))
         if not tr.ok or tr.piece is None:
-            raise _End(EndReason.NO_PATH, f"resume: {tr.report.reason}")
+            raise _End(EndReason.NO_PATH, f"resume: {tr.report.reason}"
+                       + self._blockers(target))
         new = _Item(tr.piece, True, self._world_version())
         if insert:
             self._queue.insert(self._index, new)
@@ -596,22 +643,70 @@ class MissionExecutor:
             self.link.stop()
 
     # ------------------------------------------------------------------ evidence
-    def _record(self, ev: LinkEvent, piece: PlanPiece) -> Array:
-        """Count the indication (within budget) and put it into the world and roads."""
+    def _record(self, ev: LinkEvent, piece: PlanPiece, executed: Array | None = None,
+                ) -> Array:
+        """Count the indication (within budget) and put it into the world and roads: on a
+        6- or 7-axis arm the region `executed` (the postures driven, ending at the stop)
+        swept into last, never where the mission's own postures have the arm."""
         rep, cfg = self.report, self.config
         rep.collision_indications += 1
         q = np.asarray(ev.q if ev.q is not None else self._current_joints(), dtype=float)
         t0 = time.perf_counter()
-        self.planner.roadmap.add_collision(q)
+        approach = None
+        if executed is not None and len(executed) >= 2:
+            approach = np.concatenate([np.asarray(executed, dtype=float)[:-1], q[None]])
+        self.planner.roadmap.add_collision(q, approach=approach, protected=self._protected())
         self._last_indication_s = time.perf_counter() - t0
         p = self.robot.fk(q)[:3, 3] * 1000.0
         rep.log.append(f"{piece.label}: collision indicated at TCP ({p[0]:.0f}, {p[1]:.0f}, "
                        f"{p[2]:.0f}) mm - {ev.message}")
+        learnt = self.planner.world.last_learnt
+        if learnt:
+            rep.log.append(f"  learnt {learnt}")
         if rep.collision_indications > cfg.max_indications:
             raise _End(EndReason.INDICATION_BUDGET,
                        f"more than {cfg.max_indications} collision indications; the last at "
                        f"{piece.label}")
         return q
+
+    def _protected(self) -> list[tuple[str, Array]]:
+        """What an inference must never make unreachable: the ends of every piece of the
+        run (the goal and the taught locations), the application paths' postures (the
+        operator's paths) and the postures the world was built around (the taught ones)."""
+        out: list[tuple[str, Array]] = []
+        for it in self._queue or []:
+            pc = it.piece
+            if pc.kind == PieceKind.APPLICATION:
+                D = pc.dense()
+                out.append((f"path {pc.label}", D[::max(1, len(D) // 50)]))
+            else:
+                ends = pc.label.split("->")
+                out.append((ends[0].strip() or pc.label, pc.q_start))
+                out.append((ends[-1].strip() or pc.label, pc.q_end))
+        anchors = self.planner.world.anchors
+        if anchors is not None and len(anchors):
+            out.append(("a taught location", np.atleast_2d(anchors)))
+        return out
+
+    def _blockers(self, q_target: Array, within: float = 0.15) -> str:
+        """Which learnt regions lie nearest the arm at the posture a re-plan had to reach
+        (within `within` m), in the operator's words, with how to forget them."""
+        near = [(i, d) for i, d in self.planner.world.region_distances(q_target)
+                if d <= within]
+        if not near:
+            return ""
+        words = "; ".join(f"indication {i + 1} ({self.planner.world.describe_region(i)}) "
+                          f"was learnt {d * 1000:.0f} mm from the arm there" for i, d in near)
+        first = near[0][0] + 1
+        return (f". What may block it: {words}. If nothing is there, forget it "
+                f"(forget indication {first}) and run again")
+
+    def _time_up_words(self) -> str:
+        b, rep = self.bounds, self.report
+        return (f"the run's {b.seconds:.0f} s of planning are used up at {self._where()} "
+                f"after {rep.collision_indications} collision indication(s) and "
+                f"{rep.replans} re-plan(s); the robot stands - resume or run again with a "
+                "larger bound")
 
     def _world_version(self) -> tuple[int, int]:
         w = self.planner.world
@@ -651,6 +746,10 @@ class MissionExecutor:
     def _sub(self, a: float, b: float, task: str) -> Progress:
         assert self._progress is not None
         return self._progress.sub(a, b, task)
+
+    def _bounded(self, parent: Progress, what: str) -> Progress:
+        """`parent` for one planning call within the run's bound (`run_bounds`)."""
+        return self.bounds.progress(parent, what, lambda: self.report.collision_indications)
 
     def _sub_here(self, task: str) -> Progress:
         assert self._progress is not None

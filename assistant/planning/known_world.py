@@ -95,6 +95,9 @@ class KnownValidity:
             return None
         model, _, _, exact = base
         table = self.world.table
+        if any(rc.region is not None for i, rc in enumerate(self.world.collisions)
+               if i not in self.exempt):
+            return None  # a learnt region has no compiled form: `is_valid_batch` asks it
         kept = [rc.q for i, rc in enumerate(self.world.collisions) if i not in self.exempt]
         if table is None or not kept:
             return base

@@ -279,16 +279,26 @@ class RoadmapPlanner:
         return self.labels, self.voronoi
 
     # ---------------------------------------------------------------- updates
-    def add_collision(self, q: Array, progress: Progress | None = None) -> CollisionUpdate:
-        """The operator flagged a collision at posture q: fuse it, update the roads locally."""
+    def add_collision(self, q: Array, progress: Progress | None = None, *,
+                      approach: Array | None = None,
+                      protected: Sequence[tuple[str, Array]] = ()) -> CollisionUpdate:
+        """The operator flagged a collision at posture q: fuse it, update the roads locally
+        (`approach`, `protected`: see `WorldModel.indicate_collision`)."""
         self._need()
         t0 = time.perf_counter()
         try:
-            change = self.world.indicate_collision(q, progress)
+            change = self.world.indicate_collision(q, progress, approach=approach,
+                                                   protected=protected)
         except BaseException:
             self._sync(None, t0)  # cancelled while refilling: roads follow the world anyway
             raise
         return self._sync(change, t0)
+
+    def forget_collision(self, i: int) -> CollisionUpdate:
+        """Drop recorded collision i (0-based, `WorldModel.forget_collision`)."""
+        self._need()
+        t0 = time.perf_counter()
+        return self._sync(self.world.forget_collision(i), t0)
 
     def observe(self, source: Source | str, points_base: Array, values: Array | float,
                 progress: Progress | None = None) -> CollisionUpdate:

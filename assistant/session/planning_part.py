@@ -7,6 +7,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from concurrent.futures import Future
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -78,7 +79,8 @@ class PlanningActions:
 
     def set_world_settings(self, **changes: Any) -> dict:
         """Change world settings (`WorldSettings`: resolution_mm, joint_samples, memory_mb,
-        store, clearance_mm); the world model is rebuilt on the next build or plan."""
+        store, clearance_mm; the run's bound max_indications, planning_budget_s); the world
+        model is rebuilt on the next build or plan (not for the run's bound)."""
         try:
             settings = self.world_settings.changed(**changes)
         except (TypeError, ValueError) as exc:
@@ -155,7 +157,6 @@ class PlanningActions:
     def _planner_config(self) -> Any:
         """The planner's defaults; Bezier chains become SPLINE moves when the export dialect
         writes splines (KRL SPLINE ... ENDSPLINE), else linear moves within the tolerance."""
-        from dataclasses import replace
 
         from assistant.export import get_dialect
         from assistant.planning.config import MissionPlannerConfig
@@ -278,7 +279,30 @@ class PlanningActions:
                 ex.detach()
             ex = MissionExecutor(self._mission_planner(backend), link)
             backend.executor = ex
+        ws = self.world_settings
+        ex.config = replace(ex.config, max_indications=int(ws.max_indications),
+                            max_planning_seconds=float(ws.planning_budget_s))
         return ex
+
+    def forget_indication(self, number: int) -> dict:
+        """Forget collision indication `number` (as a run names it, from 1): what it taught
+        leaves the world model, so a plan may pass there again (the operator knows nothing
+        is there)."""
+        b = self._world if self.world_ready else None
+        count = 0 if b is None else len(b.world.collisions)
+        if b is None or not 1 <= int(number) <= count:
+            raise SessionError(f"no indication {number} to forget: {count} learnt")
+        if self.machine.busy_task:
+            raise SessionError(f"wait for '{self.machine.busy_task}' to finish first")
+        with self._lock:
+            q = b.world.collisions[int(number) - 1].q
+            b.roadmap.forget_collision(int(number) - 1)
+            # and from the session's own record, so a rebuilt world does not learn it again
+            self.recorded_collisions = [r for r in self.recorded_collisions
+                                        if not np.allclose(r, q, atol=1e-9)]
+            self._autosave()
+        self.bus.emit(SceneChanged("world"))
+        return {"forgotten": int(number), "learnt": len(b.world.collisions)}
 
     def _execute(self, progress: Progress) -> dict:
         backend = self._backend(progress.sub(0.0, 0.1, "world model"))
@@ -355,7 +379,6 @@ class PlanningActions:
 
     def order_mission(self) -> list[str]:
         """Order the application paths (shortest transfers) - shown, and used by Plan."""
-        from dataclasses import replace
 
         from assistant.trajectory.ordering import order_mission
 

@@ -250,6 +250,7 @@ VERBS: dict[str, tuple[Verb, bool]] = {
     "execute": (lambda s, a: s.execute(), False),
     "drive_final": (lambda s, a: s.drive_final(), False),
     "indicate_collision": (lambda s, a: s.indicate_collision(), False),
+    "forget_indication": (lambda s, a: s.forget_indication(int(a["number"])), False),
     "export": (lambda s, a: s.export(a.get("dialect"), frame=a.get("frame")), False),
     "undo": (lambda s, a: s.undo(), False),
     "redo": (lambda s, a: s.redo(), False),
@@ -284,7 +285,9 @@ ARGS: dict[str, set[str]] = {
     "move_path": {"name", "index"},
     "jog": {"joints_deg", "pose"},
     "explore": {"mode", "moves", "seed"},
-    "world_settings": {"resolution_mm", "joint_samples", "memory_mb", "store", "clearance_mm"},
+    "world_settings": {"resolution_mm", "joint_samples", "memory_mb", "store", "clearance_mm",
+                       "max_indications", "planning_budget_s"},
+    "forget_indication": {"number"},
     "export": {"dialect", "frame"},
 }
 REQUIRED: dict[str, set[str]] = {
@@ -296,7 +299,7 @@ REQUIRED: dict[str, set[str]] = {
     "teach_pointer": {"name", "at"}, "teach_robot": {"name"}, "teach_cad_click": {"name", "at"},
     "remove_location": {"name"}, "set_start": {"name"}, "set_goal": {"name"},
     "add_path": {"name"}, "remove_path": {"name"}, "move_path": {"name", "index"},
-    "hidden_obstacle": {"name", "size"},
+    "hidden_obstacle": {"name", "size"}, "forget_indication": {"number"},
 }
 #: A script longer than this is not one an operator wrote.
 MAX_SCRIPT_BYTES = 16 * 2**20

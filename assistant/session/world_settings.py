@@ -8,7 +8,7 @@ setting makes the world model stale (it is rebuilt on the next build or plan).
 
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, dataclass, field, fields, replace
 from typing import Any
 
 from assistant.robots.model import Robot
@@ -28,6 +28,11 @@ class WorldSettings:
     store: str = "auto"
     #: Clearance (mm) transfers keep from known obstacles where the cell allows it.
     clearance_mm: float = 10.0
+    #: The bound of every run (`planning.run_bounds`): collision indications, and seconds
+    #: of planning. Not the world's: changing them rebuilds nothing (compare=False keeps
+    #: them out of the world's key).
+    max_indications: int = field(default=20, compare=False)
+    planning_budget_s: float = field(default=120.0, compare=False)
 
     def __post_init__(self) -> None:
         if self.resolution_mm is not None and not 10.0 <= float(self.resolution_mm) <= 250.0:
@@ -42,6 +47,10 @@ class WorldSettings:
                              + ", ".join(STORES))
         if not 0.0 <= float(self.clearance_mm) <= 200.0:
             raise ValueError(f"clearance {self.clearance_mm} mm: use 0-200 mm")
+        if not 1 <= int(self.max_indications) <= 1000:
+            raise ValueError(f"{self.max_indications} indications per run: use 1-1000")
+        if not 1.0 <= float(self.planning_budget_s) <= 3600.0:
+            raise ValueError(f"{self.planning_budget_s} s of planning per run: use 1-3600 s")
 
     def changed(self, **changes: Any) -> WorldSettings:
         """A copy with `changes` (unknown names refused with the known ones)."""
@@ -52,10 +61,10 @@ class WorldSettings:
                              + ", ".join(sorted(names)))
         if changes.get("resolution_mm") in ("", 0):
             changes["resolution_mm"] = None
-        for k in ("joint_samples", "memory_mb"):
+        for k in ("joint_samples", "memory_mb", "max_indications"):
             if k in changes:
                 changes[k] = int(changes[k])
-        for k in ("resolution_mm", "clearance_mm"):
+        for k in ("resolution_mm", "clearance_mm", "planning_budget_s"):
             if changes.get(k) is not None and k in changes:
                 changes[k] = float(changes[k])
         return replace(self, **changes)

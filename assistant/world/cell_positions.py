@@ -144,6 +144,17 @@ class CellPositions:
         self._reselect(slots)
         return slots
 
+    def reset(self, position_index: Array) -> Array:
+        """Positions an indication invalidated become unknown again (the indication was
+        forgotten); returns their leaf slots (refill them with `fill`)."""
+        pi = np.asarray(position_index, dtype=np.int64)
+        pi = pi[self.state[pi] == INVALID_INDICATED]
+        if not len(pi):
+            return np.zeros(0, dtype=np.int64)
+        self.state[pi] = UNKNOWN
+        self._csr = self._has_valid = None
+        return self.slots_of(pi)
+
     def slots_of(self, position_index: Array) -> Array:
         """The leaf slots (unique) holding some positions (indices into table.positions)."""
         pi = np.asarray(position_index, dtype=np.int64)

@@ -11,15 +11,19 @@ the arm at posture q - so an indication gives two kinds of evidence:
 * Postures: table joint positions within `joint_steps` grid steps of q in every joint (the
   grid cell around the stopped posture, widened; fixed table joints such as J6 are ignored)
   become invalid, and the planner rejects edges that pass through that box.
+
+On 6- and 7-axis arms, when the executor knows how the arm came to the stop, an indication
+teaches the swept region of the last check step instead (`contact_region`): no leaves, no box.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from assistant.robots.model import Robot, ShapeKind
+from assistant.world.contact_region import RegionConfig
 from assistant.world.leaf_store import JointStore
 from assistant.world.octree import OctreeGrid
 
@@ -38,6 +42,11 @@ class IndicationConfig:
     #: one that become invalid (1 = the grid cell around q; 1.5 also takes the next ring
     #: where it is close).
     joint_steps: float = 1.5
+    #: 6- and 7-axis arms with the approach known: the region learnt instead of the box.
+    #: Off by default: on the UR5 sample cell a re-plan round the learnt region takes
+    #: 25-33 s (the lazy search checks edge after edge through it) against ~3 s with the box.
+    learn_regions: bool = False
+    region: RegionConfig = field(default_factory=RegionConfig)
 
 
 def arm_points(robot: Robot, q: Array, first_link: int, spacing: float) -> Array:

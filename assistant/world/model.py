@@ -16,7 +16,7 @@ from __future__ import annotations
 import contextlib
 import time
 import weakref
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -26,6 +26,7 @@ from assistant.progress import Progress
 from assistant.robots.model import Robot
 from assistant.world.cell_positions import CellPositions, SelectionConfig
 from assistant.world.chain_levels import ChainValidator
+from assistant.world.contact_region import ContactRegion, carve, grown, learn_region
 from assistant.world.fusion import FusionConfig, FusionUpdate, OccupancyFusion, Source
 from assistant.world.hand_cells import HandCells
 from assistant.world.indications import (
@@ -39,6 +40,7 @@ from assistant.world.leaf_store import JointStore
 from assistant.world.octree import LinearOctree, OctreeGrid
 from assistant.world.rasterise import rasterise_obstacles
 from assistant.world.reachability import ReachabilityConfig, is_cached, load_or_build
+from assistant.world.region_checks import RegionChecks, indication_name
 
 Array = np.ndarray
 
@@ -140,10 +142,14 @@ class WorldChange:
 
 @dataclass(frozen=True)
 class RecordedCollision:
-    """A posture the operator flagged (kept for edge checks and for saving the session)."""
+    """A posture the operator flagged (kept for edge checks and for saving the session).
+
+    With a `region` (6- and 7-axis arms, the approach known: `contact_region`) the evidence
+    is that region; without, the posture box and the arm's leaves (`indications`)."""
 
     q: Array
     cells: Array
+    region: ContactRegion | None = None
 
 
 class WorldModel:
@@ -173,6 +179,9 @@ class WorldModel:
         self._hand: HandCells | None = None
         #: recorded collision index -> (that record, the leaves its hand filled)
         self._hand_cells: dict[int, tuple[RecordedCollision, Array]] = {}
+        self._regions = RegionChecks(robot, self.config.indication.region.clearance)
+        #: What the last indication taught, in the operator's words (`indicate_collision`).
+        self.last_learnt: str = ""
 
     @property
     def built(self) -> bool:
@@ -341,10 +350,22 @@ class WorldModel:
         changed_valid = self._refill(flipped, progress)
         return WorldChange(np.unique(flat), np.unique(flipped), changed_valid)
 
-    def indicate_collision(self, q: Array, progress: Progress | None = None) -> WorldChange:
-        """The operator pressed the collision button with the arm at q (see `indications`)."""
+    def indicate_collision(self, q: Array, progress: Progress | None = None, *,
+                           approach: Array | None = None,
+                           protected: Sequence[tuple[str, Array]] = ()) -> WorldChange:
+        """The operator pressed the collision button with the arm at q (see `indications`).
+
+        With `approach` (the postures the arm went through, ending at q) on a sampled store
+        (6- and 7-axis arms) the indication teaches the swept region of the last check step
+        (`contact_region`), without the arm at `protected` postures (label, q); else the
+        posture box and the arm's leaves. `last_learnt` says what was learnt."""
         table, positions = self._need()
         q = np.asarray(q, dtype=float)
+        if approach is not None and self.sampled and len(approach) >= 2 and \
+                self.config.indication.learn_regions:
+            change = self._learn_region(q, np.asarray(approach, dtype=float), list(protected))
+            if change is not None:
+                return change
         cfg = self.config.indication
         cells = indicated_cells(self.robot, self.grid, q, cfg)
         upd = self._apply(Source.BUTTON, cells, cfg.value)
@@ -354,6 +375,8 @@ class WorldModel:
         before = positions.n_selected[slots] > 0
         # Record first: a cancelled refill below must not lose the evidence.
         self.collisions.append(RecordedCollision(q.copy(), cells))
+        self.last_learnt = (f"{indication_name(len(self.collisions) - 1)}: the postures "
+                            "around the stop are learnt as blocked")
         positions.invalidate(near)
         # refill every affected leaf, occupied ones too: the planner may still use positions
         # of occupied leaves around its start (to leave the region it just marked)
@@ -361,6 +384,133 @@ class WorldModel:
         after = positions.n_selected[slots] > 0
         lost = table.leaves[slots[before != after]]
         return WorldChange(cells, np.unique(flipped), np.unique(lost), len(near))
+
+    def _learn_region(self, q: Array, approach: Array,
+                      protected: list[tuple[str, Array]]) -> WorldChange | None:
+        """`indicate_collision` by the swept region; None if the step swept nothing new.
+
+        Indicated again at the same place, the region grows; if it then touches a protected
+        posture the operator's word is needed: the region holds it (the re-plan names it,
+        `forget_collision` drops it) rather than an endless loop of the same contact."""
+        cfg = self.config.indication
+        rcfg = cfg.region
+        try:
+            arm = self._regions.arm
+        except ValueError:  # no capsule model of this arm: the posture box
+            return None
+        region, q0 = learn_region(self.robot, arm, approach, self.weights, cfg.first_link,
+                                  rcfg, protected)
+        empty = np.zeros(0, dtype=np.int64)
+        if region is None:
+            return None
+        same = [i for i, rc in enumerate(self.collisions) if rc.region is not None
+                and rc.region.distance_to(region) <= rcfg.repeat_distance]
+        start = [("the posture the last step started from", q0)]
+        if same:
+            i = same[0]
+            old = self.collisions[i]
+            assert old.region is not None
+            promote = bool(old.region.cut_for or region.cut_for)
+            region = grown(old.region, region, rcfg, promote=promote)
+            region = carve(arm, region, rcfg, start, withhold=False)
+            if not promote:
+                region = carve(arm, region, rcfg, protected)
+            self.collisions[i] = RecordedCollision(old.q, old.cells, region)
+            what = (f"{indication_name(i)} indicated again at the same place: its region "
+                    f"grows (spheres of {region.radius * 1000:.0f} mm)")
+            if promote:
+                what += (" and now holds the place next to the arm at "
+                         + ", ".join(region.cut_for) + f" - forget {indication_name(i)} "
+                         "if nothing is there")
+        else:
+            i = len(self.collisions)
+            cells = self._region_leaves(q, region, start + protected)
+            self.collisions.append(RecordedCollision(q.copy(), cells, region))
+            what = f"{indication_name(i)}: {self.describe_region(i)}"
+            if region.cut_for:
+                what += ("; not learnt where it would touch the arm at "
+                         + ", ".join(region.cut_for) + " (kept reachable)")
+        self.last_learnt = what
+        cells = self.collisions[i].cells
+        if not len(cells):
+            return WorldChange(empty, empty, empty)
+        upd = self._apply(Source.BUTTON, cells, cfg.value)
+        flipped = self.grid.flat_of_codes(upd.flipped.astype(np.uint64))
+        return WorldChange(cells, np.unique(flipped), self._refill(flipped, None))
+
+    def _region_leaves(self, q: Array, region: ContactRegion,
+                       protected: Sequence[tuple[str, Array]]) -> Array:
+        """Leaves the roads then avoid: those the arm filled at the stop and those the
+        region's centres lie in (`indications.indicated_cells`), but the leaves a protected
+        posture's TCP is in. They guide the search round the place (without them the lazy
+        search tries edge after edge through it); what is valid the region decides."""
+        flat = self.grid.flat_of_points(region.centres)
+        flat = np.union1d(flat[flat >= 0], indicated_cells(self.robot, self.grid, q,
+                                                           self.config.indication))
+        Q = [np.atleast_2d(q) for _, q in protected]
+        if Q:
+            flat = np.setdiff1d(flat, self.tcp_cells(np.concatenate(Q)))
+        return flat.astype(np.int64)
+
+    def describe_region(self, i: int) -> str:
+        """Recorded collision i's learnt region in the operator's words (mm)."""
+        r = self.collisions[i].region
+        if r is None:
+            return "the postures around the stop"
+        if not len(r.centres):
+            return "nothing yet (all of it next to the arm at " + ", ".join(r.cut_for) + ")"
+        lo, hi = r.centres.min(axis=0) - r.radius, r.centres.max(axis=0) + r.radius
+        c = (lo + hi) / 2.0 * 1000.0
+        size = (hi - lo) * 1000.0
+        return (f"a region of {size[0]:.0f} x {size[1]:.0f} x {size[2]:.0f} mm around "
+                f"({c[0]:.0f}, {c[1]:.0f}, {c[2]:.0f}) mm (robot base)")
+
+    def forget_collision(self, i: int) -> WorldChange:
+        """Drop recorded collision i (0-based) and everything it taught."""
+        table, positions = self._need()
+        if not 0 <= i < len(self.collisions):
+            raise IndexError(f"no {indication_name(i)}: {len(self.collisions)} recorded")
+        rc = self.collisions.pop(i)
+        self._hand_cells.clear()
+        empty = np.zeros(0, dtype=np.int64)
+        if rc.region is not None:
+            return WorldChange(empty, empty, empty)
+        # the leaves: drop the button's observations, then give back the others' own
+        upd = self.fusion.forget(Source.BUTTON, self.grid.codes_of_flat(rc.cells)
+                                 .astype(np.int64))
+        self.octree.set_leaves(upd.cells.astype(np.uint64), upd.after)
+        flipped = set(self.grid.flat_of_codes(upd.flipped.astype(np.uint64)).tolist())
+        cfg = self.config.indication
+        for other in self.collisions:
+            common = np.intersect1d(other.cells, rc.cells)
+            if len(common):
+                again = self._apply(Source.BUTTON, common, cfg.value)
+                flipped ^= set(self.grid.flat_of_codes(again.flipped.astype(np.uint64))
+                               .tolist())
+        # the postures: those only this box held become unknown and are checked again
+        near = nearby_positions(table, rc.q, cfg.joint_steps)
+        held = np.zeros(len(near), dtype=bool)
+        for other in self.collisions:
+            if other.region is None:
+                held |= near_posture(table, table.joints(table.positions[near]), other.q,
+                                     cfg.joint_steps)
+        slots = positions.reset(near[~held])
+        before = positions.n_selected[slots] > 0
+        positions.fill(slots, None)
+        after = positions.n_selected[slots] > 0
+        lost = table.leaves[slots[before != after]]
+        return WorldChange(rc.cells, np.array(sorted(flipped), dtype=np.int64),
+                           np.unique(lost))
+
+    def _region_records(self, exclude: frozenset[int] = frozenset(),
+                        ) -> list[tuple[int, ContactRegion]]:
+        return [(i, rc.region) for i, rc in enumerate(self.collisions)
+                if rc.region is not None and len(rc.region.centres) and i not in exclude]
+
+    def region_distances(self, q: Array) -> list[tuple[int, float]]:
+        """(index, distance in m) from the arm at q to every learnt region, nearest first."""
+        out = [(i, self._regions.distance(q, r)) for i, r in self._region_records()]
+        return sorted(out, key=lambda t: t[1])
 
     def _refill(self, flat_cells: Array, progress: Progress | None) -> Array:
         table, positions = self._need()
@@ -383,8 +533,11 @@ class WorldModel:
         if not self.collisions or self.table is None:
             return out
         for i, rc in enumerate(self.collisions):
-            if i not in exclude:
+            if i not in exclude and rc.region is None:
                 out |= near_posture(self.table, Q, rc.q, self.config.indication.joint_steps)
+        regions = self._region_records(exclude)
+        if regions and not out.all():
+            out[~out] = self._regions.blocked(Q[~out], regions)
         return out
 
     def segment_meets_recorded_collision(self, a: Array, b: Array,
@@ -394,10 +547,14 @@ class WorldModel:
         if not self.collisions or self.table is None:
             return False
         a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+        regions = [(i, rc.region) for i, rc in enumerate(self.collisions)
+                   if rc.region is not None and len(rc.region.centres) and i not in exclude]
+        if regions and self._regions.motion_meets(a, b, regions):
+            return True
         half = posture_box_half(self.table, self.config.indication.joint_steps)
         d = b - a
         for i, rc in enumerate(self.collisions):
-            if i in exclude:
+            if i in exclude or rc.region is not None:
                 continue
             lo, hi = rc.q - half - a, rc.q + half - a
             t0, t1 = 0.0, 1.0
@@ -434,7 +591,7 @@ class WorldModel:
     def hand_cells_at(self, Q: Array) -> Array:
         """The leaves the hand fills at the postures of Q (sampled stores; else none): a
         query starting or ending there is exempt from these leaves."""
-        if not self.sampled or not self.collisions:
+        if not self.sampled or all(rc.region is not None for rc in self.collisions):
             return np.zeros(0, dtype=np.int64)
         return np.unique(np.concatenate(self._hand_of().cells(Q)))
 
@@ -447,7 +604,8 @@ class WorldModel:
             return np.zeros(len(Q), dtype=bool)
         mask = np.zeros(self.grid.n_cells, dtype=bool)
         for i in range(len(self.collisions)):
-            mask[self.recorded_hand_cells(i)] = True
+            if self.collisions[i].region is None:
+                mask[self.recorded_hand_cells(i)] = True
         if exempt_cells is not None:
             mask[np.asarray(exempt_cells, dtype=np.int64)] = False
         if not mask.any():
@@ -459,5 +617,6 @@ class WorldModel:
         if self.table is None:
             return frozenset()
         js = self.config.indication.joint_steps
-        return frozenset(i for i, rc in enumerate(self.collisions)
-                         if near_posture(self.table, np.asarray(q)[None], rc.q, js)[0])
+        boxes = {i for i, rc in enumerate(self.collisions) if rc.region is None
+                 and near_posture(self.table, np.asarray(q)[None], rc.q, js)[0]}
+        return frozenset(boxes | self._regions.meeting(q, self._region_records()))

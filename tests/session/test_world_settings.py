@@ -73,3 +73,32 @@ def test_a_plan_says_where_a_transfer_is_closer_than_the_required_clearance(tmp_
     s.set_world_settings(clearance_mm=0)  # 0: no requirement, nothing to report
     rep = s.plan()
     assert rep["clearance_shortfalls"] == []
+
+
+def test_the_run_bound_is_a_setting_that_rebuilds_nothing(tmp_path):
+    """Indications and seconds of planning per run (`planning.run_bounds`): set by the
+    Session or a script, checked, saved, handed to the executor, and not the world's."""
+    from assistant.session.script import parse_script, run_action
+
+    s = Session.from_sample("thesis_rv2aj", tmp_path / "s")
+    assert (s.world_settings.max_indications, s.world_settings.planning_budget_s) == (20, 120.0)
+    key = s._obstacles_key()
+    out = s.set_world_settings(max_indications="5", planning_budget_s=30)
+    assert out["max_indications"] == 5 and out["planning_budget_s"] == 30.0
+    assert s._obstacles_key() == key  # a built world stays
+    with pytest.raises(SessionError, match="1-3600 s"):
+        s.set_world_settings(planning_budget_s=0)
+    with pytest.raises(SessionError, match="1-1000"):
+        s.set_world_settings(max_indications=0)
+    script = tmp_path / "s.yaml"
+    script.write_text("cell: thesis_rv2aj\nactions:\n"
+                      "  - world_settings: {max_indications: 7, planning_budget_s: 45}\n"
+                      "  - forget_indication: {number: 1}\n", encoding="utf-8")
+    sc = parse_script(script)
+    run_action(s, sc.actions[0], tmp_path, script)
+    assert (s.world_settings.max_indications, s.world_settings.planning_budget_s) == (7, 45.0)
+    with pytest.raises(Exception, match="no indication 1 to forget: 0 learnt"):
+        run_action(s, sc.actions[1], tmp_path, script)
+    s.save(tmp_path / "s")
+    back = Session.load(tmp_path / "s", autosave=False)
+    assert back.world_settings.planning_budget_s == 45.0

@@ -1,0 +1,117 @@
+"""A goal the old rule made unreachable is named, not lost (issue 56), on a real UR5 with a
+sampled world, real FCL and the simulated robot on a virtual clock.
+
+A box hidden just before the goal on the transfer: the arm meets it close to the goal. The
+old rule (the stopped posture's box of postures) then holds the goal posture too, and the
+run ends "goal inside an obstacle" without a word of which indication. The new rule learns
+only the swept region, never where the goal has the arm; met again at the same place the
+region holds the goal's surroundings and the run names that indication in mm, which the
+operator may forget - then the goal is free again."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from assistant.collision.checker import CollisionChecker
+from assistant.collision.reports import Obstacle
+from assistant.links.simulated import SimulatedRobot
+from assistant.links.timing import VirtualClock
+from assistant.planning import MissionPlanner
+from assistant.planning.config import ExecutionConfig
+from assistant.planning.execution import EndReason, MissionExecutor, _Item, _Phase
+from assistant.progress import Progress
+from assistant.roadmap.planner import RoadmapPlanner
+from assistant.robots.catalog import installed_robot_urdf
+from assistant.robots.model import CollisionShape, ShapeKind, Tool
+from assistant.robots.urdf_robot import URDFRobot
+from assistant.world.model import WorldConfig, WorldModel
+from assistant.world.reachability import ReachabilityConfig
+
+UR5 = "example-robot-data/robots/ur_description/urdf/ur5_robot.urdf"
+Q_S = np.radians([-40.0, -100.0, 100.0, -90.0, -90.0, 0.0])
+Q_G = np.radians([40.0, -100.0, 100.0, -90.0, -90.0, 0.0])
+
+
+def _box(name, centre, size) -> Obstacle:
+    T = np.eye(4)
+    T[:3, 3] = centre
+    return Obstacle(name, T, (CollisionShape(ShapeKind.BOX, tuple(size)),))
+
+
+@pytest.fixture(scope="module")
+def cell():
+    path, share = installed_robot_urdf(UR5)
+    ur5 = URDFRobot.from_file(path, package_dirs=[share], tool_link="tool0",
+                              load_visual=False).with_tool(Tool.straight(0.1))
+    obstacles = [_box("table", (0.2, 0.0, -0.011), (1.2, 1.2, 0.02))]
+    cfg = WorldConfig.for_robot(ur5, reach=ReachabilityConfig(samples=1 << 15,
+                                                              focus_samples=1 << 15),
+                                use_cache=False)
+    world = WorldModel(ur5, obstacles, cfg)
+    world.anchors = np.array([Q_S, Q_G])
+    checker = CollisionChecker(ur5, obstacles)
+    roadmap = RoadmapPlanner(ur5, checker, world)
+    roadmap.build()
+    planner = MissionPlanner(ur5, obstacles, world, roadmap, checker)
+    first = planner.plan_transfer(Q_S, Q_G, exploring=True, label="A -> B")
+    assert first.ok and first.piece is not None
+    D = first.piece.dense()
+    hidden = _box("hidden", ur5.fk(D[int(0.95 * (len(D) - 1))])[:3, 3], (0.05,) * 3)
+    return ur5, planner, first.piece, hidden
+
+
+def drive(planner, robot, piece, hidden):
+    """The transfer driven with re-planning (the executor's loop on this one piece)."""
+    link = SimulatedRobot(robot, hidden_obstacles=[hidden], clock=VirtualClock(),
+                          start_q=Q_S)
+    link.connect()
+    ex = MissionExecutor(planner, link, ExecutionConfig(plan_final=False))
+    ex._queue, ex._index, ex._phase = [_Item(piece, True, ex._world_version())], 0, \
+        _Phase.EXPLORE
+    ex._progress = Progress("drive")
+
+    def body():
+        ex._drive_queue(final=False)
+        ex.report.end, ex.report.reason = EndReason.COMPLETED, "goal reached"
+
+    rep = ex._ended(body, "end")
+    ex.detach()
+    return rep, link
+
+
+def test_a_goal_the_old_rule_lost_is_named_and_freed_by_forgetting(cell):
+    robot, planner, piece, hidden = cell
+    world = planner.world
+    indication = world.config.indication
+    # the old rule: the postures around the stop hold the goal; no indication is named
+    world.config = replace(world.config, indication=replace(indication, learn_regions=False))
+    try:
+        rep, _ = drive(planner, robot, piece, hidden)
+    finally:
+        world.config = replace(world.config, indication=indication)
+    assert rep.end == EndReason.NO_PATH, rep.describe()
+    assert "goal inside an obstacle" in rep.reason and "forget" not in rep.reason
+    assert world.near_recorded_collision(Q_G[None])[0]
+    while world.collisions:  # forgotten: the postures and leaves are given back
+        planner.roadmap.forget_collision(0)
+    assert not world.near_recorded_collision(Q_G[None])[0]
+    # the new rule: reached, or the run names the indication that holds the goal
+    world.config = replace(world.config, indication=replace(indication, learn_regions=True))
+    try:
+        rep, link = drive(planner, robot, piece, hidden)
+    finally:
+        world.config = replace(world.config, indication=indication)
+    learnt = [rc for rc in world.collisions if rc.region is not None]
+    assert learnt and len(learnt) == len(world.collisions)
+    if rep.end == EndReason.COMPLETED:
+        assert np.allclose(link.current_joints(), Q_G, atol=1e-6)
+        return
+    assert rep.end == EndReason.NO_PATH, rep.describe()
+    assert "indication 1 (a region of" in rep.reason and " mm from the arm there" in rep.reason
+    assert "forget indication 1" in rep.reason
+    assert world.near_recorded_collision(Q_G[None])[0]
+    planner.roadmap.forget_collision(0)
+    assert not world.collisions and not world.near_recorded_collision(Q_G[None])[0]
