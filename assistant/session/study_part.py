@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import math
 from concurrent.futures import Future
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -23,9 +22,6 @@ if TYPE_CHECKING:  # the study (and the planner behind it) loads on first use
 
 #: Steps the study may run in: the cell is placed and the mission taught.
 STUDY_STEPS = ("place", "teach", "explore", "plan")
-#: Verbs a script runs before a study (the rest - building, planning, executing,
-#: exporting - is what the study does per candidate, or comes after).
-_STUDY_STOP_VERBS = ("build_world", "explore", "plan", "execute", "resume", "export")
 
 
 class StudyActions:
@@ -118,23 +114,3 @@ class StudyActions:
                 assert problem.subject.object_name is not None
                 self.cell.set_object_pose(problem.subject.object_name, T)
         return T
-
-
-def load_for_study(path: str | Path) -> Any:
-    """A session to study from a saved session folder, a sample cell (name or folder) or a
-    session script (run up to its first build/plan/execute/export). Raises ValueError with
-    the reason."""
-    from assistant.session.session import Session
-    from assistant.session.store import SESSION_JSON
-
-    p = Path(path)
-    if p.is_dir() and (p / SESSION_JSON).exists():
-        return Session.load(p)
-    if p.suffix.lower() in (".yaml", ".yml") and p.is_file():
-        from assistant.session.script import parse_script, run_script
-
-        s, error = run_script(parse_script(p), None, stop_before=_STUDY_STOP_VERBS)
-        if error is not None:
-            raise ValueError(error)
-        return s
-    return Session.from_sample(str(path), None)

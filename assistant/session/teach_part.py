@@ -213,7 +213,7 @@ class TeachActions:
     def calibrate_pointer_color(self, camera_index: int, center_px: tuple[float, float],
                                 axes_px: tuple[float, float], angle_deg: float = 0.0) -> Any:
         """Colour calibration: the ellipse the operator drew over the ball in a live view."""
-        from vision.color import calibrate_from_ellipse
+        from vision.color_calibration import calibrate_from_ellipse
 
         with self._action("calibrate the pointer colour", None, undoable=False):
             if self._pointer is None or self._pointer.last_state is None:
