@@ -8,6 +8,7 @@ from typing import Any
 
 import numpy as np
 
+from assistant.session.contract import PartContract
 from assistant.session.events import (
     Notice,
     ProgramReady,
@@ -19,7 +20,7 @@ from assistant.session.types import (
 Array = np.ndarray
 
 
-class ExportActions:
+class ExportActions(PartContract):
     """Step 7: the program in a dialect, and its upload to the robot."""
 
     # ================================================================== 7. export

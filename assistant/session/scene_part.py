@@ -12,6 +12,7 @@ from assistant.cell.model import CellObject
 from assistant.mission.model import (
     SegmentKind,
 )
+from assistant.session.contract import PartContract
 from assistant.session.types import (
     _arc_points,
 )
@@ -19,7 +20,7 @@ from assistant.session.types import (
 Array = np.ndarray
 
 
-class SceneQueries:
+class SceneQueries(PartContract):
     """What the web page draws: objects, robot visuals, taught paths, the plan."""
 
     # ================================================================== scene for the UI
@@ -47,7 +48,8 @@ class SceneQueries:
                 if seg.kind == SegmentKind.LINE:
                     pts += [seg.start, seg.end]
                 elif seg.kind == SegmentKind.ARC:
-                    pts += list(_arc_points(*seg.points))
+                    a, v, b = seg.points  # start, a point on the arc, end
+                    pts += list(_arc_points(a, v, b))
                 else:
                     samp = sample_bezier_chain([CubicBezier(*seg.points)], tol)
                     pts += list(samp.points)

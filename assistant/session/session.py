@@ -18,7 +18,7 @@ import contextlib
 import threading
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -61,6 +61,9 @@ from assistant.session.types import (
 from assistant.session.worker import Worker
 from assistant.session.world_settings import WorldSettings
 from workflow.machine import Facts, Machine, Mode, TransitionRefused
+
+if TYPE_CHECKING:
+    from assistant.session.pointer_live import LivePointer
 
 Array = np.ndarray
 
@@ -108,7 +111,7 @@ class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActi
         self._world: Any = None  # planning back end (world model + roadmap), built on demand
         self._world_key: tuple | None = None
         self._last_error: str = ""
-        self._pointer: Any = None  # LivePointer while the camera step is open
+        self._pointer: LivePointer | None = None  # while the camera step is open
         self.pending_point: Any = None  # the last dwell TaughtPoint, waiting for a name
         self.sample: str | None = None  # the sample cell this session started from
         self.load_notes: list[str] = []  # what loading ignored (unknown keys), to report

@@ -10,13 +10,14 @@ from concurrent.futures import Future
 
 import numpy as np
 
+from assistant.session.contract import PartContract
 from assistant.session.events import Notice, SceneChanged
 from assistant.session.types import SessionError
 
 Array = np.ndarray
 
 
-class StartPostureActions:
+class StartPostureActions(PartContract):
     """What the start posture touches, said when the cell changes; the way out of it."""
 
     def start_posture_problem(self) -> str | None:

@@ -14,6 +14,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from assistant.progress import Progress
+from assistant.session.contract import PartContract
 from assistant.session.events import Notice, SceneChanged
 from assistant.session.types import EDIT_PLACEMENT, SessionError
 
@@ -24,7 +25,7 @@ if TYPE_CHECKING:  # the study (and the planner behind it) loads on first use
 STUDY_STEPS = ("place", "teach", "explore", "plan")
 
 
-class StudyActions:
+class StudyActions(PartContract):
     """The placement study and applying one of its candidates."""
 
     @property
@@ -102,6 +103,8 @@ class StudyActions:
         if not match:
             raise SessionError(f"the study has no candidate #{index}")
         problem = study.problem
+        if problem is None:  # a result kept without its problem (loaded, not run here)
+            raise SessionError("the study's problem is not kept: run the study again")
         T = problem.pose_at(match[0].candidate)
         label = f"move {problem.subject.describe()} to {match[0].candidate.label()}"
         with self._action(label, EDIT_PLACEMENT, scene="robot" if problem.subject.is_base
