@@ -62,6 +62,7 @@ class PartContract:
     load_notes: list[str]
     # ------------------------------------------------------------- results and run state
     trajectory: Trajectory | None
+    program: Any  # the exported program (`Session.exporter` owns it)
     plan_report: dict[str, Any] | None
     recorded_collisions: list[Array]
     halts_this_run: int

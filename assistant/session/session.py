@@ -40,7 +40,7 @@ from assistant.session.events import (
     SceneChanged,
     StateChanged,
 )
-from assistant.session.export_part import ExportActions
+from assistant.session.export_part import ExportPart
 from assistant.session.history import History
 from assistant.session.layout_part import LayoutActions
 from assistant.session.motion_hold import MotionHold
@@ -69,7 +69,7 @@ Array = np.ndarray
 
 
 class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActions,
-              PlanningActions, SceneQueries, ExportActions, Persistence, Saving, StudyActions,
+              PlanningActions, SceneQueries, Persistence, Saving, StudyActions,
               StartPostureActions):
     """Everything the operator does, headless or behind the web page: the state, the action
     plumbing and the workflow here; the actions by concern in the parts it mixes in."""
@@ -92,7 +92,8 @@ class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActi
         self.world_settings = WorldSettings()
         self.trajectory: Trajectory | None = None
         self.plan_report: dict[str, Any] | None = None
-        self.program: Any = None
+        #: Step 7, composed: the exported program and the verbs that make and send it.
+        self.exporter = ExportPart(self)
         self.recorded_collisions: list[Array] = []
         #: The enabling switch: who may move the robot (enforced once pages serve this).
         self.hold = MotionHold()
@@ -162,6 +163,25 @@ class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActi
     def tcp_world(self, q: Array | None = None) -> Array:
         q = self.current_joints() if q is None else q
         return self.T_world_base() @ self.robot.fk(q)
+
+    @property
+    def program(self) -> Any:
+        """The last exported program (owned by `exporter`); None when stale or not yet."""
+        return self.exporter.program
+
+    @program.setter
+    def program(self, value: Any) -> None:
+        self.exporter.program = value
+
+    # ================================================================== 7. export
+    def export(self, dialect: str | None = None, *, name: str | None = None,
+               frame: str | None = None, count: bool = True) -> Any:
+        """Write the planned mission as a robot program (`ExportPart.export`)."""
+        return self.exporter.export(dialect, name=name, frame=frame, count=count)
+
+    def upload_program(self) -> str:
+        """Send the exported program to the robot controller (`ExportPart.upload_program`)."""
+        return self.exporter.upload_program()
 
     # ================================================================== action plumbing
     @contextlib.contextmanager
