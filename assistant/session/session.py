@@ -51,7 +51,7 @@ from assistant.session.saving import Saving
 from assistant.session.scene_part import SceneQueries
 from assistant.session.setup_part import SetupActions
 from assistant.session.start_part import StartPostureActions
-from assistant.session.study_part import StudyActions
+from assistant.session.study_part import StudyPart
 from assistant.session.teach_part import TeachActions
 from assistant.session.types import (
     Counters,
@@ -63,13 +63,16 @@ from assistant.session.world_settings import WorldSettings
 from workflow.machine import Facts, Machine, Mode, TransitionRefused
 
 if TYPE_CHECKING:
+    from concurrent.futures import Future
+
     from assistant.session.pointer_live import LivePointer
+    from assistant.study import Region, Scoring, StudyProblem, StudyResult, StudySettings
 
 Array = np.ndarray
 
 
 class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActions,
-              PlanningActions, SceneQueries, Persistence, Saving, StudyActions,
+              PlanningActions, SceneQueries, Persistence, Saving,
               StartPostureActions):
     """Everything the operator does, headless or behind the web page: the state, the action
     plumbing and the workflow here; the actions by concern in the parts it mixes in."""
@@ -94,6 +97,8 @@ class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActi
         self.plan_report: dict[str, Any] | None = None
         #: Step 7, composed: the exported program and the verbs that make and send it.
         self.exporter = ExportPart(self)
+        #: Placement studies, composed: the last study's result and the verbs that run one.
+        self.studies = StudyPart(self)
         self.recorded_collisions: list[Array] = []
         #: The enabling switch: who may move the robot (enforced once pages serve this).
         self.hold = MotionHold()
@@ -182,6 +187,35 @@ class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActi
     def upload_program(self) -> str:
         """Send the exported program to the robot controller (`ExportPart.upload_program`)."""
         return self.exporter.upload_program()
+
+    # ================================================================== placement studies
+    @property
+    def placement_study(self) -> StudyResult | None:
+        """The last placement study's result (owned by `studies`); None before the first."""
+        return self.studies.placement_study
+
+    def study_problem(self, *, object_name: str | None = None, carry: bool = True,
+                      joint_margin_deg: float = 5.0,
+                      clearance_mm: float | None = None) -> StudyProblem:
+        """The study of this cell and mission (`StudyPart.study_problem`)."""
+        return self.studies.study_problem(object_name=object_name, carry=carry,
+                                          joint_margin_deg=joint_margin_deg,
+                                          clearance_mm=clearance_mm)
+
+    def start_study_placement(self, region: Region, settings: StudySettings | None = None,
+                              *, scoring: Scoring | None = None, **problem: Any) -> Future:
+        """A placement study in the background (`StudyPart.start_study_placement`)."""
+        return self.studies.start_study_placement(region, settings, scoring=scoring,
+                                                   **problem)
+
+    def study_placement(self, region: Region, settings: StudySettings | None = None,
+                        *, scoring: Scoring | None = None, **problem: Any) -> StudyResult:
+        """A placement study, waited for (`StudyPart.study_placement`)."""
+        return self.studies.study_placement(region, settings, scoring=scoring, **problem)
+
+    def apply_placement(self, index: int) -> Array:
+        """Move the study's subject to candidate `index` (`StudyPart.apply_placement`)."""
+        return self.studies.apply_placement(index)
 
     # ================================================================== action plumbing
     @contextlib.contextmanager
