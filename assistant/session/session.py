@@ -22,7 +22,7 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from assistant.cell.model import Cell
+from assistant.cell.model import Cell, CellObject
 from assistant.links.link import RobotLink
 from assistant.links.settings import LinkSettings
 from assistant.mission.model import (
@@ -48,7 +48,7 @@ from assistant.session.motion_part import MotionActions
 from assistant.session.persistence_part import Persistence
 from assistant.session.planning_part import PlanningActions
 from assistant.session.saving import Saving
-from assistant.session.scene_part import SceneQueries
+from assistant.session.scene_part import ScenePart
 from assistant.session.setup_part import SetupActions
 from assistant.session.start_part import StartPostureActions
 from assistant.session.study_part import StudyPart
@@ -72,7 +72,7 @@ Array = np.ndarray
 
 
 class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActions,
-              PlanningActions, SceneQueries, Persistence, Saving,
+              PlanningActions, Persistence, Saving,
               StartPostureActions):
     """Everything the operator does, headless or behind the web page: the state, the action
     plumbing and the workflow here; the actions by concern in the parts it mixes in."""
@@ -99,6 +99,8 @@ class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActi
         self.exporter = ExportPart(self)
         #: Placement studies, composed: the last study's result and the verbs that run one.
         self.studies = StudyPart(self)
+        #: What the page draws, composed (as viser's `server.scene`).
+        self.scene = ScenePart(self)
         self.recorded_collisions: list[Array] = []
         #: The enabling switch: who may move the robot (enforced once pages serve this).
         self.hold = MotionHold()
@@ -187,6 +189,27 @@ class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActi
     def upload_program(self) -> str:
         """Send the exported program to the robot controller (`ExportPart.upload_program`)."""
         return self.exporter.upload_program()
+
+    # ================================================================== scene for the UI
+    def scene_objects(self) -> list[CellObject]:
+        """Placed objects (`ScenePart.scene_objects`)."""
+        return self.scene.scene_objects()
+
+    def robot_visuals(self) -> list[tuple[str, Any, tuple[int, int, int]]]:
+        """(link name, mesh, colour) of every visual link (`ScenePart.robot_visuals`)."""
+        return self.scene.robot_visuals()
+
+    def link_poses_world(self, q: Array | None = None) -> Array:
+        """T_world_link for every robot link at q (`ScenePart.link_poses_world`)."""
+        return self.scene.link_poses_world(q)
+
+    def path_polylines(self, tol: float = 0.0005) -> list[tuple[str, Array]]:
+        """Each application path as points for drawing (`ScenePart.path_polylines`)."""
+        return self.scene.path_polylines(tol)
+
+    def plan_polylines(self) -> list[tuple[str, Array]]:
+        """The planned trajectory per motion (`ScenePart.plan_polylines`)."""
+        return self.scene.plan_polylines()
 
     # ================================================================== placement studies
     @property
