@@ -8,8 +8,11 @@ bus. An action that fails half-way is rolled back to the snapshot taken before i
 (world model, planning, execution, exploration) runs on the worker thread with progress and
 Cancel; the machine's busy/moving modes keep edits out meanwhile.
 
-The actions live in parts by concern (`*_part.py`), mixed into `Session`: their methods run
-on the Session's state, under its lock and workflow, exactly as if written here.
+The actions live in parts by concern (`*_part.py`). Some are composed: an object built with
+the session as its core, owning its own state, whose verbs the session hands over to (`export`
+-> `exporter.export`). The rest are still mixed into `Session`: their methods run on the
+Session's state, under its lock and workflow. Either kind reaches the whole only through
+`contract.PartContract`.
 """
 
 from __future__ import annotations
@@ -50,7 +53,7 @@ from assistant.session.planning_part import PlanningActions
 from assistant.session.saving import Saving
 from assistant.session.scene_part import ScenePart
 from assistant.session.setup_part import SetupActions
-from assistant.session.start_part import StartPostureActions
+from assistant.session.start_part import StartPosturePart
 from assistant.session.study_part import StudyPart
 from assistant.session.teach_part import TeachActions
 from assistant.session.types import (
@@ -72,10 +75,10 @@ Array = np.ndarray
 
 
 class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActions,
-              PlanningActions, Persistence, Saving,
-              StartPostureActions):
+              PlanningActions, Persistence, Saving):
     """Everything the operator does, headless or behind the web page: the state, the action
-    plumbing and the workflow here; the actions by concern in the parts it mixes in."""
+    plumbing and the workflow here; the actions by concern in its parts - composed
+    (`exporter`, `studies`, `scene`, `start_posture`) or, for the rest, mixed in."""
 
     def __init__(self, folder: str | Path | None = None, *, autosave: bool = True):
         self.bus = EventBus()
@@ -101,6 +104,8 @@ class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActi
         self.studies = StudyPart(self)
         #: What the page draws, composed (as viser's `server.scene`).
         self.scene = ScenePart(self)
+        #: The start posture against the cell, composed: what touches and the way out.
+        self.start_posture = StartPosturePart(self)
         self.recorded_collisions: list[Array] = []
         #: The enabling switch: who may move the robot (enforced once pages serve this).
         self.hold = MotionHold()
@@ -189,6 +194,27 @@ class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActi
     def upload_program(self) -> str:
         """Send the exported program to the robot controller (`ExportPart.upload_program`)."""
         return self.exporter.upload_program()
+
+    # ================================================================== the start posture
+    def start_posture_problem(self) -> str | None:
+        """What the current posture touches, checked now (`StartPosturePart.problem_now`)."""
+        return self.start_posture.problem_now()
+
+    def start_posture_links(self) -> tuple[str, ...]:
+        """The links the last start check found touching (the page draws them red)."""
+        return self.start_posture.links
+
+    def start_posture_text(self) -> str:
+        """What the last start check found touching, in the operator's words ("" if free)."""
+        return self.start_posture.problem or ""
+
+    def move_to_free_posture(self, *, wait: bool = True) -> Future:
+        """Drive the robot out of what it touches (`StartPosturePart.move_to_free_posture`)."""
+        return self.start_posture.move_to_free_posture(wait=wait)
+
+    def _require_free_start(self) -> None:
+        """Planning refuses a start posture that touches the cell (`require_free`)."""
+        self.start_posture.require_free()
 
     # ================================================================== scene for the UI
     def scene_objects(self) -> list[CellObject]:
@@ -286,10 +312,10 @@ class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActi
             self._start_check()
 
     def _start_check(self) -> None:
-        """`_check_start_posture` after an edit; a check that cannot run (a lost link) is
+        """`start_posture.check` after an edit; a check that cannot run (a lost link) is
         said, and never undoes the edit."""
         try:
-            self._check_start_posture()
+            self.start_posture.check()
         except Exception as exc:  # noqa: BLE001 - the edit stands; the operator is told
             self.bus.emit(Notice(f"the start posture could not be checked against the cell: "
                                  f"{exc}"))
