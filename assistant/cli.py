@@ -128,8 +128,8 @@ def _link_args(sub: argparse._SubParsersAction) -> None:
 
 
 def cmd_emulate(args: argparse.Namespace) -> int:
-    from assistant.links.emulators.launch import start
-    from assistant.links.emulators.until_stopped import install_stop_handlers, wait_until_stopped
+    from assistant.emulators.launch import start
+    from assistant.emulators.until_stopped import install_stop_handlers, wait_until_stopped
 
     if args.remote and args.local_mode:
         print("cellteach: --remote and --local-mode exclude each other", file=sys.stderr)
@@ -337,7 +337,7 @@ def cmd_study(args: argparse.Namespace) -> int:
     """`cellteach study placement`: 0 a candidate was planned, 1 none was (study.json says
     why each failed), 2 bad input."""
     from assistant.progress import Cancelled, Progress
-    from assistant.session.study_part import load_for_study
+    from assistant.session.study_source import load_for_study
     from assistant.study import Region, StudySettings, run_study
     from assistant.study.picture import render_map
 

@@ -4,7 +4,7 @@ fresh interpreters (subprocesses), as a user's commands are:
 1. cold run: `python -m assistant run sample_cells/thesis_rv2aj/session.yaml --out DIR` with
    an empty `$CELLTEACH_CACHE` (no compiled kernels, no reachability table): wall time of the
    command, which must exit 0 with "ok": true in its report.json. The kernels run their
-   fallbacks while the background compile (`python -m assistant.kernels.compile`) fills the
+   fallbacks while the background compile (`python -m assistant.warmup.compile`) fills the
    cache;
 2. background compile: from the cold run's start until the cache's completion marker
    (`$CELLTEACH_CACHE/numba/<hash>/complete-<cpu>`) appears - waited for, so that 3 and 5
@@ -61,7 +61,7 @@ RUN_TIMEOUT_S = 900.0
 COMPILE_TIMEOUT_S = 600.0
 SERVE_START_TIMEOUT_S = 300.0
 PAGE_TIMEOUT_MS = 600_000
-COMPILE_MODULE = "assistant.kernels.compile"
+COMPILE_MODULE = "assistant.warmup.compile"
 
 #: The text, or the first error notification, whichever shows first.
 WAIT_TEXT_JS = """([pattern, k]) => {

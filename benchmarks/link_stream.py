@@ -76,7 +76,7 @@ def trajectory(robot: RV2AJ, n_targets: int) -> tuple[np.ndarray, float]:
 
 
 def start_emulator(delay_ms: float) -> tuple[subprocess.Popen, int, int]:
-    proc = subprocess.Popen([sys.executable, "-m", "assistant.links.emulators.melfa_emulator",
+    proc = subprocess.Popen([sys.executable, "-m", "assistant.emulators.melfa_emulator",
                              "--port", "0", "--datalink-port", "0",
                              "--reply-delay-ms", str(delay_ms)],
                             stdout=subprocess.PIPE, text=True,
@@ -193,7 +193,7 @@ def poll_visible(get_stamp, seconds: float) -> tuple[list[float], list[float]]:
 
 
 def start_ur_emulator() -> tuple[subprocess.Popen, dict[str, int]]:
-    proc = subprocess.Popen([sys.executable, "-m", "assistant.links.emulators.ur_emulator",
+    proc = subprocess.Popen([sys.executable, "-m", "assistant.emulators.ur_emulator",
                              "--host", UR_HOST, "--rtde-port", "30004", "--script-port", "0",
                              "--dashboard-port", "0"], stdout=subprocess.PIPE, text=True,
                             cwd=str(Path(__file__).resolve().parents[1]))

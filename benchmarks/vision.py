@@ -41,7 +41,8 @@ import numpy as np  # noqa: E402
 
 from vision.calibration_targets import ChessboardSpec  # noqa: E402
 from vision.camera_model import CameraModel  # noqa: E402
-from vision.color import DEFAULT_POINTER_RED, ColorProfile, calibrate_from_ellipse  # noqa: E402
+from vision.color import DEFAULT_POINTER_RED, ColorProfile  # noqa: E402
+from vision.color_calibration import calibrate_from_ellipse  # noqa: E402
 from vision.detection import BlobDetector, threshold_centroid, window_around  # noqa: E402
 from vision.frame import Frame  # noqa: E402
 from vision.geometry import sphere_ray, triangulate  # noqa: E402
@@ -304,9 +305,10 @@ def dwell(models, n, seed):
 
 def honesty(models, profile, seed, photos, quick):
     """Issue 33 figures: real-photo sequences (operator's ellipse calibration, 1.3x the ball)
-    and the rendered dwell scene with the same script, scored by `vision.pointer_scoring`."""
-    from vision.photo_scenes import operator_calibration, photo_sequence
-    from vision.pointer_scoring import combine, score_run
+    and the rendered dwell scene with the same script, scored by
+    `cellteach_testing.pointer_scoring`."""
+    from cellteach_testing.photo_scenes import operator_calibration, photo_sequence
+    from cellteach_testing.pointer_scoring import combine, score_run
 
     runs = {}
     for name in photos:
@@ -330,7 +332,7 @@ def honesty(models, profile, seed, photos, quick):
 def rendered_honesty(models, profile, seed, quick):
     """The same scoring on a rendered sequence (cluttered grey wall, 20 red/orange
     look-alikes, occlusion, exposure drift, three dwells)."""
-    from vision.pointer_scoring import score_run
+    from cellteach_testing.pointer_scoring import score_run
     from vision.trajectories import waypoints
 
     rng = np.random.default_rng(seed)
@@ -338,7 +340,7 @@ def rendered_honesty(models, profile, seed, quick):
     holds_t, moves = [0.2, 1.6, 1.6, 1.6], [0.7, 1.2, 0.7]
     path = waypoints(pts, moves, holds_t, tremor=0.0003, seed=seed)
     t, holds = 0.9, []
-    from vision.photo_scenes import Hold
+    from cellteach_testing.photo_scenes import Hold
     for k in range(3):
         holds.append(Hold(t, t + 1.6, pts[k + 1]))
         t += 1.6 + (moves[k + 1] if k < 2 else 0)
@@ -379,7 +381,7 @@ def main() -> None:
         ("honesty_rendered", lambda: rendered_honesty(models, profile, args.seed, q)),
     ]
     if not args.no_photos:
-        from vision.photo_scenes import HELD_OUT_PHOTOS, TUNED_PHOTOS
+        from cellteach_testing.photo_scenes import HELD_OUT_PHOTOS, TUNED_PHOTOS
         sections += [
             ("honesty_photos_tuned", lambda: honesty(models, profile, 1, TUNED_PHOTOS, q)),
             ("honesty_photos_held_out", lambda: honesty(models, profile, 1, HELD_OUT_PHOTOS,

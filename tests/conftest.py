@@ -7,9 +7,9 @@ import os
 import numpy as np
 import pytest
 
-from assistant.kernels.warmup import warm_up
 from assistant.robots.model import Tool
 from assistant.robots.rv2aj import RV2AJ, RV2AJConfig
+from assistant.warmup.steps import warm_up
 
 
 @pytest.fixture(scope="session", autouse=True)

@@ -17,20 +17,24 @@ ROOT = Path(__file__).resolve().parents[1]
 RANK = {
     "assistant.transforms": 0, "assistant.progress": 0, "assistant.kernels": 0,
     "assistant.file_guard": 0,  # reading files we did not write: every reader's rules
-    "assistant": 0.5,  # the package itself: points numba at its cache folder (kernels.cache)
     "workflow": 0, "vision": 0,
+    "cellteach_testing": 0.5,  # test and benchmark helpers over `vision`
     "assistant.robots": 1,
     "assistant.collision": 2,
     "assistant.cell": 3, "assistant.mission": 3, "assistant.world": 3,
     "assistant.roadmap": 4, "assistant.trajectory": 4,
     "assistant.export": 5, "assistant.links": 5,
-    # the warm-up and the background compile drive the real API to compile every kernel
-    "assistant.planning": 6, "assistant.kernels.warmup": 6, "assistant.kernels.compile": 6,
+    "assistant.emulators": 5.5,  # the controllers' emulators: peers of the links
+    "assistant.planning": 6,
     "assistant.study": 6.5,  # placement studies: run the planner over candidate placements
     "assistant.session": 7,
-    "web": 8, "assistant.cli": 9, "assistant.__main__": 10,
+    "web": 8,
+    # the package itself: `assistant.Session`, looked up on first use (PEP 562)
+    "assistant": 8.5,
+    # the warm-up and the background compile drive the real API to compile every kernel
+    "assistant.warmup": 9, "assistant.cli": 9, "assistant.__main__": 10,
 }
-PACKAGES = ("assistant", "web", "vision", "workflow")
+PACKAGES = ("assistant", "web", "vision", "workflow", "cellteach_testing")
 
 
 def room(module: str) -> str:
@@ -89,3 +93,11 @@ def test_the_rule_catches_an_upward_import(tmp_path):
     bad.write_text("from assistant.planning.execution import Executor\n")
     (name, _), = _imports(bad)
     assert RANK[room(name)] > RANK[room("assistant.collision.checker")]
+
+
+def test_the_product_never_imports_the_testing_helpers():
+    """`cellteach_testing` is for the tests and benchmarks: no product module imports it."""
+    wrong = [(module, line) for module, path in _modules()
+             if room(module) != "cellteach_testing"
+             for name, line in _imports(path) if name.split(".")[0] == "cellteach_testing"]
+    assert wrong == []

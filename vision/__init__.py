@@ -16,7 +16,5 @@ Never imports viser; the web layer shows what the tracker produces. Modules, by 
   last clean look (marked `Detection.method == "appearance"`), else by its outline (`outline`,
   `method == "outline"`); `pointer_hypotheses`: the
   candidate stereo fixes of a frame, for `PointerSystem` to choose from
-- `photo_scenes` (sequences over real photographs; needs scikit-image, tests and benchmarks
-  only) and `pointer_scoring` (a run's figures against ground truth)
 - `errors`: every exception raised on purpose
 """

@@ -115,18 +115,3 @@ class ColorProfileSet:
     @classmethod
     def from_dict(cls, data: dict) -> ColorProfileSet:
         return cls([ColorProfile.from_dict(p) for p in data.get("profiles", [])])
-
-
-# the ellipse calibration lives in `vision.color_calibration` (it imports this module)
-def calibrate_from_ellipse(*args, **kwargs) -> ColorProfile:
-    """See `vision.color_calibration.calibrate_from_ellipse`."""
-    from vision.color_calibration import calibrate_from_ellipse as calibrate
-
-    return calibrate(*args, **kwargs)
-
-
-def calibrate_ellipse(*args, **kwargs):
-    """See `vision.color_calibration.calibrate_ellipse` (profile, mask, separability)."""
-    from vision.color_calibration import calibrate_ellipse as calibrate
-
-    return calibrate(*args, **kwargs)

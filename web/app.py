@@ -33,7 +33,7 @@ from web.gate import Access, GateConfig
 from web.heartbeat import Heartbeat
 from web.notify import Notifier
 from web.pages import Pages
-from web.panels.base import Panel
+from web.panels.base import StepPanel
 from web.panels.cad import CadPanel
 from web.panels.cameras import CamerasPanel
 from web.panels.explore import ExplorePanel
@@ -77,7 +77,7 @@ class App:
     #: Which operator page holds motion authority (`web.authority`).
     authority: PageAuthority = field(init=False)
     heartbeat: Heartbeat = field(init=False)
-    panels: dict[str, Panel] = field(init=False)
+    panels: dict[str, StepPanel] = field(init=False)
     #: The workflow step the page shows (a step change makes earlier errors stale).
     _shown_state: str = field(init=False, default="")
     _swap_lock: threading.Lock = field(default_factory=threading.Lock, init=False)
@@ -101,10 +101,11 @@ class App:
                               settled=lambda: self._session.settled())
         self.scene_layers = SceneLayers(self)
         self.toolbar = Toolbar(self)
-        self.panels = {p.title: p for p in (
+        panels: tuple[StepPanel, ...] = (
             SetupPanel(self), CadPanel(self), PlacePanel(self), CamerasPanel(self),
             TeachPanel(self), PathsPanel(self), ExplorePanel(self), PlanPanel(self),
-            ExportPanel(self), JogPanel(self), ViewPanel(self), SessionPanel(self))}
+            ExportPanel(self), JogPanel(self), ViewPanel(self), SessionPanel(self))
+        self.panels = {p.title: p for p in panels}
         install_early_limit(self)
         # The enabling switch: only the present holder's page moves the robot (the session's
         # rule); the pages tell it who comes and goes, the heartbeat who falls silent.
@@ -199,7 +200,8 @@ class App:
             self._executed = ev.ok
             if ev.ok:
                 goal = self._session.mission.goal
-                self.notifier.success(goal_reached(goal and goal.name, ev.summary))
+                self.notifier.success(goal_reached(goal.name if goal is not None else None,
+                                                   ev.summary))
         elif isinstance(ev, PlanReady):
             if self._executed:  # the verified final plan of a run: announced as the goal
                 self._executed = False

@@ -12,7 +12,7 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import viser
 
@@ -82,11 +82,18 @@ class AuthorityPanel:
             self.ask = gui.add_button("Ask for motion authority", visible=False)
             self.hand = gui.add_button("Hand over motion authority", visible=False)
             self.release = gui.add_button("Release motion authority", visible=False)
-        self.take.on_click(lambda e: hold.take(self.me))
-        self.ask.on_click(lambda e: hold.request(self.me))
-        self.hand.on_click(lambda e: hold.hand_over(self.me))
-        self.release.on_click(lambda e: hold.release(self.me))
+        for button, verb in ((self.take, hold.take), (self.ask, hold.request),
+                             (self.hand, hold.hand_over), (self.release, hold.release)):
+            button.on_click(self._calling(verb))
         self.show(hold.state)
+
+    def _calling(self, verb: Callable[[int], object]) -> Callable[[Any], None]:
+        """A button's callback: the hold's verb for this page (what it returns - did the
+        holder change? - the page learns from the hold's own event)."""
+        def call(_event: Any) -> None:
+            verb(self.me)
+
+        return call
 
     def show(self, st: HoldState) -> None:
         mine, name = st.holder == self.me, self.pages.name

@@ -23,6 +23,7 @@ import threading
 import time
 from collections import deque
 from collections.abc import Callable
+from typing import Literal
 
 import viser
 
@@ -137,7 +138,8 @@ class Notifier:
         if self.on_message is not None:
             self.on_message(kind, text, client)
 
-    def _show(self, title: str, body: str, *, color: str, auto_close: float | None,
+    def _show(self, title: str, body: str, *, color: Literal["red", "blue", "green"],
+              auto_close: float | None,
               client: viser.ClientHandle | None, key: str | None = None,
               viewers: bool = True) -> list[viser.NotificationHandle]:
         if client is not None:
@@ -153,7 +155,7 @@ class Notifier:
                     old = self._keyed.pop((key, c.client_id), None)
                     if old is not None and not old._impl.removed:  # noqa: SLF001
                         old.remove()
-                h = c.add_notification(title, body, color=color,  # type: ignore[arg-type]
+                h = c.add_notification(title, body, color=color,
                                        auto_close_seconds=auto_close, with_close_button=True)
                 if key is not None:
                     self._keyed[(key, c.client_id)] = h

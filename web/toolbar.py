@@ -8,7 +8,8 @@ greyed out with its reason, so the operator always sees what to do first (SPEC Â
 from __future__ import annotations
 
 import contextlib
-from typing import TYPE_CHECKING, Any
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any, Literal
 
 import viser
 
@@ -24,6 +25,7 @@ from assistant.session.events import (
     StateChanged,
 )
 from assistant.session.run_state import RunPhase, RunState
+from web.gui_value import set_value
 from web.panels.base import busy_reason, settled_view
 from web.wording import progress_words
 from workflow.states import NUMBER, STATES, leaves
@@ -32,8 +34,9 @@ if TYPE_CHECKING:
     from web.app import App
 
 #: Colours of the mode buttons; Collision! is the big red one.
-MODE_COLORS: dict[str, str] = {"collision": "red", "stop": "orange", "cancel": "yellow",
-                               "acknowledge": "blue", "reconnect": "teal"}
+MODE_COLORS: dict[str, Literal["red", "orange", "yellow", "blue", "teal"]] = {
+    "collision": "red", "stop": "orange", "cancel": "yellow", "acknowledge": "blue",
+    "reconnect": "teal"}
 MODE_ICONS: dict[str, Any] = {"collision": viser.Icon.ALERT_OCTAGON,
                               "stop": viser.Icon.PLAYER_STOP, "cancel": viser.Icon.X}
 NAV = ("previous", "next", "exit")
@@ -117,6 +120,10 @@ class Toolbar:
     def _fire(self, event: str) -> None:
         self.app.session.fire(event)
 
+    def _firing(self, event: str) -> Callable[[Any], None]:
+        """A button's callback that fires `event`."""
+        return lambda e: self._fire(event)
+
     def _goto(self) -> None:
         choice = self.step_choice.value.split(" ", 1)[0]
         step = next(s for s in leaves() if NUMBER[s] == choice)
@@ -126,12 +133,12 @@ class Toolbar:
         s = self.app.session
         s.fire("stop" if s.machine.mode.value == "moving" else "cancel")
 
-    def _undo(self, client: viser.ClientHandle, *, redo: bool) -> None:
+    def _undo(self, client: viser.ClientHandle | None, *, redo: bool) -> None:
         s = self.app.session
         label = s.redo() if redo else s.undo()
         self.app.notifier.notice(f"{'Redone' if redo else 'Undone'}: {label}", client=client)
 
-    def _exit(self, client: viser.ClientHandle) -> None:
+    def _exit(self, client: viser.ClientHandle | None) -> None:
         s = self.app.session
         s.fire("exit")
         if s.folder is not None:
@@ -185,7 +192,7 @@ class Toolbar:
             self.progress.visible = False
             self.progress_text.visible = False
             return
-        self.progress.value = max(0.0, min(100.0, 100.0 * ev.fraction))
+        set_value(self.progress, max(0.0, min(100.0, 100.0 * ev.fraction)))
         words = progress_words(ev.message) or "working"
         self.progress_text.content = f"<small>{_md_escape(ev.task)}: " \
                                      f"{_md_escape(words)}</small>"
@@ -255,7 +262,7 @@ class Toolbar:
                     btn = self.app.server.gui.add_button(
                         t.label, color=MODE_COLORS.get(t.event), icon=MODE_ICONS.get(t.event),
                         order=float(i))
-                self.app.actions.bind(btn, lambda e, ev=t.event: self._fire(ev))
+                self.app.actions.bind(btn, self._firing(t.event))
                 self._buttons[t.event] = btn
             _set(btn, disabled=not t.allowed, hint=t.reason or _target_hint(t.target))
 

@@ -198,6 +198,11 @@ class CellObject:
         if not self.collision:
             raise CellError(f"object {self.name!r} has no collision geometry")
 
+    @property
+    def part_mesh(self) -> trimesh.Trimesh:
+        """The part at full resolution (`full_mesh`, which making the object sets)."""
+        return self.full_mesh if self.full_mesh is not None else self.display_mesh
+
     # -- factories --------------------------------------------------------------------------
 
     @staticmethod

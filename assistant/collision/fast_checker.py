@@ -31,7 +31,7 @@ import numpy as np
 from assistant.collision.broad_phase import prune_round_pairs
 from assistant.collision.capsule_cover import Capsule
 from assistant.collision.capsule_phase import CERTIFIED, FREE, capsule_rows, capsule_samples
-from assistant.collision.checker import CollisionChecker
+from assistant.collision.exact_checker import ExactChecker
 from assistant.collision.fast_model import FastRobot, fast_obstacles
 from assistant.collision.fcl_shapes import fcl_geometry, fcl_transform
 from assistant.collision.motion_rows import motion_marks, rows_inside
@@ -49,12 +49,12 @@ _CLOSE_CACHE: dict[str, frozenset[int]] = {}
 _CLOSE_LOCK = threading.Lock()
 
 
-class FastChecker(CollisionChecker):
+class FastChecker(ExactChecker):
     """The fast model behind the checker interface (module docstring)."""
 
     PRUNE_APART = 0.0
 
-    def __init__(self, exact: CollisionChecker, robot: FastRobot,
+    def __init__(self, exact: ExactChecker, robot: FastRobot,
                  close: frozenset[int] | None = None):
         caps_of: dict[int, list[int]] = {}
         for f, i in enumerate(robot.owner.tolist()):
@@ -207,7 +207,7 @@ class FastChecker(CollisionChecker):
         return ok, margin
 
     @property
-    def fast(self) -> CollisionChecker:
+    def fast(self) -> ExactChecker:
         return self
 
     def _caps(self) -> tuple:

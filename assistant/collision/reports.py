@@ -16,11 +16,15 @@ Array = np.ndarray
 
 
 class ObstacleView(Protocol):
-    """What the checker needs of a cell object (see `cell.Cell.collision_objects_in_base`)."""
+    """What the checker needs of a cell object (see `cell.Cell.collision_objects_in_base`);
+    read only, so frozen dataclasses (`Obstacle`, `cell.model.CollisionObjectView`) are views."""
 
-    name: str
-    T_base_object: Array
-    collision: tuple[CollisionShape, ...]
+    @property
+    def name(self) -> str: ...
+    @property
+    def T_base_object(self) -> Array: ...
+    @property
+    def collision(self) -> tuple[CollisionShape, ...]: ...
 
 
 @dataclass(frozen=True)

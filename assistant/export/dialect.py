@@ -18,6 +18,7 @@ from typing import TYPE_CHECKING, Protocol, runtime_checkable
 
 import numpy as np
 
+from assistant.export.dialect_names import AXIS_COUNTS, DIALECT_NAMES, dialect_label
 from assistant.export.errors import ExportError
 from assistant.export.program import (
     Gripper,
@@ -92,9 +93,6 @@ def check_axis_count(dialect: Dialect, robot: Robot) -> None:
     n = robot.dof
     if not counts or n in counts:
         return
-    # The registry imports every dialect module, which import this one: imported late.
-    from assistant.export.registry import DIALECT_NAMES, dialect_label, get_dialect
-
     rule = getattr(dialect, "axis_rule", "") or \
         f"{dialect_label(dialect.name)} runs on arms with {_count_text(counts)} axes"
     text = f"{rule}; this robot ({robot.name}) has {n} axes."
@@ -103,7 +101,7 @@ def check_axis_count(dialect: Dialect, robot: Robot) -> None:
         text += f" {beyond[0].upper()}{beyond[1:]}."
     takes: dict[tuple[int, ...], list[str]] = {}
     for name in DIALECT_NAMES:
-        takes.setdefault(tuple(get_dialect(name).axis_counts), []).append(dialect_label(name))
+        takes.setdefault(AXIS_COUNTS[name], []).append(dialect_label(name))
     others = [label for c, labels in takes.items() if n in c for label in labels
               if label != dialect_label(dialect.name)]
     arm = f"{'an' if str(n)[0] == '8' or n in (11, 18) else 'a'} {n}-axis arm"

@@ -76,6 +76,7 @@ from assistant.export.dialect import (
     xyz_fixed_angles,
     xyz_fixed_matrix,
 )
+from assistant.export.dialect_names import AXIS_COUNTS
 from assistant.export.errors import ExportError
 from assistant.export.fanuc_ls import parse_ls
 from assistant.export.pendant_notes import COMMENT_LENGTH, frame_comments, short_comments
@@ -134,7 +135,7 @@ class FanucDialect:
     title = "FANUC TP (ASCII .LS)"
     file_extensions = (".LS",)
     #: FANUC arms: 4-axis palletizers and SCARA, 5- and 6-axis articulated arms.
-    axis_counts = (4, 5, 6)
+    axis_counts = AXIS_COUNTS["fanuc"]
     axis_rule = "FANUC TP positions hold the joints J1..J6 of 4- to 6-axis FANUC arms"
     axes_beyond = ("a seventh joint would be an extended axis E1 (a rail or positioner) in "
                    "FANUC's positions, not an arm joint, so a 7-axis arm cannot be written")

@@ -51,6 +51,7 @@ from assistant.export.dialect import (
     step_changes,
     step_line,
 )
+from assistant.export.dialect_names import AXIS_COUNTS
 from assistant.export.errors import ExportError
 from assistant.export.program import (
     Comment,
@@ -123,7 +124,7 @@ class KrlDialect:
     title = "KUKA KRL"
     file_extensions = (".src", ".dat")
     #: Main axes A1..A6; a 7-axis arm's third joint is the external axis E1 (KUKA LBR).
-    axis_counts = (4, 5, 6, 7)
+    axis_counts = AXIS_COUNTS["krl"]
     axis_rule = ("KRL writes the main axes A1..A6 of 4- to 6-axis KUKA arms and a 7-axis "
                  "arm's third joint as E1 (KUKA LBR)")
     axes_beyond = "further axes would be external axes E2.., which this exporter does not write"

@@ -63,6 +63,7 @@ from assistant.export.dialect import (
     xyz_fixed_angles,
     xyz_fixed_matrix,
 )
+from assistant.export.dialect_names import AXIS_COUNTS
 from assistant.export.errors import ExportError
 from assistant.export.program import (
     Comment,
@@ -131,7 +132,7 @@ class MelfaDialect:
     title = "Mitsubishi MELFA BASIC"
     file_extensions = (".MB4", ".POS")
     #: MELFA arms: 4-axis RH SCARA, 5-axis RV (RV-2AJ), 6-axis RV; joints J1..J6.
-    axis_counts = (4, 5, 6)
+    axis_counts = AXIS_COUNTS["melfa"]
     axis_rule = ("MELFA BASIC runs on 4-, 5- and 6-axis Mitsubishi arms (RH SCARA, 5-axis "
                  "RV such as the RV-2AJ, 6-axis RV)")
     axes_beyond = ""

@@ -55,6 +55,7 @@ from assistant.export.dialect import (
     step_changes,
     step_line,
 )
+from assistant.export.dialect_names import AXIS_COUNTS
 from assistant.export.errors import ExportError
 from assistant.export.program import (
     Comment,
@@ -136,7 +137,7 @@ class RapidDialect:
     title = "ABB RAPID"
     file_extensions = (".mod",)
     #: Robot axes rax_1..rax_6; a 7-axis arm's third joint is the external axis eax_a.
-    axis_counts = (4, 5, 6, 7)
+    axis_counts = AXIS_COUNTS["rapid"]
     axis_rule = ("RAPID writes the robot axes rax_1..rax_6 of 4- to 6-axis ABB arms and a "
                  "7-axis arm's third joint as eax_a (IRB 14000 YuMi)")
     axes_beyond = ("further axes would be external axes eax_b.., which this exporter does not "

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from assistant.export.dialect import Dialect
+from assistant.export.dialect_names import DIALECT_NAMES, dialect_label
 from assistant.export.fanuc import FanucDialect
 from assistant.export.krl import KrlDialect
 from assistant.export.melfa import MelfaDialect
@@ -10,17 +11,7 @@ from assistant.export.rapid import RapidDialect
 from assistant.export.urscript import URScriptDialect
 from assistant.export.yaskawa import YaskawaDialect
 
-#: Default instance of each dialect (settings as in the modules' docstrings).
-DIALECT_NAMES = ("melfa", "krl", "rapid", "urscript", "fanuc", "yaskawa")
-
-#: Short names for messages ("choose MELFA, KRL or RAPID").
-_LABELS = {"melfa": "MELFA", "krl": "KRL", "rapid": "RAPID", "urscript": "URScript",
-           "fanuc": "FANUC", "yaskawa": "Yaskawa"}
-
-
-def dialect_label(name: str) -> str:
-    """The short name an operator knows a dialect by: "melfa" -> "MELFA"."""
-    return _LABELS.get(name, name)
+__all__ = ["DIALECT_NAMES", "dialect_label", "get_dialect"]
 
 
 def get_dialect(dialect: str | Dialect) -> Dialect:

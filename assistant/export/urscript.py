@@ -47,6 +47,7 @@ from assistant.export.dialect import (
     step_changes,
     step_line,
 )
+from assistant.export.dialect_names import AXIS_COUNTS
 from assistant.export.errors import ExportError
 from assistant.export.program import (
     Comment,
@@ -127,7 +128,7 @@ class URScriptDialect:
     title = "Universal Robots URScript"
     file_extensions = (".script",)
     #: UR arms have six axes: joint lists and get_inverse_kin are 6-vectors.
-    axis_counts = (6,)
+    axis_counts = AXIS_COUNTS["urscript"]
     axis_rule = "URScript runs on 6-axis UR arms"
     axes_beyond = ""
 

@@ -78,6 +78,7 @@ from assistant.export.dialect import (
     xyz_fixed_angles,
     xyz_fixed_matrix,
 )
+from assistant.export.dialect_names import AXIS_COUNTS
 from assistant.export.errors import ExportError
 from assistant.export.pendant_notes import COMMENT_LENGTH, frame_comments, short_comments
 from assistant.export.program import (
@@ -137,7 +138,7 @@ class YaskawaDialect:
     title = "Yaskawa INFORM (.JBI)"
     file_extensions = (".JBI",)
     #: Motoman arms: 4-axis palletizers, 5- and 6-axis arms (7-axis SIA/SDA: see below).
-    axis_counts = (4, 5, 6)
+    axis_counts = AXIS_COUNTS["yaskawa"]
     axis_rule = "INFORM Cartesian positions are written here for 4- to 6-axis Motoman arms"
     axes_beyond = ("a 7-axis arm's (SIA, SDA) Cartesian positions carry its elbow angle Re, "
                    "which Yaskawa does not define publicly, and pulse positions need the "

@@ -1,7 +1,7 @@
-"""Compiled-kernel plumbing: the `kernel` decorator, numba's cache folder, the warm-up.
+"""Compiled-kernel plumbing: the `kernel` decorator, numba's cache folder, shared helpers.
 
 Owns how numba kernels are compiled, cached and switched on, so that no operator action
-waits on a compile. Imports only numba and the standard library at module level (the
-warm-up imports the domain modules it exercises when it runs); every kernel module of the
-domain imports `kernel` from here.
+waits on a compile. Imports only numba and the standard library; every kernel module of the
+domain imports `kernel` from here. The warm-up and the background compile, which drive the
+domain's API, live above every room in `assistant.warmup`.
 """

@@ -9,7 +9,7 @@ time is never on the operator's path:
   complete, nothing changes: each kernel loads from the cache on first call (milliseconds).
   If not, every kernel is *pending* - its calls run its fallback (a numpy form where the
   kernel names one, else its own Python) - and one background process
-  (`python -m assistant.kernels.compile`, lowered priority) compiles every kernel into the
+  (`python -m assistant.warmup.compile`, lowered priority) compiles every kernel into the
   cache and reports each as it lands; a reported kernel switches to its compiled code at
   once. The process finishes by itself even after the command that started it has exited,
   so the next run starts complete.
@@ -30,8 +30,14 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from numba import njit
-from numba.core.registry import CPUDispatcher
+from assistant.kernels.cache import configure
+
+# Before numba's first import: numba reads NUMBA_CACHE_DIR when its config is imported, and
+# every kernel of ours is defined through this module (so no import of the package does it).
+configure()
+
+from numba import njit  # noqa: E402
+from numba.core.registry import CPUDispatcher  # noqa: E402
 
 log = logging.getLogger(__name__)
 
@@ -154,7 +160,7 @@ def start(steps: str | None = None) -> bool:
     env["NUMBA_CACHE_DIR"] = str(config.CACHE_DIR)
     try:
         _process = subprocess.Popen(
-            [sys.executable, "-m", "assistant.kernels.compile"], env=env,
+            [sys.executable, "-m", "assistant.warmup.compile"], env=env,
             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, stdin=subprocess.DEVNULL,
             text=True, start_new_session=True)
     except OSError as exc:  # no compile process: compile on call, as plain njit

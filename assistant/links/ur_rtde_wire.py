@@ -10,7 +10,8 @@ at that frequency; ``P`` pauses it. Source: UR's "Real-Time Data Exchange (RTDE)
 its reference Python client; the emulator answers the way a controller does, so UR's own
 clients (ur-rtde's `RTDEReceiveInterface`) read it unmodified.
 
-Shared by our link's client (`ur_rtde_client`) and the emulator (`emulators/ur_rtde_server`).
+Shared by our link's client (`ur_rtde_client`) and the emulator
+(`assistant/emulators/ur_rtde_server`).
 """
 
 from __future__ import annotations

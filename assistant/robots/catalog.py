@@ -12,6 +12,7 @@ from typing import Any
 
 import numpy as np
 
+from assistant.robots.errors import RobotModelError
 from assistant.robots.model import Robot, Tool
 
 BUILTIN_ROBOTS = ("rv2aj",)
@@ -52,10 +53,6 @@ CATALOG: dict[str, CatalogArm] = {
 
 def catalog_path(kind: str) -> Path:
     return ARMS_DIR / CATALOG[kind].urdf
-
-
-class RobotModelError(ValueError):
-    """A robot description that cannot be used; the message names the file and the element."""
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ from lxml import etree
 
 from assistant.file_guard import FileRefused, read_file, xml_parser
 from assistant.robots.batch_chain import JointKind
-from assistant.robots.catalog import RobotModelError
+from assistant.robots.errors import RobotModelError
 from assistant.robots.model import (
     ShapeKind,
 )

@@ -28,7 +28,7 @@ from lxml import etree
 
 from assistant.file_guard import FileRefused, check_archive, read_file, xml_parser
 from assistant.robots.batch_chain import BatchChain, ChainJoint
-from assistant.robots.catalog import RobotModelError
+from assistant.robots.errors import RobotModelError
 from assistant.robots.model import (
     BatchPoses,
     CollisionShape,

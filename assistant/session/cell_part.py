@@ -16,6 +16,7 @@ from assistant.cell.cad.importer import MAX_PART_SIZE_M, read_cad_file
 from assistant.cell.model import CellObject, ObjectRole, PrimitiveKind, PrimitiveSpec
 from assistant.cell.placement import PoseFit, fit_pose
 from assistant.progress import Cancelled, Progress
+from assistant.session.contract import PartContract
 from assistant.session.events import (
     Notice,
 )
@@ -35,7 +36,7 @@ from workflow.machine import TransitionRefused
 Array = np.ndarray
 
 
-class CellActions:
+class CellActions(PartContract):
     """Steps 2 and 3: CAD import, primitives, object roles, placement and measured frames."""
 
     # ================================================================== 2. CAD
@@ -133,7 +134,7 @@ class CellActions:
         except Exception:  # noqa: BLE001 - a robot without a world config: nothing to say
             return
         T = np.linalg.inv(self.T_world_base()) @ np.asarray(obj.T_world_object, dtype=float)
-        lo, hi = obj.full_mesh.bounds
+        lo, hi = obj.part_mesh.bounds
         corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
                             for z in (lo[2], hi[2])]) @ T[:3, :3].T + T[:3, 3]
         half = size / 2.0

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -95,7 +96,7 @@ def _drawing_control(drawing: int | Array) -> Array:
 
 def drawing_path(name: str, T_world_frame: Array, control: Array, *,
                  at: tuple[float, float] = (0.0, 0.0), angle: float = 0.0, lift: float = 0.03,
-                 before: list[ToolAction] = (), after: list[ToolAction] = (),
+                 before: Sequence[ToolAction] = (), after: Sequence[ToolAction] = (),
                  speed: float = 0.05, reversible: bool = False,
                  tool_angle: float = 0.0) -> ApplicationPath:
     """The application path of a pen drawing on a frame's XY plane (see

@@ -19,12 +19,13 @@ from assistant.cell.model import CellObject, ObjectRole
 from assistant.mission.model import LocationSource
 from assistant.progress import Progress
 from assistant.robots.model import UnreachableError
+from assistant.session.contract import PartContract
 from assistant.session.events import Notice, SceneChanged
 from assistant.session.types import EDIT_CELL, SessionError, _safe_name
 from assistant.transforms import pose_from_mm_deg
 
 
-class LayoutActions:
+class LayoutActions(PartContract):
     """Import a cell-layout DXF: the thesis' "absolute data of the DXF file" and "locations
     attached to the CAD objects", which spare the operator placing and teaching them."""
 

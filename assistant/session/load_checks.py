@@ -24,7 +24,7 @@ from assistant.session.store import SessionFileError
 from workflow.machine import Mode
 
 if TYPE_CHECKING:
-    from assistant.session.session import Session
+    from assistant.session.contract import PartContract
 
 Array = np.ndarray
 
@@ -54,7 +54,7 @@ TRANSIENT_NOTE = ("{path}: saved while {what}; it opens idle - whatever ran then
                   "Check where the robot stands before you move it.")
 
 
-def reset_transient(s: Session, path: Any) -> list[str]:
+def reset_transient(s: PartContract, path: Any) -> list[str]:
     """Busy or moving do not survive a restart: open idle, and say so."""
     mode = s.machine.mode
     if mode not in (Mode.BUSY, Mode.MOVING):
@@ -64,7 +64,7 @@ def reset_transient(s: Session, path: Any) -> list[str]:
     return [TRANSIENT_NOTE.format(path=path, what=what)]
 
 
-def check_session(s: Session, path: Any) -> list[str]:
+def check_session(s: PartContract, path: Any) -> list[str]:
     """Refuse (SessionFileError) what is out of range; return notes for what was dropped."""
     c = _Checker(s, path)
     c.locations()
@@ -80,7 +80,7 @@ def check_session(s: Session, path: Any) -> list[str]:
 
 
 class _Checker:
-    def __init__(self, s: Session, path: Any):
+    def __init__(self, s: PartContract, path: Any):
         self.s = s
         self.path = path
         robot = s.robot

@@ -13,6 +13,7 @@ import numpy as np
 from assistant.collision.checker import CollisionChecker
 from assistant.progress import Cancelled, Progress
 from assistant.robots.model import UnreachableError
+from assistant.session.contract import PartContract
 from assistant.session.events import (
     CollisionRecorded,
     Notice,
@@ -27,7 +28,7 @@ from workflow.machine import Mode
 Array = np.ndarray
 
 
-class MotionActions:
+class MotionActions(PartContract):
     """Moving the robot by hand: jogging, Stop, Collision!, cancel and close."""
 
     # ================================================================== robot motion (jog)

@@ -24,6 +24,7 @@ from assistant.mission.model import (
 )
 from assistant.mission.motion import trajectory_from_json, trajectory_to_json
 from assistant.session import link_secrets
+from assistant.session.contract import PartContract
 from assistant.session.load_checks import check_session, reset_transient
 from assistant.session.store import (
     CELL_DIR,
@@ -44,12 +45,12 @@ from assistant.session.world_settings import WorldSettings
 from workflow.machine import Machine
 
 if TYPE_CHECKING:
-    from assistant.session.session import Session
+    from typing_extensions import Self
 
 Array = np.ndarray
 
 
-class Persistence:
+class Persistence(PartContract):
     """Sample cells, saving and loading."""
 
     #: (folder, secrets) last written to `secrets.json`: autosave rewrites it only on change.
@@ -59,7 +60,7 @@ class Persistence:
     @classmethod
     def from_sample(cls, name_or_path: str | Path = "thesis_rv2aj",
                     folder: str | Path | None = None, *, with_objects: bool = True,
-                    with_mission: bool = True, autosave: bool = True) -> Session:
+                    with_mission: bool = True, autosave: bool = True) -> Self:
         """A session on a sample cell: its robot, link, cameras and hidden obstacles; with its
         placed objects and taught mission unless told otherwise (the operator then imports
         and teaches them)."""
@@ -143,7 +144,7 @@ class Persistence:
             return self.save(folder)
 
     @classmethod
-    def load(cls, folder: str | Path, *, autosave: bool = True) -> Session:
+    def load(cls, folder: str | Path, *, autosave: bool = True) -> Self:
         """Restore a saved session: scene, mission, world observations and plan."""
         folder = Path(folder)
         path = folder / SESSION_JSON

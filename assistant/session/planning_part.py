@@ -15,6 +15,7 @@ import numpy as np
 from assistant.collision.checker import CollisionChecker
 from assistant.links.link import RobotLink
 from assistant.progress import Cancelled, Progress
+from assistant.session.contract import PartContract
 from assistant.session.events import (
     ExecutionFinished,
     Notice,
@@ -34,7 +35,7 @@ from assistant.session.types import (
 Array = np.ndarray
 
 
-class PlanningActions:
+class PlanningActions(PartContract):
     """Steps 5 and 6: the world model, exploration, planning and execution."""
 
     # ================================================================== 5. explore / world

@@ -19,6 +19,7 @@ import contextlib
 import logging
 from collections.abc import Iterator
 
+from assistant.session.contract import PartContract
 from assistant.session.events import ErrorRaised, SaveStateChanged
 
 log = logging.getLogger(__name__)
@@ -29,7 +30,7 @@ NOT_SAVED_HINT = "Free space on the disk or make the session folder writable, or
     "session to another folder (Session file)."
 
 
-class Saving:
+class Saving(PartContract):
     """Autosave with its outcome kept (`save_error`) and the page's settled view."""
 
     #: Why the last autosave failed ("" when the session on disk is up to date).

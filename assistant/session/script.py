@@ -350,6 +350,7 @@ def parse_script(path: str | Path) -> Script:
 def _parse_action(path: Path, node: yaml.Node) -> ScriptAction:
     line = node.start_mark.line + 1
     value = yaml.safe_load(yaml.serialize(node))
+    args: dict[str, Any]
     if isinstance(value, str):
         verb, args = value, {}
     elif isinstance(value, dict) and len(value) == 1:

@@ -8,8 +8,11 @@ bus. An action that fails half-way is rolled back to the snapshot taken before i
 (world model, planning, execution, exploration) runs on the worker thread with progress and
 Cancel; the machine's busy/moving modes keep edits out meanwhile.
 
-The actions live in parts by concern (`*_part.py`), mixed into `Session`: their methods run
-on the Session's state, under its lock and workflow, exactly as if written here.
+The actions live in parts by concern (`*_part.py`). Some are composed: an object built with
+the session as its core, owning its own state, whose verbs the session hands over to (`export`
+-> `exporter.export`). The rest are still mixed into `Session`: their methods run on the
+Session's state, under its lock and workflow. Either kind reaches the whole only through
+`contract.PartContract`.
 """
 
 from __future__ import annotations
@@ -18,11 +21,11 @@ import contextlib
 import threading
 from collections.abc import Callable, Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from assistant.cell.model import Cell
+from assistant.cell.model import Cell, CellObject
 from assistant.links.link import RobotLink
 from assistant.links.settings import LinkSettings
 from assistant.mission.model import (
@@ -40,7 +43,7 @@ from assistant.session.events import (
     SceneChanged,
     StateChanged,
 )
-from assistant.session.export_part import ExportActions
+from assistant.session.export_part import ExportPart
 from assistant.session.history import History
 from assistant.session.layout_part import LayoutActions
 from assistant.session.motion_hold import MotionHold
@@ -48,10 +51,10 @@ from assistant.session.motion_part import MotionActions
 from assistant.session.persistence_part import Persistence
 from assistant.session.planning_part import PlanningActions
 from assistant.session.saving import Saving
-from assistant.session.scene_part import SceneQueries
+from assistant.session.scene_part import ScenePart
 from assistant.session.setup_part import SetupActions
-from assistant.session.start_part import StartPostureActions
-from assistant.session.study_part import StudyActions
+from assistant.session.start_part import StartPosturePart
+from assistant.session.study_part import StudyPart
 from assistant.session.teach_part import TeachActions
 from assistant.session.types import (
     Counters,
@@ -62,14 +65,20 @@ from assistant.session.worker import Worker
 from assistant.session.world_settings import WorldSettings
 from workflow.machine import Facts, Machine, Mode, TransitionRefused
 
+if TYPE_CHECKING:
+    from concurrent.futures import Future
+
+    from assistant.session.pointer_live import LivePointer
+    from assistant.study import Region, Scoring, StudyProblem, StudyResult, StudySettings
+
 Array = np.ndarray
 
 
 class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActions,
-              PlanningActions, SceneQueries, ExportActions, Persistence, Saving, StudyActions,
-              StartPostureActions):
+              PlanningActions, Persistence, Saving):
     """Everything the operator does, headless or behind the web page: the state, the action
-    plumbing and the workflow here; the actions by concern in the parts it mixes in."""
+    plumbing and the workflow here; the actions by concern in its parts - composed
+    (`exporter`, `studies`, `scene`, `start_posture`) or, for the rest, mixed in."""
 
     def __init__(self, folder: str | Path | None = None, *, autosave: bool = True):
         self.bus = EventBus()
@@ -89,7 +98,14 @@ class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActi
         self.world_settings = WorldSettings()
         self.trajectory: Trajectory | None = None
         self.plan_report: dict[str, Any] | None = None
-        self.program: Any = None
+        #: Step 7, composed: the exported program and the verbs that make and send it.
+        self.exporter = ExportPart(self)
+        #: Placement studies, composed: the last study's result and the verbs that run one.
+        self.studies = StudyPart(self)
+        #: What the page draws, composed (as viser's `server.scene`).
+        self.scene = ScenePart(self)
+        #: The start posture against the cell, composed: what touches and the way out.
+        self.start_posture = StartPosturePart(self)
         self.recorded_collisions: list[Array] = []
         #: The enabling switch: who may move the robot (enforced once pages serve this).
         self.hold = MotionHold()
@@ -108,7 +124,7 @@ class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActi
         self._world: Any = None  # planning back end (world model + roadmap), built on demand
         self._world_key: tuple | None = None
         self._last_error: str = ""
-        self._pointer: Any = None  # LivePointer while the camera step is open
+        self._pointer: LivePointer | None = None  # while the camera step is open
         self.pending_point: Any = None  # the last dwell TaughtPoint, waiting for a name
         self.sample: str | None = None  # the sample cell this session started from
         self.load_notes: list[str] = []  # what loading ignored (unknown keys), to report
@@ -160,6 +176,96 @@ class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActi
         q = self.current_joints() if q is None else q
         return self.T_world_base() @ self.robot.fk(q)
 
+    @property
+    def program(self) -> Any:
+        """The last exported program (owned by `exporter`); None when stale or not yet."""
+        return self.exporter.program
+
+    @program.setter
+    def program(self, value: Any) -> None:
+        self.exporter.program = value
+
+    # ================================================================== 7. export
+    def export(self, dialect: str | None = None, *, name: str | None = None,
+               frame: str | None = None, count: bool = True) -> Any:
+        """Write the planned mission as a robot program (`ExportPart.export`)."""
+        return self.exporter.export(dialect, name=name, frame=frame, count=count)
+
+    def upload_program(self) -> str:
+        """Send the exported program to the robot controller (`ExportPart.upload_program`)."""
+        return self.exporter.upload_program()
+
+    # ================================================================== the start posture
+    def start_posture_problem(self) -> str | None:
+        """What the current posture touches, checked now (`StartPosturePart.problem_now`)."""
+        return self.start_posture.problem_now()
+
+    def start_posture_links(self) -> tuple[str, ...]:
+        """The links the last start check found touching (the page draws them red)."""
+        return self.start_posture.links
+
+    def start_posture_text(self) -> str:
+        """What the last start check found touching, in the operator's words ("" if free)."""
+        return self.start_posture.problem or ""
+
+    def move_to_free_posture(self, *, wait: bool = True) -> Future:
+        """Drive the robot out of what it touches (`StartPosturePart.move_to_free_posture`)."""
+        return self.start_posture.move_to_free_posture(wait=wait)
+
+    def _require_free_start(self) -> None:
+        """Planning refuses a start posture that touches the cell (`require_free`)."""
+        self.start_posture.require_free()
+
+    # ================================================================== scene for the UI
+    def scene_objects(self) -> list[CellObject]:
+        """Placed objects (`ScenePart.scene_objects`)."""
+        return self.scene.scene_objects()
+
+    def robot_visuals(self) -> list[tuple[str, Any, tuple[int, int, int]]]:
+        """(link name, mesh, colour) of every visual link (`ScenePart.robot_visuals`)."""
+        return self.scene.robot_visuals()
+
+    def link_poses_world(self, q: Array | None = None) -> Array:
+        """T_world_link for every robot link at q (`ScenePart.link_poses_world`)."""
+        return self.scene.link_poses_world(q)
+
+    def path_polylines(self, tol: float = 0.0005) -> list[tuple[str, Array]]:
+        """Each application path as points for drawing (`ScenePart.path_polylines`)."""
+        return self.scene.path_polylines(tol)
+
+    def plan_polylines(self) -> list[tuple[str, Array]]:
+        """The planned trajectory per motion (`ScenePart.plan_polylines`)."""
+        return self.scene.plan_polylines()
+
+    # ================================================================== placement studies
+    @property
+    def placement_study(self) -> StudyResult | None:
+        """The last placement study's result (owned by `studies`); None before the first."""
+        return self.studies.placement_study
+
+    def study_problem(self, *, object_name: str | None = None, carry: bool = True,
+                      joint_margin_deg: float = 5.0,
+                      clearance_mm: float | None = None) -> StudyProblem:
+        """The study of this cell and mission (`StudyPart.study_problem`)."""
+        return self.studies.study_problem(object_name=object_name, carry=carry,
+                                          joint_margin_deg=joint_margin_deg,
+                                          clearance_mm=clearance_mm)
+
+    def start_study_placement(self, region: Region, settings: StudySettings | None = None,
+                              *, scoring: Scoring | None = None, **problem: Any) -> Future:
+        """A placement study in the background (`StudyPart.start_study_placement`)."""
+        return self.studies.start_study_placement(region, settings, scoring=scoring,
+                                                   **problem)
+
+    def study_placement(self, region: Region, settings: StudySettings | None = None,
+                        *, scoring: Scoring | None = None, **problem: Any) -> StudyResult:
+        """A placement study, waited for (`StudyPart.study_placement`)."""
+        return self.studies.study_placement(region, settings, scoring=scoring, **problem)
+
+    def apply_placement(self, index: int) -> Array:
+        """Move the study's subject to candidate `index` (`StudyPart.apply_placement`)."""
+        return self.studies.apply_placement(index)
+
     # ================================================================== action plumbing
     @contextlib.contextmanager
     def _action(self, label: str, steps: tuple[str, ...] | None, *, undoable: bool = True,
@@ -206,10 +312,10 @@ class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActi
             self._start_check()
 
     def _start_check(self) -> None:
-        """`_check_start_posture` after an edit; a check that cannot run (a lost link) is
+        """`start_posture.check` after an edit; a check that cannot run (a lost link) is
         said, and never undoes the edit."""
         try:
-            self._check_start_posture()
+            self.start_posture.check()
         except Exception as exc:  # noqa: BLE001 - the edit stands; the operator is told
             self.bus.emit(Notice(f"the start posture could not be checked against the cell: "
                                  f"{exc}"))

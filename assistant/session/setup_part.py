@@ -13,6 +13,7 @@ from assistant.links.link import LinkEvent, LinkEventKind, RobotLink
 from assistant.links.settings import LinkSettings, make_link
 from assistant.robots.catalog import RobotSpec, ToolSpec
 from assistant.robots.model import Robot
+from assistant.session.contract import PartContract
 from assistant.session.events import (
     CollisionRecorded,
     RobotHalted,
@@ -27,7 +28,7 @@ from assistant.transforms import inv_T
 Array = np.ndarray
 
 
-class SetupActions:
+class SetupActions(PartContract):
     """Step 1, set-up: the robot, its tool, the link to it, the hidden obstacles of a simulation."""
 
     # ================================================================== 1. set-up
@@ -85,7 +86,7 @@ class SetupActions:
                 link = make_link(self.link_settings, self.robot, hidden,
                                  log_dir=self.link_log_dir())
                 if self._q_sim is not None and hasattr(link, "set_joints"):
-                    link.set_joints(self._q_sim)  # type: ignore[attr-defined]
+                    link.set_joints(self._q_sim)
                 if hasattr(link, "wait_for_operator"):
                     link.wait_for_operator = self.operator_confirms_contacts
                 link.subscribe(self._on_link_event)

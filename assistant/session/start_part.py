@@ -2,7 +2,9 @@
 starts, so "the start posture touches the wall" is said before a run, never during it.
 
 The start posture is where the robot stands now (the simulated robot's home until it moves):
-a run begins by moving from there. A part mixed into `Session`."""
+a run begins by moving from there. A part of the `Session`, composed rather than mixed in
+(`Session.start_posture`): it owns what the last check found; the session's start-posture
+verbs hand over to it, and it reaches the session only through the parts' contract."""
 
 from __future__ import annotations
 
@@ -10,56 +12,56 @@ from concurrent.futures import Future
 
 import numpy as np
 
+from assistant.session.contract import PartContract
 from assistant.session.events import Notice, SceneChanged
 from assistant.session.types import SessionError
 
 Array = np.ndarray
 
 
-class StartPostureActions:
+class StartPosturePart:
     """What the start posture touches, said when the cell changes; the way out of it."""
 
-    def start_posture_problem(self) -> str | None:
+    def __init__(self, core: PartContract) -> None:
+        self._core = core
+        #: What the last check found touching, in the operator's words (None when free),
+        #: and the names of the links that touch (the page draws them red).
+        self.problem: str | None = None
+        self.links: tuple[str, ...] = ()
+
+    def problem_now(self) -> str | None:
         """What the robot's current posture touches, in the operator's words ("the J3 link
         (forearm_link) touches wall"); None when it is free. The same check as teach and
         plan (the cell's objects and the robot's self-collision rule)."""
-        checker = self._known_checker()
-        report = checker.check(self.current_joints())
+        checker = self._core._known_checker()
+        report = checker.check(self._core.current_joints())
         if not report.contacts:
             return None
         return report.describe(checker.link_words)
 
-    def start_posture_links(self) -> tuple[str, ...]:
-        """Names of the links the last start check found touching (the page draws them red)."""
-        return tuple(getattr(self, "_start_links", ()))
-
-    def start_posture_text(self) -> str:
-        """What the last start check found touching, in the operator's words ("" if free)."""
-        return getattr(self, "_start_problem", None) or ""
-
-    def _check_start_posture(self) -> None:
+    def check(self) -> None:
         """After a cell change, a robot move or a load: check the start posture; a new
         problem is announced once with the way out, and the page redraws the robot."""
-        checker = self._known_checker()
-        report = checker.check(self.current_joints())
+        checker = self._core._known_checker()
+        report = checker.check(self._core.current_joints())
         links = tuple(sorted({c.link for c in report.contacts}
                              | {c.other for c in report.contacts if c.self_collision}))
         problem = report.describe(checker.link_words) if report.contacts else None
-        before = getattr(self, "_start_problem", None)
-        self._start_problem, self._start_links = problem, links
+        before = self.problem
+        self.problem, self.links = problem, links
         if problem is not None and problem != before:
             objects = sorted({c.other for c in report.contacts if not c.self_collision})
             place = f"place {', '.join(objects)} elsewhere or " if objects else ""
-            self.bus.emit(Notice(f"The start posture touches something: {problem}. Before "
+            self._core.bus.emit(Notice(f"The start posture touches something: {problem}. Before "
                                  f"planning, {place}move the robot to a free posture (Jog the "
                                  "robot: Move to a free posture)"))
         if problem != before:
-            self.bus.emit(SceneChanged("start"))
+            self._core.bus.emit(SceneChanged("start"))
 
-    def _require_free_start(self) -> None:
+    def require_free(self) -> None:
         """Planning refuses a start posture that touches the cell (the run could not leave
         it), naming what it touches; `move_to_free_posture` is the way out."""
-        problem = self.start_posture_problem()
+        problem = self.problem_now()
         if problem is not None:
             raise SessionError(f"no plan: the start posture touches something ({problem}); "
                                "move the robot to a free posture first (Move to a free "
@@ -70,20 +72,20 @@ class StartPostureActions:
         a path that never touches anything new (`home.way_to_free_posture`)."""
         from assistant.session.home import way_to_free_posture
 
-        checker = self._known_checker()
-        q0 = self.current_joints()
+        checker = self._core._known_checker()
+        q0 = self._core.current_joints()
         if checker.check(q0).valid:
             raise SessionError("the robot's posture touches nothing: no need to move it")
-        path = way_to_free_posture(self.robot, checker, q0)
+        path = way_to_free_posture(self._core.robot, checker, q0)
         if path is None:
             raise SessionError("no free posture found that the robot can reach without "
                                "touching something else: jog it out joint by joint")
         def run(progress: object) -> object:
-            event = self.link().move_path(np.asarray(path))
-            self._check_start_posture()  # clears the red start before the move reports done
+            event = self._core.link().move_path(np.asarray(path))
+            self.check()  # clears the red start before the move reports done
             return event
 
-        fut = self._run_motion("move to a free posture", run)
+        fut = self._core._run_motion("move to a free posture", run)
         if wait:
             fut.result()
         return fut

@@ -18,6 +18,7 @@ import contextlib
 import json
 import os
 import secrets
+from collections.abc import Iterable
 from pathlib import Path
 from typing import Any
 
@@ -45,8 +46,9 @@ SESSION_KEYS: dict[str, tuple[type | None, ...]] = {
     "export_dialect": (str,), "sample": (str, None),
     "world_settings": (dict,),
 }
-_TYPE_WORDS = {int: "a number", float: "a number", dict: "an object", list: "a list",
-               str: "a string", None: "null"}
+_TYPE_WORDS: dict[type | None, str] = {
+    int: "a number", float: "a number", dict: "an object", list: "a list", str: "a string",
+    None: "null"}
 
 
 def check_session_keys(doc: dict[str, Any], path: Path) -> list[str]:
@@ -156,6 +158,7 @@ def json_depth(doc: Any) -> int:
     deepest, stack = 0, [(doc, 1)]
     while stack:
         node, depth = stack.pop()
+        children: Iterable[Any]
         if isinstance(node, dict):
             children = node.values()
         elif isinstance(node, list):

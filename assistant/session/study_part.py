@@ -2,19 +2,22 @@
 background with progress and Cancel like the other long actions; applying a candidate is an
 ordinary undoable edit of the cell.
 
-A part mixed into `Session`; the study itself lives in `assistant.study`.
+A part of the `Session`, composed rather than mixed in (`Session.studies`): it owns the last
+study's result; the session's study verbs hand over to it, and it reaches the rest of the
+session only through the parts' contract (`PartContract`). The study itself lives in
+`assistant.study`.
 """
 
 from __future__ import annotations
 
 import math
 from concurrent.futures import Future
-from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from assistant.progress import Progress
+from assistant.session.contract import PartContract
 from assistant.session.events import Notice, SceneChanged
 from assistant.session.types import EDIT_PLACEMENT, SessionError
 
@@ -23,18 +26,15 @@ if TYPE_CHECKING:  # the study (and the planner behind it) loads on first use
 
 #: Steps the study may run in: the cell is placed and the mission taught.
 STUDY_STEPS = ("place", "teach", "explore", "plan")
-#: Verbs a script runs before a study (the rest - building, planning, executing,
-#: exporting - is what the study does per candidate, or comes after).
-_STUDY_STOP_VERBS = ("build_world", "explore", "plan", "execute", "resume", "export")
 
 
-class StudyActions:
+class StudyPart:
     """The placement study and applying one of its candidates."""
 
-    @property
-    def placement_study(self) -> StudyResult | None:
-        """The last study's result (None before the first)."""
-        return getattr(self, "_placement_study", None)
+    def __init__(self, core: PartContract) -> None:
+        self._core = core
+        #: The last study's result (None before the first).
+        self.placement_study: StudyResult | None = None
 
     def study_problem(self, *, object_name: str | None = None, carry: bool = True,
                       joint_margin_deg: float = 5.0,
@@ -45,22 +45,22 @@ class StudyActions:
         from assistant.cell.model import Cell
         from assistant.study import StudyCriteria, StudyProblem, Subject
 
-        with self._lock:
-            cell = Cell(self.cell.robot_spec, self.T_world_base().copy(),
-                        dict(self.cell.objects), dict(self.cell.frames))
-            mission = replace(self.mission, paths=list(self.mission.paths))
-            clearance = self.world_settings.clearance_mm if clearance_mm is None \
+        with self._core._lock:
+            cell = Cell(self._core.cell.robot_spec, self._core.T_world_base().copy(),
+                        dict(self._core.cell.objects), dict(self._core.cell.frames))
+            mission = replace(self._core.mission, paths=list(self._core.mission.paths))
+            clearance = self._core.world_settings.clearance_mm if clearance_mm is None \
                 else clearance_mm
             try:
                 return StudyProblem(
                     cell, mission, Subject(object_name, carry),
                     StudyCriteria(math.radians(float(joint_margin_deg)),
                                   float(clearance) / 1000.0),
-                    q_seed=self.current_joints(),
-                    world_config=self.world_settings.world_config(self.robot),
-                    planner_config=self._planner_config(),
+                    q_seed=self._core.current_joints(),
+                    world_config=self._core.world_settings.world_config(self._core.robot),
+                    planner_config=self._core._planner_config(),
                     location_names={n: loc.position.copy()
-                                    for n, loc in self.locations.items()})
+                                    for n, loc in self._core.locations.items()})
             except (ValueError, KeyError) as exc:
                 raise SessionError(str(exc)) from None
 
@@ -77,19 +77,19 @@ class StudyActions:
 
         def work(progress: Progress) -> StudyResult:
             result = run_study(prob, region, settings, progress, scoring=scoring)
-            with self._lock:
-                self._placement_study = result
+            with self._core._lock:
+                self.placement_study = result
             best = result.best()
             c = result.counts
             msg = (f"placement study: {c['candidates']} candidates, {c['screened_ok']} passed "
                    f"the screen, {c['planned_ok']} of {c['planned']} planned")
             if best is not None:
                 msg += f"; best {best.candidate.label()}"
-            self.bus.emit(Notice(msg))
-            self.bus.emit(SceneChanged("study"))
+            self._core.bus.emit(Notice(msg))
+            self._core.bus.emit(SceneChanged("study"))
             return result
 
-        return self._run_busy("placement study", work, STUDY_STEPS)
+        return self._core._run_busy("placement study", work, STUDY_STEPS)
 
     def study_placement(self, region: Region, settings: StudySettings | None = None,
                         *, scoring: Scoring | None = None, **problem: Any) -> StudyResult:
@@ -106,35 +106,17 @@ class StudyActions:
         if not match:
             raise SessionError(f"the study has no candidate #{index}")
         problem = study.problem
+        if problem is None:  # a result kept without its problem (loaded, not run here)
+            raise SessionError("the study's problem is not kept: run the study again")
         T = problem.pose_at(match[0].candidate)
         label = f"move {problem.subject.describe()} to {match[0].candidate.label()}"
-        with self._action(label, EDIT_PLACEMENT, scene="robot" if problem.subject.is_base
+        with self._core._action(label, EDIT_PLACEMENT, scene="robot" if problem.subject.is_base
                           else "objects"):
             if problem.subject.is_base:
-                self.cell.set_base_pose(T)
-                if self.link_settings.kind == "simulated":
-                    self._drop_link()  # its hidden obstacles are placed in the base frame
+                self._core.cell.set_base_pose(T)
+                if self._core.link_settings.kind == "simulated":
+                    self._core._drop_link()  # its hidden obstacles are placed in the base frame
             else:
                 assert problem.subject.object_name is not None
-                self.cell.set_object_pose(problem.subject.object_name, T)
+                self._core.cell.set_object_pose(problem.subject.object_name, T)
         return T
-
-
-def load_for_study(path: str | Path) -> Any:
-    """A session to study from a saved session folder, a sample cell (name or folder) or a
-    session script (run up to its first build/plan/execute/export). Raises ValueError with
-    the reason."""
-    from assistant.session.session import Session
-    from assistant.session.store import SESSION_JSON
-
-    p = Path(path)
-    if p.is_dir() and (p / SESSION_JSON).exists():
-        return Session.load(p)
-    if p.suffix.lower() in (".yaml", ".yml") and p.is_file():
-        from assistant.session.script import parse_script, run_script
-
-        s, error = run_script(parse_script(p), None, stop_before=_STUDY_STOP_VERBS)
-        if error is not None:
-            raise ValueError(error)
-        return s
-    return Session.from_sample(str(path), None)

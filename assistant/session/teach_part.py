@@ -4,6 +4,7 @@ A part mixed into `Session`."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import Any
 
 import numpy as np
@@ -17,6 +18,7 @@ from assistant.mission.model import (
 from assistant.mission.motion import ToolAction
 from assistant.robots.model import IKResult, UnreachableError
 from assistant.robots.reach import reach_note
+from assistant.session.contract import PartContract
 from assistant.session.events import (
     Notice,
     PointerUpdated,
@@ -39,7 +41,7 @@ from assistant.transforms import inv_T
 Array = np.ndarray
 
 
-class TeachActions:
+class TeachActions(PartContract):
     """Step 4: locations (typed, robot, CAD click, marker pointer), start/goal, paths."""
 
     # ================================================================== 4. teach
@@ -146,7 +148,9 @@ class TeachActions:
                                    self.bus)
 
         try:
-            return simulate_dwell(system, np.asarray(point_world, float), seed=seed)
+            # _AnnouncedDwell is a PointerSystem that also reports each state (duck-typed)
+            return simulate_dwell(system, np.asarray(point_world, float),  # type: ignore[arg-type]
+                                  seed=seed)
         finally:
             self.bus.emit(PointerUpdated(None))
 
@@ -213,15 +217,15 @@ class TeachActions:
     def calibrate_pointer_color(self, camera_index: int, center_px: tuple[float, float],
                                 axes_px: tuple[float, float], angle_deg: float = 0.0) -> Any:
         """Colour calibration: the ellipse the operator drew over the ball in a live view."""
-        from vision.color import calibrate_from_ellipse
+        from vision.color_calibration import calibrate_from_ellipse
 
         with self._action("calibrate the pointer colour", None, undoable=False):
             if self._pointer is None or self._pointer.last_state is None:
                 raise SessionError("start the cameras first (the live view needs a frame)")
             views = list(self._pointer.last_state.cameras.values())
-            if not 0 <= camera_index < len(views) or views[camera_index].frame is None:
+            frame = views[camera_index].frame if 0 <= camera_index < len(views) else None
+            if frame is None:
                 raise SessionError(f"no live frame from camera {camera_index}")
-            frame = views[camera_index].frame
             prof = calibrate_from_ellipse(frame.image, center_px, axes_px, angle_deg)
             self._pointer.system.profile = prof
             self.pointer_config["profile"] = prof.to_dict()
@@ -282,8 +286,8 @@ class TeachActions:
             raise SessionError(f"no location named {name!r} (taught: {known})")
         return self.locations[name]
 
-    def add_path(self, name: str, kind: str, points: list[str | Array], *,
-                 before: list[ToolAction] = (), after: list[ToolAction] = (),
+    def add_path(self, name: str, kind: str, points: Sequence[str | Array], *,
+                 before: Sequence[ToolAction] = (), after: Sequence[ToolAction] = (),
                  speed: float = 0.05, reversible: bool = False,
                  R_world_tool: Array | None = None, approach: float = 0.0,
                  depart: float = 0.0) -> ApplicationPath:
@@ -310,7 +314,7 @@ class TeachActions:
             self.mission = replace(self.mission, paths=[*self.mission.paths, path], order=None)
         return path
 
-    def _path_points(self, points: list[str | Array]) -> tuple[list[Array], Array | None]:
+    def _path_points(self, points: Sequence[str | Array]) -> tuple[list[Array], Array | None]:
         out: list[Array] = []
         R: Array | None = None
         for p in points:
@@ -347,8 +351,8 @@ class TeachActions:
 
     def add_drawing(self, name: str, frame: str, drawing: int | Array, *,
                     at: tuple[float, float] = (0.0, 0.0), angle: float = 0.0,
-                    lift: float = 0.03, before: list[ToolAction] = (),
-                    after: list[ToolAction] = (), speed: float = 0.05,
+                    lift: float = 0.03, before: Sequence[ToolAction] = (),
+                    after: Sequence[ToolAction] = (), speed: float = 0.05,
                     reversible: bool = False, tool_angle: float = 0.0) -> ApplicationPath:
         """A pen drawing on a frame's XY plane as one application path: a line down to the
         paper (`lift` metres along the frame's -z), the chained cubic Bezier segments, a line

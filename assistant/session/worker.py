@@ -64,11 +64,11 @@ class Worker:
             finally:
                 with self._lock:
                     self._active = False
-                exc = outcome.exception()
-                if exc is None:
+                error = outcome.exception()
+                if error is None:
                     fut.set_result(outcome.result())
                 else:
-                    fut.set_exception(exc)
+                    fut.set_exception(error)
 
         with self._lock:
             if self.busy:

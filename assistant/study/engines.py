@@ -197,7 +197,14 @@ def run_batch(engine: Engine, fn: TaskFn, key: str, items: Sequence[Any],
     alone: list[int] = []  # lost twice: run one at a time
 
     def submit(i: int) -> None:
-        pending[engine.submit(fn, key, items[i])] = i
+        try:
+            fut = engine.submit(fn, key, items[i])
+        except BrokenProcessPool as exc:
+            # The pool broke under another task whose loss is not seen yet (a retry sent in
+            # the same round): this one is lost with it, and restarted below like the rest.
+            fut = cf.Future()
+            fut.set_exception(exc)
+        pending[fut] = i
 
     def fail(i: int, why: str) -> None:
         nonlocal done_count

@@ -260,7 +260,7 @@ def test_warm_up_compiles_every_kernel(tmp_path):
     and after it every kernel is (so `cellteach serve` compiles them all up front)."""
     code = (
         "import json\n"
-        "from assistant.kernels import warmup as w\n"
+        "from assistant.warmup import steps as w\n"
         "before = [bool(k.signatures) for k in w.KERNELS]\n"
         "w.warm_up()\n"
         "print(json.dumps([before, [bool(k.signatures) for k in w.KERNELS]]))\n")

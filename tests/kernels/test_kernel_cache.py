@@ -29,7 +29,8 @@ def test_hash_follows_kernel_modules_only(tmp_path):
 
 
 def _cache_dir_in_fresh_process(env: dict) -> str:
-    code = ("import json, assistant, numba\n"
+    # the kernel plumbing points numba at the folder before it imports numba
+    code = ("import json, assistant.kernels.lazy, numba\n"
             "print(json.dumps(numba.config.CACHE_DIR))\n")
     out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
                          text=True, timeout=120, check=True)
@@ -43,3 +44,22 @@ def test_numba_caches_under_the_source_hash_unless_told_otherwise(tmp_path):
     assert got == str(tmp_path / "home" / "numba" / kernel_source_hash())
     env["NUMBA_CACHE_DIR"] = str(tmp_path / "mine")
     assert _cache_dir_in_fresh_process(env) == str(tmp_path / "mine")
+
+
+def test_importing_the_package_does_no_work():
+    """`import assistant` neither hashes the kernels nor touches numba's setting; the
+    Session is there on first use (`from assistant import Session`)."""
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_CACHE_DIR"}
+    code = ("import json, os, sys\n"
+            "import assistant\n"
+            "quiet = [os.environ.get('NUMBA_CACHE_DIR'), 'numba' in sys.modules,\n"
+            "         'assistant.kernels.cache' in sys.modules, sorted(m for m in sys.modules\n"
+            "         if m.startswith('assistant.'))]\n"
+            "from assistant import Session\n"
+            "from assistant.session.session import Session as S\n"
+            "print(json.dumps([quiet, Session is S, assistant.Session is S]))\n")
+    out = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                         text=True, timeout=120, check=True)
+    quiet, same, attr = json.loads(out.stdout.strip().splitlines()[-1])
+    assert quiet == [None, False, False, []]
+    assert same and attr

@@ -13,12 +13,12 @@ from abb_fixtures import HOME, Q_A, Q_B, TIME_SCALE, ur5
 from link_fixtures import box_on_sweep, sweep
 
 from assistant.collision.checker import CollisionChecker
+from assistant.emulators.abb_rws_emulator import AbbRwsEmulator
 from assistant.export.download import export_files
 from assistant.export.program import Frame, Move, MoveKind, NeutralProgram, Position
 from assistant.links import LinkSettings, make_link
 from assistant.links import abb_rws_protocol as rp
 from assistant.links.abb_rws import AbbRwsLink
-from assistant.links.emulators.abb_rws_emulator import AbbRwsEmulator
 from assistant.links.errors import ControllerRefused, ProtocolError
 from assistant.links.link import LinkError, LinkEventKind, LinkLost
 from assistant.transforms import make_T

@@ -18,8 +18,8 @@ import pytest
 from abb_fixtures import HOME, Q_A, TIME_SCALE, ur5
 from abb_robot_client import rws  # the vendor's client: a test extra, never skipped
 
+from assistant.emulators.abb_rws_emulator import AbbRwsEmulator
 from assistant.links import abb_rws_protocol as rp
-from assistant.links.emulators.abb_rws_emulator import AbbRwsEmulator
 from assistant.robots.framed import controller_view
 
 
@@ -167,7 +167,7 @@ def test_what_it_does_not_understand_is_refused(emu, client):
 
 def test_the_emulator_runs_as_a_script():
     """The demo command: started, answering abb-robot-client, stopped cleanly by SIGTERM."""
-    proc = subprocess.Popen([sys.executable, "-m", "assistant.links.emulators.abb_rws_emulator",
+    proc = subprocess.Popen([sys.executable, "-m", "assistant.emulators.abb_rws_emulator",
                              "--port", "0", "--time-scale", "5"], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     try:

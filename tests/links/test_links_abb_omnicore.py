@@ -13,10 +13,10 @@ import pytest
 from abb_fixtures import HOME, Q_A, Q_B, TIME_SCALE, ur5
 from link_fixtures import sweep
 
+from assistant.emulators.abb_rws_emulator import AbbRwsEmulator
 from assistant.links import LinkSettings, make_link
 from assistant.links import abb_rws_protocol as rp
 from assistant.links.abb_rws import AbbRwsLink
-from assistant.links.emulators.abb_rws_emulator import AbbRwsEmulator
 from assistant.links.link import LinkError, LinkEventKind
 
 TOL = 1e-6  # rad: the wire carries 1e-6 deg

@@ -16,10 +16,10 @@ import pytest
 from abb_fixtures import HOME as ABB_HOME
 from abb_fixtures import ur5 as abb_arm
 
+from assistant.emulators.abb_rws_emulator import AbbRwsEmulator
+from assistant.emulators.kuka_krc_emulator import KukaKrcEmulator
+from assistant.emulators.melfa_emulator import MelfaEmulator
 from assistant.links.checklist import MELFA_PARAMETERS, check_link
-from assistant.links.emulators.abb_rws_emulator import AbbRwsEmulator
-from assistant.links.emulators.kuka_krc_emulator import KukaKrcEmulator
-from assistant.links.emulators.melfa_emulator import MelfaEmulator
 from assistant.links.settings import LinkSettings
 from assistant.robots.rv2aj import RV2AJ
 

@@ -10,10 +10,10 @@ import pytest
 from link_fixtures import FAST_SPEEDS, HOME, Q_A, Q_B, box_on_sweep, sweep
 
 from assistant.collision.checker import CollisionChecker
+from assistant.emulators.faults import GARBAGE
+from assistant.emulators.kuka_bridge_emulator import KukaBridgeEmulator
 from assistant.links import kuka_protocol as kp
 from assistant.links.decimate import arm_deviation, decimate_joint_path
-from assistant.links.emulators.faults import GARBAGE
-from assistant.links.emulators.kuka_bridge_emulator import KukaBridgeEmulator
 from assistant.links.errors import ProtocolError
 from assistant.links.kuka_rest import KukaRestLink
 from assistant.links.link import LinkError, LinkEventKind, LinkLost

@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 from krl_reader import problems
 
+from assistant.emulators.kuka_krc_emulator import KukaKrcEmulator, kuka_arm
 from assistant.links import kuka_protocol as kp
-from assistant.links.emulators.kuka_krc_emulator import KukaKrcEmulator, kuka_arm
 from assistant.links.kuka_bridge import files
 from assistant.links.kuka_rest import KukaRestLink
 from assistant.links.link import LinkEventKind

@@ -10,9 +10,9 @@ import pytest
 from link_fixtures import FAST_SPEEDS, HOME, Q_A, Q_B, box_on_sweep, sweep
 
 from assistant.collision.checker import CollisionChecker
+from assistant.emulators.faults import GARBAGE
+from assistant.emulators.melfa_emulator import MelfaEmulator
 from assistant.links import melfa_protocol as mp
-from assistant.links.emulators.faults import GARBAGE
-from assistant.links.emulators.melfa_emulator import MelfaEmulator
 from assistant.links.errors import ProtocolError
 from assistant.links.link import LinkError, LinkEventKind, LinkLost
 from assistant.links.melfa import MelfaLink

@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from assistant.emulators.melfa_program import MelfaProgram, ProgramSyntaxError
 from assistant.links import melfa_protocol as mp
 from assistant.links.arm_config import matches_melfa_flags
-from assistant.links.emulators.melfa_program import MelfaProgram, ProgramSyntaxError
 from assistant.links.errors import ProtocolError
 
 

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from ur_fixtures import HOME, UR5_URDF, start_emulator
 
-from assistant.links.emulators.melfa_emulator import MelfaEmulator
+from assistant.emulators.melfa_emulator import MelfaEmulator
 from assistant.links.settings import LinkSettings
 from assistant.robots.catalog import RobotSpec, installed_robot_urdf
 from assistant.session import Session

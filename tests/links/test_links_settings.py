@@ -12,9 +12,9 @@ import numpy as np
 import pytest
 from link_fixtures import HOME, Q_A
 
+from assistant.emulators.kuka_bridge_emulator import KukaBridgeEmulator
+from assistant.emulators.melfa_emulator import MelfaEmulator
 from assistant.links import LinkSettings, LinkSettingsError, make_link
-from assistant.links.emulators.kuka_bridge_emulator import KukaBridgeEmulator
-from assistant.links.emulators.melfa_emulator import MelfaEmulator
 from assistant.links.kuka_rest import KukaRestLink
 from assistant.links.link import LinkEventKind
 from assistant.links.melfa import MelfaLink
@@ -63,8 +63,8 @@ def test_links_built_from_settings_drive_the_emulators(fast_robot, closing):
 
 
 @pytest.mark.parametrize("module, args", [
-    ("assistant.links.emulators.melfa_emulator", ["--port", "0", "--datalink-port", "0"]),
-    ("assistant.links.emulators.kuka_bridge_emulator", ["--port", "0"]),
+    ("assistant.emulators.melfa_emulator", ["--port", "0", "--datalink-port", "0"]),
+    ("assistant.emulators.kuka_bridge_emulator", ["--port", "0"]),
 ])
 @pytest.mark.parametrize("sigint_ignored", [False, True])
 def test_emulators_run_as_scripts(rv2aj, module, args, sigint_ignored):

@@ -23,10 +23,10 @@ from ur_fixtures import (
 )
 
 from assistant.collision.checker import CollisionChecker
+from assistant.emulators.ur_script_interp import ScriptError, compile_script
 from assistant.links import ur_kinematics as uk
 from assistant.links import ur_rtde_wire as w
 from assistant.links import ur_script as us
-from assistant.links.emulators.ur_script_interp import ScriptError, compile_script
 from assistant.links.errors import ProtocolError
 from assistant.links.link import LinkError, LinkEventKind
 from assistant.links.settings import LinkSettings, LinkSettingsError, make_link

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 from ur_fixtures import HOME, Q_A, connect_link, start_emulator, ur5
 
+from assistant.emulators.ur_emulator import NOT_REMOTE
 from assistant.links import ur_primary as up
-from assistant.links.emulators.ur_emulator import NOT_REMOTE
 from assistant.links.errors import ControllerRefused, ProtocolError
 from assistant.links.link import LinkEventKind
 from assistant.links.settings import LinkSettings, make_link

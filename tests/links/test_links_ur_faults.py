@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from ur_fixtures import HOME, Q_A, Q_B, WIRE_TOL, connect_link, start_emulator, ur5
 
+from assistant.emulators.faults import GARBAGE
 from assistant.links import ur_rtde_wire as w
-from assistant.links.emulators.faults import GARBAGE
 from assistant.links.errors import ControllerRefused, ProtocolError
 from assistant.links.link import LinkError, LinkEventKind, LinkLost
 

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from assistant.collision.reports import Obstacle
-from assistant.links.emulators.ur_emulator import UREmulator
+from assistant.emulators.ur_emulator import UREmulator
 from assistant.links.ur import URLink
 from assistant.robots.model import CollisionShape, ShapeKind
 from assistant.transforms import make_T

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from assistant.links.emulators.melfa_emulator import MelfaEmulator
+from assistant.emulators.melfa_emulator import MelfaEmulator
 from assistant.links.settings import LinkSettings
 from assistant.session import Session, SessionError
 from assistant.session.events import RobotMoved

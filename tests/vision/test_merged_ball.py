@@ -19,11 +19,11 @@ import cv2
 import numpy as np
 import pytest
 
+from cellteach_testing.photo_scenes import load_photo, wall_backdrop, wall_behind
 from vision.appearance import AppearanceMemory, AppearanceParams
 from vision.color_calibration import calibrate_ellipse
 from vision.detection import BlobDetector
 from vision.outline import OutlineParams
-from vision.photo_scenes import load_photo, wall_backdrop, wall_behind
 from vision.pointer import PointerSystem
 from vision.render_primitives import Canvas, draw_sphere
 from vision.scene import RED_BALL_BGR, Lighting, PointerScene, SensorSpec

@@ -10,10 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
-from vision.color import calibrate_from_ellipse  # noqa: E402
-from vision.color_calibration import calibrate_ellipse  # noqa: E402
-from vision.errors import ColorNotSeparable  # noqa: E402
-from vision.photo_scenes import (  # noqa: E402
+from cellteach_testing.photo_scenes import (  # noqa: E402
     HELD_OUT_PHOTOS,
     NON_SEPARABLE_PHOTO,
     TUNED_PHOTOS,
@@ -22,6 +19,8 @@ from vision.photo_scenes import (  # noqa: E402
     wall_backdrop,
     wall_behind,
 )
+from vision.color_calibration import calibrate_ellipse, calibrate_from_ellipse  # noqa: E402
+from vision.errors import ColorNotSeparable  # noqa: E402
 from vision.scene import PointerScene  # noqa: E402
 from vision.sources import SyntheticCamera  # noqa: E402
 

@@ -25,9 +25,9 @@ from __future__ import annotations
 
 import pytest
 
-from vision.photo_scenes import operator_calibration, photo_sequence  # noqa: E402
+from cellteach_testing.photo_scenes import operator_calibration, photo_sequence  # noqa: E402
+from cellteach_testing.pointer_scoring import score_run  # noqa: E402
 from vision.pointer import PointerSystem  # noqa: E402
-from vision.pointer_scoring import score_run  # noqa: E402
 from vision.sources import ReplaySource  # noqa: E402
 
 pytestmark = pytest.mark.slow  # renders two 7.7 s sequences: ~1-2 min on a busy machine

@@ -8,7 +8,8 @@ import cv2
 import numpy as np
 import pytest
 
-from vision.color import ColorProfile, ColorProfileSet, calibrate_from_ellipse
+from vision.color import ColorProfile, ColorProfileSet
+from vision.color_calibration import calibrate_from_ellipse
 from vision.errors import ColorCalibrationError
 from vision.scene import BLUE_MARKER_BGR, BackgroundSpec, PointerScene, SensorSpec
 from vision.sources import SyntheticCamera

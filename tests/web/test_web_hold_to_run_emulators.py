@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 from web_ui import UI
 
-from assistant.links.emulators.melfa_emulator import MelfaEmulator
+from assistant.emulators.melfa_emulator import MelfaEmulator
 from assistant.links.settings import LinkSettings
 from assistant.robots.catalog import RobotSpec, installed_robot_urdf
 from assistant.session import Session

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import functools
 from collections.abc import Callable
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Protocol
 
 import viser
 
@@ -19,6 +19,20 @@ if TYPE_CHECKING:
 
 #: Panels sit below the toolbar (order 0) and above the session box (order 1000).
 PANEL_ORDER = 10.0
+
+
+class StepPanel(Protocol):
+    """What the app asks of each panel: a `Panel`, or the session-file box (per page)."""
+
+    @property
+    def title(self) -> str: ...
+    @property
+    def steps(self) -> tuple[str, ...]: ...
+
+    def show_for(self, state: str) -> None: ...
+    def refresh(self) -> None: ...
+    def on_event(self, ev: Event) -> None: ...
+    def on_enter(self) -> None: ...
 
 
 class Panel:

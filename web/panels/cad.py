@@ -12,6 +12,7 @@ import viser
 from assistant.cell.model import ObjectRole
 from assistant.progress import Cancelled
 from assistant.session.events import Event, SceneChanged
+from web.gui_value import set_value
 from web.panels.base import Panel, gate
 from web.units import point_from_mm
 from web.uploads import check_upload_size
@@ -150,7 +151,7 @@ class CadPanel(Panel):
         self.report.content = f"{head}\n\n{text}"
         self.confirm.visible = True
         if cad.units in UNITS:
-            self.reunits.value = cad.units
+            set_value(self.reunits, cad.units)
 
     def _reimport(self) -> None:
         last = self.last
@@ -187,7 +188,7 @@ class CadPanel(Panel):
         else:
             rows = ["| part | role | size (mm) |", "|---|---|---|"]
             for o in objs:
-                ext = o.full_mesh.extents * 1000.0
+                ext = o.part_mesh.extents * 1000.0
                 rows.append(f"| {o.name} | {o.role.value} | "
                             f"{ext[0]:.0f} x {ext[1]:.0f} x {ext[2]:.0f} |")
             self.table.content = "\n".join(rows)

@@ -19,6 +19,11 @@ IMAGE_PERIOD_S = 0.25
 PREVIEW_WIDTH = 320
 
 
+def _pair(value: Any) -> tuple[float, float]:
+    """A two-number input's value (pixels) as the pair the calibration takes."""
+    return (float(value[0]), float(value[1]))
+
+
 def overlay(view: Any, ellipse: tuple[tuple[float, float], tuple[float, float], float] | None
             ) -> np.ndarray | None:
     """RGB preview of one camera with detections (green), the tracked blob (red), the
@@ -90,7 +95,7 @@ class CamerasPanel(Panel):
 
     def _calibrate(self, client: Any) -> None:
         prof = self.session.calibrate_pointer_color(
-            int(self.cam.value) - 1, tuple(self.centre.value), tuple(self.axes.value),
+            int(self.cam.value) - 1, _pair(self.centre.value), _pair(self.axes.value),
             float(self.angle.value))
         self.app.notifier.success(f"Pointer colour calibrated: {prof}", client=client)
 

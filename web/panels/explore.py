@@ -9,6 +9,7 @@ import contextlib
 import viser
 
 from assistant.session.events import CollisionRecorded, Event, SceneChanged, StateChanged
+from web.gui_value import set_value
 from web.panels.base import Panel, busy_reason, gate, why_greyed
 
 EXPLORE_MODES = {"random moves": "random", "along the roads": "roads", "replay the plan": "replay"}
@@ -72,7 +73,7 @@ class ExplorePanel(Panel):
             for handle, value in ((self.resolution, ws.resolution_mm or 0.0),
                                   (self.samples, ws.joint_samples), (self.memory, ws.memory_mb),
                                   (self.clearance, ws.clearance_mm)):
-                handle.value = value
+                set_value(handle, value)
         reasons = {"Build world model": wait,
                    "Explore": wait or ("" if s.world_ready else "build the world model first")}
         gate(self.explore, reasons["Explore"])

@@ -18,6 +18,7 @@ import viser
 
 from assistant.export.registry import DIALECT_NAMES, get_dialect
 from assistant.session.events import Event, ProgramReady, SceneChanged, StateChanged
+from web.gui_value import set_value
 from web.panels.base import Panel, busy_reason, gate, why_greyed
 from web.program_view import program_html
 
@@ -154,6 +155,8 @@ class ExportPanel(Panel):
         if result is None:
             raise ValueError("write the program first")
         d = result.download
+        if event.client is None:
+            raise ValueError("no page to send the program to")
         event.client.send_file_download(d.name, d.data, save_immediately=True)
 
     # ------------------------------------------------------------------ drawing
@@ -178,7 +181,7 @@ class ExportPanel(Panel):
             shown = DIALECT_LABELS.get(result.dialect if result is not None
                                        else s.export_dialect)
             if shown in langs and self.dialect.value != shown:
-                self.dialect.value = shown
+                set_value(self.dialect, shown)
         if self._write_if_needed():  # e.g. a loaded session opened at step 7
             writing = True
         plan_first = "" if s.trajectory is not None else "plan the mission first (step 6)"

@@ -10,6 +10,7 @@ import numpy as np
 import viser
 
 from assistant.session.events import Event, RobotMoved, SceneChanged, StateChanged
+from web.gui_value import set_value
 from web.panels.base import Panel
 from web.units import T_from_wxyz_position, fmt_mm, pose_fields, wxyz_position
 
@@ -60,7 +61,7 @@ class JogPanel(Panel):
     def _sliders_to_robot(self) -> None:
         q = np.degrees(self.session.current_joints())
         for s, v in zip(self.sliders, q, strict=False):
-            s.value = float(np.clip(round(float(v), 1), s.min, s.max))
+            set_value(s, float(np.clip(round(float(v), 1), s.min, s.max)))
 
     def _move(self) -> None:
         q = np.radians([s.value for s in self.sliders])

@@ -10,6 +10,7 @@ import numpy as np
 from assistant.mission.model import Mission
 from assistant.mission.motion import ToolAction, ToolActionKind
 from assistant.session.events import Event, SceneChanged, StateChanged
+from web.gui_value import set_value
 from web.panels.base import Panel, gate
 
 KINDS = {"line (2+ points)": "line", "arc (start, via, end)": "arc",
@@ -164,11 +165,11 @@ class PathsPanel(Panel):
         if name == self._auto_name or name.lower() in {n.lower() for n in used}:
             self._auto_name = free_path_name(used)
             if self.name.value != self._auto_name:
-                self.name.value = self._auto_name
+                set_value(self.name, self._auto_name)
         if self.points.value.strip() == self._auto_points.strip():
             self._auto_points = ", ".join(application_points(s.locations, s.mission))
             if self.points.value != self._auto_points:
-                self.points.value = self._auto_points
+                set_value(self.points, self._auto_points)
 
     def on_event(self, ev: Event) -> None:
         if isinstance(ev, SceneChanged) and ev.what in ("mission", "locations", "frames",

@@ -11,6 +11,7 @@ import viser
 
 from assistant.session.events import Event, ProgressChanged, SceneChanged, StateChanged
 from assistant.transforms import inv_T
+from web.gui_value import set_value
 from web.panels.base import Panel
 from web.scene.placement import PlacementLayer
 from web.units import fmt_mm, point_or_name, pose_fields, pose_from_fields
@@ -116,11 +117,11 @@ class PlacePanel(Panel):
 
     def _clicked(self, name: str, ev: object) -> None:
         if self.visible and name in self.pick.options:
-            self.pick.value = name
+            set_value(self.pick, name)
 
     def _measure(self) -> None:
         p = self.session.measure_with_robot()
-        self.measured_pt.value = tuple(round(float(v) * 1000.0, 3) for v in p)
+        set_value(self.measured_pt, tuple(round(float(v) * 1000.0, 3) for v in p))
 
     def _add_pair(self) -> None:
         self.pairs.append((np.array(self.model_pt.value) / 1000.0,
@@ -164,7 +165,7 @@ class PlacePanel(Panel):
     def _study_picked(self, index: int) -> None:
         for opt in self.st_choice.options:
             if opt.startswith(f"#{index} "):
-                self.st_choice.value = opt
+                set_value(self.st_choice, opt)
 
     def _study_show_choice(self) -> None:
         study, index = self.session.placement_study, self._study_index()
@@ -173,6 +174,7 @@ class PlacePanel(Panel):
         if not rows:
             self.st_reason.content, self.st_apply.disabled = "", True
             return
+        assert study is not None  # rows come from it
         r = rows[0]
         text = f"{r.status}" + (f", rank {r.rank}" if r.rank else "")
         if r.cost is not None:
@@ -195,7 +197,7 @@ class PlacePanel(Panel):
                      for r in ranked) or ("-",)
         if tuple(self.st_choice.options) != opts:
             self.st_choice.options = opts
-            self.st_choice.value = opts[0]
+            set_value(self.st_choice, opts[0])
         c = study.counts
         self.st_status.content = (f"<small>{c['candidates']} candidates: {c['screened_ok']} "
                                   f"passed the screen, {c['planned_ok']} of {c['planned']} "
@@ -227,7 +229,8 @@ class PlacePanel(Panel):
             T = obj.T_world_object if frame is None else \
                 inv_T(np.asarray(self.session.cell.frames[frame])) @ obj.T_world_object
             xyz, abc = pose_fields(T)
-            self.xyz.value, self.abc.value = xyz, abc
+            set_value(self.xyz, xyz)
+            set_value(self.abc, abc)
             # Written after the fields: once this line shows, the fields are the part's.
             rel = "" if frame is None else f" in {frame}"
             self.where.content = (f"<small>{obj.name} is at ({xyz[0]:g}, {xyz[1]:g}, "
@@ -269,7 +272,7 @@ class PlacePanel(Panel):
             self.st_start.disabled, self.st_cancel.disabled = busy, not busy
         if isinstance(ev, ProgressChanged) and ev.task == "placement study":
             self.st_progress.visible = not ev.done
-            self.st_progress.value = max(0.0, min(100.0, 100.0 * ev.fraction))
+            set_value(self.st_progress, max(0.0, min(100.0, 100.0 * ev.fraction)))
             if ev.done and ev.message == "cancelled":
                 self.st_status.content = "<small>Study cancelled.</small>"
         if isinstance(ev, SceneChanged) and ev.what in ("study", "all"):

@@ -20,6 +20,7 @@ from assistant.session.events import (
     StateChanged,
 )
 from assistant.session.run_state import RunPhase
+from web.gui_value import set_value
 from web.panels.base import Panel, busy_reason, gate, why_greyed
 from web.scene.plan import KIND_COLORS
 from web.wording import goal_reached, moves_words, report_rows
@@ -151,9 +152,9 @@ class PlanPanel(Panel):
         if ls.kind == "simulated" and self.speed.value != speed_label(ls.time_scale):
             if speed_label(ls.time_scale) not in SPEEDS:
                 self.speed.options = (*SPEEDS, speed_label(ls.time_scale))
-            self.speed.value = speed_label(ls.time_scale)
+            set_value(self.speed, speed_label(ls.time_scale))
         c = s.counters
-        if has_plan:
+        if s.trajectory is not None:  # has_plan
             # The counts and times report.json gives (`assistant.session.report`).
             n, kinds = moves_words(s.trajectory.primitive_counts())
             plan_text = (f"Mission planned: {n} moves ({kinds}). Planning time "
@@ -165,7 +166,7 @@ class PlanPanel(Panel):
         outcome = ""
         if run.phase in (RunPhase.DONE, RunPhase.STOPPED):
             goal = s.mission.goal
-            head = goal_reached(goal and goal.name, s.last_run) \
+            head = goal_reached(goal.name if goal is not None else None, s.last_run or {}) \
                 if run.phase == RunPhase.DONE else ""
             outcome = "\n\n".join(x for x in (f"**{head}**" if head else "", run.sentence)
                                   if x) + "\n\n"

@@ -16,6 +16,7 @@ import viser
 
 from assistant.session import Session
 from assistant.session.events import Event, StateChanged
+from web.gui_value import set_value
 from web.panels.base import settled_view
 from workflow.states import leaves
 
@@ -106,7 +107,7 @@ class SessionPanel:
                     "not autosaved"
                 box.where.content = f"<small>This session lives in {s.folder} ({auto}).</small>"
                 if box.folder_text.value == DEFAULT_FOLDER:
-                    box.folder_text.value = str(s.folder)
+                    set_value(box.folder_text, str(s.folder))
             else:
                 box.where.content = "<small>Not saved yet.</small>"
             busy = s.machine.mode.value != "idle"

@@ -15,6 +15,7 @@ from assistant.links.settings import KINDS, LinkSettings
 from assistant.robots.catalog import CATALOG, RobotSpec, ToolSpec
 from assistant.session.events import Event, SceneChanged, StateChanged
 from assistant.session.link_secrets import masked
+from web.gui_value import set_value
 from web.panels.base import Panel
 
 ROBOTS = {"Mitsubishi RV-2AJ (built in)": "rv2aj",
@@ -97,7 +98,7 @@ class SetupPanel(Panel):
     def _link_kind_picked(self) -> None:
         port = DEFAULT_PORTS.get(self._link_kind())
         if port is not None:
-            self.port.value = port
+            set_value(self.port, port)
         self._link_kind_changed()
 
     def _link_kind_changed(self) -> None:
@@ -135,7 +136,7 @@ class SetupPanel(Panel):
             kw["rws_password"] = typed or self.session.link_settings.rws_password
         self.session.set_link(LinkSettings(**kw))
         if field is not None and typed:
-            field.value = ""  # stored: it is not kept on the page
+            set_value(field, "")  # stored: it is not kept on the page
 
     def _test_link(self) -> None:
         """Run the session's checklist off the UI thread; the result is shown on it, one
@@ -204,15 +205,15 @@ class SetupPanel(Panel):
         self._show_rule()
         label = next((k for k, v in ROBOTS.items() if v == spec.kind), None)
         if label is not None:
-            self.robot.value = label
-        self.tool_len.value = round(tcp_mm, 3)
-        self.tool_rad.value = round(tool.body_radius * 1000.0, 3)
-        self.gripper.value = bool(tool.has_gripper)
-        self.link_kind.value = LINK_LABELS[ls.kind]
-        self.time_scale.value = float(ls.time_scale)
-        self.host.value = ls.host
-        self.port.value = int(ls.port)
-        self.rws_user.value = ls.rws_user
+            set_value(self.robot, label)
+        set_value(self.tool_len, round(tcp_mm, 3))
+        set_value(self.tool_rad, round(tool.body_radius * 1000.0, 3))
+        set_value(self.gripper, bool(tool.has_gripper))
+        set_value(self.link_kind, LINK_LABELS[ls.kind])
+        set_value(self.time_scale, float(ls.time_scale))
+        set_value(self.host, ls.host)
+        set_value(self.port, int(ls.port))
+        set_value(self.rws_user, ls.rws_user)
         self._robot_kind_changed()
         self._link_kind_changed()
 

@@ -13,6 +13,7 @@ import numpy as np
 from assistant.robots.model import UnreachableError
 from assistant.robots.reach import arm_reach
 from assistant.session.events import Event, Notice, PointerUpdated, SceneChanged, StateChanged
+from web.gui_value import set_value
 from web.panels.base import Panel, gate, why_greyed
 from web.scene.picking import pick
 from web.scene.reach import ReachLayer, RefusedTarget
@@ -112,7 +113,7 @@ class TeachPanel(Panel):
     def _seed_from_name(self) -> None:
         self._seed_manual = False
         if int(self.seed.value) != self._name_seed():
-            self.seed.value = self._name_seed()
+            set_value(self.seed, self._name_seed())
 
     def _seed_typed(self, e: Any) -> None:
         if e.client is not None:  # the operator chose a seed: it holds until the next name
@@ -122,7 +123,7 @@ class TeachPanel(Panel):
         """The synthetic hand holds the ball still: the ball and the dwell's progress show
         while the cameras measure it (`PointerUpdated`); the button waits meanwhile."""
         gate(self.dwell, "Wait: the cameras are measuring the ball")
-        self.dwell_bar.value = 0.0
+        set_value(self.dwell_bar, 0.0)
         self.dwell_md.content = "<small>Bringing the ball to the point...</small>"
         self.dwell_bar.visible = self.dwell_md.visible = True
         try:
@@ -167,10 +168,10 @@ class TeachPanel(Panel):
             raise
         with self.session.settled():  # what it shows is saved (another page may teach too)
             self.pick.options = tuple(self.session.locations) or ("-",)
-            self.pick.value = loc.name
+            set_value(self.pick, loc.name)
             self._typed_abc.pop(loc.name, None)  # taught again: its typed angles are gone
             self._last_taught = loc.name
-            self.name.value = name_after(loc.name, self.session.locations)
+            set_value(self.name, name_after(loc.name, self.session.locations))
         self._seed_from_name()
         return loc
 
@@ -206,7 +207,7 @@ class TeachPanel(Panel):
         obj = self.session.cell.objects.get(obj_name)
         if obj is None:
             return
-        hit = pick(obj.full_mesh, obj.T_world_object, np.array(ev.ray_origin),
+        hit = pick(obj.part_mesh, obj.T_world_object, np.array(ev.ray_origin),
                    np.array(ev.ray_direction))
         if hit is None:
             return
@@ -249,7 +250,7 @@ class TeachPanel(Panel):
         gate(self.pending, "" if s.pending_point is not None else
              "Hold the ball still first (step 3.2 starts the cameras)")
         if self.name.value.strip().lower() in {n.lower() for n in s.locations}:
-            self.name.value = self._suggested_name()
+            set_value(self.name, self._suggested_name())
 
     def _suggested_name(self) -> str:
         """After a teach from this page: the name after it; before: P1 or the next free P<k>."""
@@ -285,5 +286,5 @@ class TeachPanel(Panel):
         if not holding:
             return
         held = ev.dwell_progress * ev.dwell_s
-        self.dwell_bar.value = max(0.0, min(100.0, 100.0 * ev.dwell_progress))
+        set_value(self.dwell_bar, max(0.0, min(100.0, 100.0 * ev.dwell_progress)))
         self.dwell_md.content = f"<small>Hold still... {held:.1f} / {ev.dwell_s:.1f} s</small>"

@@ -11,6 +11,7 @@ from __future__ import annotations
 from typing import Any
 
 from assistant.session.events import Event, StateChanged
+from web.gui_value import set_value
 from web.panels.base import Panel
 from workflow.states import leaves
 
@@ -71,7 +72,7 @@ class ViewPanel(Panel):
     def _defaults_for(self, state: str) -> None:
         on = state.split(".")[0] in OCCUPANCY_STEPS
         if self.occupied.value != on:
-            self.occupied.value = on
+            set_value(self.occupied, on)
         self.app.scene_layers.world.set_visibility(occupancy=on)
 
     def on_event(self, ev: Event) -> None:

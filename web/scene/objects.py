@@ -17,6 +17,11 @@ from web.units import T_from_wxyz_position, wxyz_position
 ClickHandler = Callable[[str, Any], None]
 
 
+def _rgb(color: tuple[int, int, int] | None) -> tuple[int, int, int]:
+    assert color is not None  # a CellObject's colour is set when it is made (its role's)
+    return (int(color[0]), int(color[1]), int(color[2]))
+
+
 def label_position(bounds: Any, T_world_object: Any) -> tuple[float, float, float]:
     """Just above the middle of a part's top, in the world (its bounding box turned)."""
     lo, hi = np.asarray(bounds, dtype=float)
@@ -49,16 +54,20 @@ class ObjectsLayer(Layer):
             mesh = obj.display_mesh
             h = self.scene.add_mesh_simple(
                 f"{self.root}/{node_key(obj.name)}", np.asarray(mesh.vertices, np.float32),
-                np.asarray(mesh.faces, np.uint32), color=tuple(int(c) for c in obj.color),
+                np.asarray(mesh.faces, np.uint32), color=_rgb(obj.color),
                 wxyz=wxyz, position=pos, side="double", material="toon3", cast_shadow=False,
                 receive_shadow=False)
-            h.on_click(lambda ev, name=obj.name: self._clicked(name, ev))
+            h.on_click(self._clicking(obj.name))
             self._nodes[obj.name] = h
             self._nodes[obj.name + "/label"] = self.scene.add_label(
                 f"/labels/objects/{node_key(obj.name)}", obj.name,
                 position=label_position(mesh.bounds, obj.T_world_object),
                 font_screen_scale=0.9, anchor="bottom-center")
         self._sync_gizmo()
+
+    def _clicking(self, name: str) -> Callable[[Any], None]:
+        """The click callback of object `name`'s mesh."""
+        return lambda ev: self._clicked(name, ev)
 
     def _clicked(self, name: str, ev: Any) -> None:
         for fn in list(self.click_handlers):

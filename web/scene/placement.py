@@ -5,6 +5,7 @@ study's PNG map), a tick per yaw, the best one labelled. Clicking a marker selec
 from __future__ import annotations
 
 from collections.abc import Callable
+from typing import Any
 
 import numpy as np
 
@@ -55,7 +56,7 @@ class PlacementLayer(Layer):
                 f"{self.root}/p{k}", radius=max(0.004, 0.12 * study.region.step),
                 color=_rgb(col[best.candidate.index]), position=(x, y, z),
                 cast_shadow=False, receive_shadow=False)
-            h.on_click(lambda ev, i=best.candidate.index: self._picked(i))
+            h.on_click(self._picking(best.candidate.index))
             self._nodes[f"p{k}"] = h
             for r in rs:
                 yaw = r.candidate.yaw
@@ -71,6 +72,10 @@ class PlacementLayer(Layer):
                 f"{self.root}/best", f"best #{top.candidate.index}",
                 position=(top.candidate.x, top.candidate.y, z + 0.03),
                 font_screen_scale=0.8, anchor="bottom-center")
+
+    def _picking(self, index: int) -> Callable[[Any], None]:
+        """The click callback of candidate `index`'s marker."""
+        return lambda ev: self._picked(index)
 
     def _picked(self, index: int) -> None:
         if self.on_pick is not None:

@@ -24,7 +24,8 @@ class RobotLayer(Layer):
                 color = TOUCHING
             self._nodes[name] = self.scene.add_mesh_simple(
                 f"{self.root}/{node_key(name)}", np.asarray(mesh.vertices, np.float32),
-                np.asarray(mesh.faces, np.uint32), color=tuple(int(c) for c in color),
+                np.asarray(mesh.faces, np.uint32),
+                color=(int(color[0]), int(color[1]), int(color[2])),
                 flat_shading=False, cast_shadow=False, receive_shadow=False)
         self._nodes["__tcp__"] = self.scene.add_frame(
             f"{self.root}/tcp", axes_length=0.05, axes_radius=0.003, origin_radius=0.006)

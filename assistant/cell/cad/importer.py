@@ -7,13 +7,14 @@ collision checks use the proxy with its margin (`collision`)."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
 import trimesh
 
 from assistant.cell.cad.errors import CadImportError
-from assistant.cell.cad.formats import format_from_filename, reader_for
+from assistant.cell.cad.formats import CadFormat, format_from_filename
 from assistant.cell.cad.options import (
     DEFAULT_PROXY_MAX_FACES,
     DEFAULT_PROXY_TOLERANCE_M,
@@ -22,12 +23,29 @@ from assistant.cell.cad.options import (
 )
 from assistant.cell.cad.precheck import check_before_parsing
 from assistant.cell.cad.proxy import ProxyReport, collision_proxy
+from assistant.cell.cad.raw import RawGeometry
 from assistant.cell.cad.source import CadSource
 from assistant.cell.cad.units import decide_units, size_warning
 from assistant.cell.cad.validate import MAX_FACES, check_raw, repair
 from assistant.file_guard import FileRefused, read_file
 from assistant.progress import Cancelled, Progress
 from assistant.robots.model import CollisionShape
+
+
+def reader_for(fmt: CadFormat) -> Callable[[bytes, str, ImportOptions], RawGeometry]:
+    """The reader function for a format (imported lazily: STEP pulls in OpenCASCADE)."""
+    if fmt == CadFormat.DXF:
+        from assistant.cell.cad.dxf import read_dxf
+
+        return read_dxf
+    if fmt == CadFormat.STEP:
+        from assistant.cell.cad.step import read_step
+
+        return read_step
+    from assistant.cell.cad.meshfile import read_mesh_file
+
+    return lambda data, filename, options: read_mesh_file(data, filename, fmt.value, options)
+
 
 #: Larger files are refused before reading (memory): a binary STL of `MAX_FACES` triangles
 #: is 191 MiB.

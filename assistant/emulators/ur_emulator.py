@@ -30,7 +30,7 @@ after it (5 s on a UR). `press_emergency_stop` powers the arm off until released
 on and its brakes released. Faults (`faults.Faults`): drop (every socket closed mid-move),
 reply delay (the RTDE stream and dashboard stall), garbage (a package's bytes replaced).
 
-    python -m assistant.links.emulators.ur_emulator --rtde-port 30004 --script-port 30002
+    python -m assistant.emulators.ur_emulator --rtde-port 30004 --script-port 30002
 """
 
 from __future__ import annotations
@@ -46,14 +46,14 @@ from collections.abc import Iterable
 import numpy as np
 
 from assistant.collision.reports import ObstacleView
+from assistant.emulators.arm import CollisionInfo, EmulatedArm
+from assistant.emulators.faults import Faults, Received
+from assistant.emulators.ur_rtde_server import RtdeServer
+from assistant.emulators.ur_runner import ScriptRunner
+from assistant.emulators.ur_script_interp import ScriptError, compile_script
 from assistant.links import ur_kinematics as uk
 from assistant.links import ur_primary as up
 from assistant.links import ur_rtde_wire as w
-from assistant.links.emulators.arm import CollisionInfo, EmulatedArm
-from assistant.links.emulators.faults import Faults, Received
-from assistant.links.emulators.ur_rtde_server import RtdeServer
-from assistant.links.emulators.ur_runner import ScriptRunner
-from assistant.links.emulators.ur_script_interp import ScriptError, compile_script
 from assistant.links.ur_script import to_controller_pose
 from assistant.robots.model import Robot
 
@@ -524,7 +524,7 @@ def main(argv: list[str] | None = None) -> None:
                      script_port=args.script_port, dashboard_port=args.dashboard_port,
                      primary_port=args.primary_port, time_scale=args.time_scale, start_q=q0,
                      faults=faults, local_mode=not args.remote)
-    from assistant.links.emulators.until_stopped import install_stop_handlers, wait_until_stopped
+    from assistant.emulators.until_stopped import install_stop_handlers, wait_until_stopped
 
     with emu:
         install_stop_handlers()

@@ -15,11 +15,11 @@ import time
 from collections import deque
 from typing import TYPE_CHECKING
 
+from assistant.emulators.melfa_program import ProgramError
 from assistant.links import melfa_protocol as mp
-from assistant.links.emulators.melfa_program import ProgramError
 
 if TYPE_CHECKING:
-    from assistant.links.emulators.melfa_emulator import MelfaEmulator
+    from assistant.emulators.melfa_emulator import MelfaEmulator
 
 POLL_S = 0.05  # seconds between checks of stop flags in blocking reads
 

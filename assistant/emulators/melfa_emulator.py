@@ -13,7 +13,7 @@ data-link ports.
 
 Run as a script for demos::
 
-    python -m assistant.links.emulators.melfa_emulator --port 10001 --datalink-port 10002
+    python -m assistant.emulators.melfa_emulator --port 10001 --datalink-port 10002
 """
 
 from __future__ import annotations
@@ -29,18 +29,18 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from assistant.collision.reports import ObstacleView
-from assistant.links import melfa_protocol as mp
-from assistant.links.emulators.arm import CollisionInfo, EmulatedArm
-from assistant.links.emulators.faults import Faults, Received
-from assistant.links.emulators.melfa_machine import MelfaMachine
-from assistant.links.emulators.melfa_program import (
+from assistant.emulators.arm import CollisionInfo, EmulatedArm
+from assistant.emulators.faults import Faults, Received
+from assistant.emulators.melfa_machine import MelfaMachine
+from assistant.emulators.melfa_program import (
     Interpreter,
     MelfaProgram,
     ProgramError,
     ProgramSyntaxError,
 )
-from assistant.links.emulators.melfa_sockets import POLL_S, DataLinkPort, LineConnection
-from assistant.links.emulators.until_stopped import install_stop_handlers, wait_until_stopped
+from assistant.emulators.melfa_sockets import POLL_S, DataLinkPort, LineConnection
+from assistant.emulators.until_stopped import install_stop_handlers, wait_until_stopped
+from assistant.links import melfa_protocol as mp
 from assistant.links.melfa_protocol import DState
 from assistant.robots.model import Robot
 

@@ -16,8 +16,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from assistant.links.emulators.cartesian import arc_poses, line_poses
-from assistant.links.emulators.ur_script_interp import (
+from assistant.emulators.cartesian import arc_poses, line_poses
+from assistant.emulators.ur_script_interp import (
     Pose,
     Program,
     ScriptError,
@@ -30,7 +30,7 @@ from assistant.links.ur_script import from_controller_pose
 from assistant.robots.model import Robot
 
 if TYPE_CHECKING:
-    from assistant.links.emulators.ur_emulator import UREmulator
+    from assistant.emulators.ur_emulator import UREmulator
 
 Array = np.ndarray
 MAX_JOINT_STEP = 0.35  # rad between 2 mm poses: more is a flip through a singularity
@@ -217,7 +217,7 @@ class ScriptRunner:
 
 
 def _params(call: str):  # noqa: ANN202
-    from assistant.links.emulators.ur_script_interp import SIGNATURES
+    from assistant.emulators.ur_script_interp import SIGNATURES
 
     return SIGNATURES[call]
 

@@ -11,7 +11,7 @@ running the first uploaded file, so the link's guard against it can be tested.
 
 Run as a script for demos::
 
-    python -m assistant.links.emulators.kuka_bridge_emulator --port 8000
+    python -m assistant.emulators.kuka_bridge_emulator --port 8000
 """
 
 from __future__ import annotations
@@ -28,13 +28,13 @@ from urllib.parse import parse_qs, urlsplit
 import numpy as np
 
 from assistant.collision.reports import ObstacleView
+from assistant.emulators.arm import EmulatedArm, solve_wire_pose
+from assistant.emulators.cartesian import arc_poses, line_poses
+from assistant.emulators.faults import Faults, Received
+from assistant.emulators.krl_program import KrlError, KrlMotion, parse_dat, parse_motions
+from assistant.emulators.until_stopped import install_stop_handlers, wait_until_stopped
 from assistant.links import kuka_protocol as kp
 from assistant.links.arm_config import matches_status_turn
-from assistant.links.emulators.arm import EmulatedArm, solve_wire_pose
-from assistant.links.emulators.cartesian import arc_poses, line_poses
-from assistant.links.emulators.faults import Faults, Received
-from assistant.links.emulators.krl_program import KrlError, KrlMotion, parse_dat, parse_motions
-from assistant.links.emulators.until_stopped import install_stop_handlers, wait_until_stopped
 from assistant.robots.model import Robot
 
 Array = np.ndarray
@@ -335,7 +335,7 @@ class KukaBridgeEmulator:
 
 
 def main(argv: list[str] | None = None) -> None:
-    from assistant.links.emulators.melfa_emulator import _parse_box
+    from assistant.emulators.melfa_emulator import _parse_box
     from assistant.robots.rv2aj import RV2AJ
 
     ap = argparse.ArgumentParser(description="KUKA REST bridge emulator (RV-2AJ model arm)")

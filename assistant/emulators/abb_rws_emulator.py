@@ -15,7 +15,7 @@ model's speeds, stops before hidden obstacles (event 50204), and produces faults
 
 Run as a script for demos::
 
-    python -m assistant.links.emulators.abb_rws_emulator --port 8080
+    python -m assistant.emulators.abb_rws_emulator --port 8080
 """
 
 from __future__ import annotations
@@ -34,14 +34,14 @@ from urllib.parse import parse_qs, unquote, urlsplit
 import numpy as np
 
 from assistant.collision.reports import ObstacleView
+from assistant.emulators.abb_controller import RapidController, RwsError, confdata
+from assistant.emulators.abb_rws_auth import DigestSessions, Session
+from assistant.emulators.abb_rws_events import SubscriptionHub, elog_event, exec_event
+from assistant.emulators.arm import EmulatedArm
+from assistant.emulators.faults import Faults, Received
+from assistant.emulators.until_stopped import install_stop_handlers, wait_until_stopped
 from assistant.links import abb_rws_protocol as rp
 from assistant.links.abb_rws_dialect import Rws, v2_to_v1
-from assistant.links.emulators.abb_controller import RapidController, RwsError, confdata
-from assistant.links.emulators.abb_rws_auth import DigestSessions, Session
-from assistant.links.emulators.abb_rws_events import SubscriptionHub, elog_event, exec_event
-from assistant.links.emulators.arm import EmulatedArm
-from assistant.links.emulators.faults import Faults, Received
-from assistant.links.emulators.until_stopped import install_stop_handlers, wait_until_stopped
 from assistant.robots.framed import controller_view
 from assistant.robots.model import Robot
 
@@ -460,7 +460,7 @@ class AbbRwsEmulator:
 
 
 def main(argv: list[str] | None = None) -> None:
-    from assistant.links.emulators.melfa_emulator import _parse_box
+    from assistant.emulators.melfa_emulator import _parse_box
     from assistant.robots.catalog import installed_robot_urdf
     from assistant.robots.urdf_robot import URDFRobot
 

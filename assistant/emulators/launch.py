@@ -46,7 +46,7 @@ def start(vendor: str, *, host: str = "127.0.0.1", remote: bool = False,
         raise ValueError(f"no emulator {vendor!r}; known: {', '.join(VENDORS)}")
     p = (lambda n: 0) if any_port else (lambda n: n)  # noqa: E731
     if vendor == "ur":
-        from assistant.links.emulators.ur_emulator import UREmulator
+        from assistant.emulators.ur_emulator import UREmulator
 
         emu = UREmulator(_ur5("tool0"), host=host, rtde_port=p(30004), script_port=p(30002),
                          dashboard_port=p(29999), primary_port=p(30001),
@@ -59,18 +59,18 @@ def start(vendor: str, *, host: str = "127.0.0.1", remote: bool = False,
                              ("ur-realtime", host, emu.realtime_port),
                              ("ur-rtde", host, emu.rtde_port)])
     if vendor in ("abb", "omnicore"):
-        from assistant.links.emulators.abb_rws_emulator import AbbRwsEmulator
+        from assistant.emulators.abb_rws_emulator import AbbRwsEmulator
 
         v = 2 if vendor == "omnicore" else 1
         emu = AbbRwsEmulator(_ur5("tool0"), host=host, port=p(443 if v == 2 else 80),
                              rws_version=v, time_scale=time_scale).start()
         return Running(emu, [(f"{vendor}-rws{'2' if v == 2 else '1'}", host, emu.port)])
     if vendor == "kuka":
-        from assistant.links.emulators.kuka_krc_emulator import KukaKrcEmulator
+        from assistant.emulators.kuka_krc_emulator import KukaKrcEmulator
 
         emu = KukaKrcEmulator(host=host, port=p(8000), time_scale=time_scale).start()
         return Running(emu, [("kuka-bridge", host, emu.port)])
-    from assistant.links.emulators.melfa_emulator import MelfaEmulator
+    from assistant.emulators.melfa_emulator import MelfaEmulator
     from assistant.robots.rv2aj import RV2AJ
 
     emu = MelfaEmulator(RV2AJ(), host=host, port=p(10001),

@@ -12,12 +12,12 @@ import threading
 
 import numpy as np
 
+from assistant.emulators.arm import EmulatedArm, solve_wire_pose
+from assistant.emulators.cartesian import arc_poses, line_poses
+from assistant.emulators.melfa_program import ProgramError
+from assistant.emulators.melfa_sockets import DataLinkPort
 from assistant.links import melfa_protocol as mp
 from assistant.links.arm_config import matches_melfa_flags
-from assistant.links.emulators.arm import EmulatedArm, solve_wire_pose
-from assistant.links.emulators.cartesian import arc_poses, line_poses
-from assistant.links.emulators.melfa_program import ProgramError
-from assistant.links.emulators.melfa_sockets import DataLinkPort
 from assistant.links.melfa_protocol import MelfaPose
 from assistant.robots.model import Robot
 

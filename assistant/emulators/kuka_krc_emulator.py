@@ -12,7 +12,7 @@ a motion that hits a hidden obstacle or a limit halts the program with a message
 controller does (the bridge then answers statuscode -5 after its timeout), and
 `acknowledge()` restarts it like an operator would.
 
-    python -m assistant.links.emulators.kuka_krc_emulator --port 8000
+    python -m assistant.emulators.kuka_krc_emulator --port 8000
 """
 
 from __future__ import annotations
@@ -29,10 +29,10 @@ from typing import Any
 import numpy as np
 
 from assistant.collision.reports import ObstacleView
+from assistant.emulators.arm import EmulatedArm, solve_wire_pose
+from assistant.emulators.cartesian import arc_poses, line_poses
+from assistant.emulators.krl_interp import Interpreter, KrlError, KrlHalt, T_frame, frame_T
 from assistant.links.arm_config import arm_config, matches_status_turn, status_bits, turn_bits
-from assistant.links.emulators.arm import EmulatedArm, solve_wire_pose
-from assistant.links.emulators.cartesian import arc_poses, line_poses
-from assistant.links.emulators.krl_interp import Interpreter, KrlError, KrlHalt, T_frame, frame_T
 from assistant.links.kuka_bridge import bridge_server
 from assistant.links.kuka_bridge import files as bridge_files
 from assistant.robots.model import Robot
@@ -303,7 +303,7 @@ class KukaKrcEmulator:
 
 
 def main(argv: list[str] | None = None) -> None:
-    from assistant.links.emulators.until_stopped import install_stop_handlers, wait_until_stopped
+    from assistant.emulators.until_stopped import install_stop_handlers, wait_until_stopped
 
     ap = argparse.ArgumentParser(description="KUKA KR C4 with the cellteach bridge "
                                  "(KR 6 R900 sixx model)")

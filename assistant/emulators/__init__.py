@@ -6,6 +6,8 @@ secondary interfaces with a URScript subset, dashboard; Local control until swit
 ABB IRC5 / OmniCore speaking RWS 1.0 / 2.0 (digest or Basic over TLS, mastership,
 subscriptions; RAPID modules run by `abb_rapid_program`). They move in time, answer in the
 real formats, own hidden obstacles, and produce faults on request (`faults.Faults`).
-`launch.start` starts one on the vendor's usual ports (``cellteach emulate``). Test and
-demo tools; the product's links never need them.
+`launch.start` starts one on the vendor's usual ports (``cellteach emulate``). A room of
+their own above the links: demo and test peers the product's links never need.
+
+May import: links (the shared wire formats and arm model), robots, collision, transforms.
 """

@@ -26,9 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from assistant.links import abb_rws_protocol as rp
-from assistant.links.arm_config import arm_config
-from assistant.links.emulators.abb_rapid_program import (
+from assistant.emulators.abb_rapid_program import (
     Module,
     Program,
     RapidError,
@@ -36,8 +34,10 @@ from assistant.links.emulators.abb_rapid_program import (
     Step,
     parse_module,
 )
-from assistant.links.emulators.arm import EmulatedArm, solve_wire_pose
-from assistant.links.emulators.cartesian import arc_poses, line_poses
+from assistant.emulators.arm import EmulatedArm, solve_wire_pose
+from assistant.emulators.cartesian import arc_poses, line_poses
+from assistant.links import abb_rws_protocol as rp
+from assistant.links.arm_config import arm_config
 from assistant.robots.model import Robot
 
 Array = np.ndarray

@@ -1,11 +1,11 @@
-"""The background compile (`python -m assistant.kernels.compile`): every kernel into numba's
+"""The background compile (`python -m assistant.warmup.compile`): every kernel into numba's
 cache, each reported on stdout ("ready module.function") as soon as its machine code is
 saved, then the cache's completion marker ("done").
 
 Started by `lazy.start()`; runs at lowered priority so the operator's own work keeps the
 faster share of the machine. The warm-up steps it runs are `CELLTEACH_WARM_STEPS`
 ("module:attribute" of a generator function yielding between steps), by default the
-product's (`assistant.kernels.warmup:warm_steps`).
+product's (`assistant.warmup.steps:warm_steps`).
 """
 
 from __future__ import annotations
@@ -15,13 +15,13 @@ import importlib
 import os
 import sys
 
-DEFAULT_STEPS = "assistant.kernels.warmup:warm_steps"
+DEFAULT_STEPS = "assistant.warmup.steps:warm_steps"
 
 
 def main() -> int:
     with contextlib.suppress(OSError, AttributeError):
         os.nice(10)
-    import assistant  # noqa: F401 - points numba at the cache folder
+    # lazy points numba at the kernels' cache folder before it imports numba
     from assistant.kernels.lazy import REGISTRY, write_marker
 
     module, _, attr = os.environ.get("CELLTEACH_WARM_STEPS", DEFAULT_STEPS).partition(":")

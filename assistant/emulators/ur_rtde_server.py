@@ -18,8 +18,8 @@ import threading
 import time
 from collections.abc import Callable
 
+from assistant.emulators.faults import Faults
 from assistant.links import ur_rtde_wire as w
-from assistant.links.emulators.faults import Faults
 from assistant.links.errors import ProtocolError
 
 MAX_HZ = 500.0

@@ -19,8 +19,8 @@ import numpy as np
 
 from assistant.collision.checker import CollisionChecker
 from assistant.collision.reports import ObstacleView
+from assistant.emulators.faults import Faults
 from assistant.links.arm_motion import Advance, PathFollower
-from assistant.links.emulators.faults import Faults
 from assistant.links.timing import time_parametrize
 from assistant.robots.model import IKFailure, Robot
 from assistant.transforms import rotation_angle
