@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import contextlib
 import os
+from collections.abc import Callable, Iterator
 
 import numpy as np
 import pytest
@@ -31,3 +33,18 @@ def rv2aj() -> RV2AJ:
 @pytest.fixture
 def rng() -> np.random.Generator:
     return np.random.default_rng(20261122)
+
+
+@pytest.fixture
+def closing() -> Iterator[Callable]:
+    """Register things with close() (emulators, links); all are closed at teardown."""
+    items: list = []
+
+    def add(obj):
+        items.append(obj)
+        return obj
+
+    yield add
+    for obj in reversed(items):
+        with contextlib.suppress(Exception):  # teardown must close the rest
+            obj.close()

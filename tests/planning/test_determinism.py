@@ -15,13 +15,7 @@ from planning_fixtures import make_planner
 
 from assistant.export import export_files, program_from_trajectory
 from assistant.planning.config import MissionPlannerConfig
-from assistant.planning.scenario import load_scenario
 from assistant.roadmap.planner import PlanFailure
-
-
-@pytest.fixture(scope="module")
-def scenario():
-    return load_scenario()
 
 
 @pytest.fixture(scope="module")

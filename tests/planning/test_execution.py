@@ -15,20 +15,9 @@ from assistant.links.link import LinkEvent, LinkEventKind
 from assistant.mission.model import Location
 from assistant.planning.config import ExecutionConfig
 from assistant.planning.execution import EndReason, MissionExecutor
-from assistant.planning.scenario import load_scenario
 from assistant.progress import Progress
 
 QUICK = ExecutionConfig(plan_final=False)
-
-
-@pytest.fixture(scope="module")
-def scenario():
-    return load_scenario()
-
-
-@pytest.fixture(scope="module")
-def robot(scenario):
-    return scenario.cell.robot()
 
 
 @pytest.fixture

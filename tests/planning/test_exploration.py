@@ -9,17 +9,11 @@ from planning_fixtures import box, make_planner, sim_robot, tcp_points
 
 from assistant.planning.execution import EndReason
 from assistant.planning.exploration import ExplorationConfig, Explorer
-from assistant.planning.scenario import load_scenario
 from assistant.progress import Progress
 from assistant.trajectory.assemble import joint_interpolation
 
 Q_A = np.radians([-50.0, 40.0, 60.0, 20.0, 0.0])
 Q_B = np.radians([50.0, 40.0, 60.0, 20.0, 0.0])
-
-
-@pytest.fixture(scope="module")
-def scenario():
-    return load_scenario()
 
 
 @pytest.fixture

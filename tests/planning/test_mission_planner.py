@@ -14,21 +14,10 @@ from assistant.collision.checker import CollisionChecker
 from assistant.mission.model import ApplicationPath, Location, Mission, PathSegment, SegmentKind
 from assistant.mission.motion import MotionKind, ToolActionKind
 from assistant.planning.locations import LocationError, LocationProblem, solve_location
-from assistant.planning.scenario import load_scenario
 from assistant.progress import Cancelled, Progress
 from assistant.roadmap.astar import SearchBudget
 from assistant.roadmap.planner import RoadmapConfig
 from assistant.transforms import make_T, rot_x
-
-
-@pytest.fixture(scope="module")
-def scenario():
-    return load_scenario()
-
-
-@pytest.fixture(scope="module")
-def robot(scenario):
-    return scenario.cell.robot()
 
 
 @pytest.fixture(scope="module")

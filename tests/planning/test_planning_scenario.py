@@ -13,12 +13,7 @@ from assistant.collision.checker import CollisionChecker
 from assistant.mission.model import SegmentKind
 from assistant.mission.motion import ToolActionKind
 from assistant.planning.locations import solve_location
-from assistant.planning.scenario import DEFAULT_SAMPLE, load_hidden, load_scenario
-
-
-@pytest.fixture(scope="module")
-def scenario():
-    return load_scenario()
+from assistant.planning.scenario import DEFAULT_SAMPLE, load_hidden
 
 
 def test_sample_cell_holds_the_thesis_experiment(scenario):

@@ -10,22 +10,12 @@ import pytest
 from assistant.export import predict_cycle_time, program_from_trajectory
 from assistant.export.pace import program_pace
 from assistant.links.link import LinkEventKind
-from assistant.planning import EndReason, ExecutionConfig, MissionExecutor, load_scenario
+from assistant.planning import EndReason, ExecutionConfig, MissionExecutor
 from assistant.planning.pieces import PieceKind
 from tests.planning.planning_fixtures import make_planner, sim_robot, tcp_points
 
 #: The thesis seam's programmed speed (sample_cells/thesis_rv2aj: 50 mm/s).
 SEAM_SPEED = 0.05
-
-
-@pytest.fixture(scope="module")
-def scenario():
-    return load_scenario()
-
-
-@pytest.fixture(scope="module")
-def robot(scenario):
-    return scenario.cell.robot()
 
 
 @pytest.fixture(scope="module")

@@ -13,22 +13,11 @@ from planning_fixtures import box, make_planner, sim_robot, tcp_points
 from assistant.planning.config import ExecutionConfig
 from assistant.planning.execution import EndReason, MissionExecutor
 from assistant.planning.run_bounds import PlanningTimeUp, RunBounds
-from assistant.planning.scenario import load_scenario
 from assistant.progress import Progress
 
 #: What a run may overrun its planning bound by: the learning of one indication and one
 #: progress period of the search (milliseconds idle), with room for a busy shared machine.
 SLACK_S = 10.0
-
-
-@pytest.fixture(scope="module")
-def scenario():
-    return load_scenario()
-
-
-@pytest.fixture(scope="module")
-def robot(scenario):
-    return scenario.cell.robot()
 
 
 @pytest.fixture(scope="module")

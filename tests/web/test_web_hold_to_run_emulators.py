@@ -9,9 +9,7 @@ test_links_motion_hold.py.
 
 from __future__ import annotations
 
-import contextlib
 import time
-from collections.abc import Callable, Iterator
 
 import numpy as np
 import pytest
@@ -37,18 +35,6 @@ TAB_GONE_S = 2.0
 STILL_RAD = 1e-5
 
 
-@pytest.fixture
-def closing() -> Iterator[Callable]:
-    items: list = []
-
-    def add(obj):
-        items.append(obj)
-        return obj
-
-    yield add
-    for obj in reversed(items):
-        with contextlib.suppress(Exception):  # teardown must close the rest
-            obj.close()
 
 
 class ArmWatch:
