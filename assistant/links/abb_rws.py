@@ -69,6 +69,9 @@ from assistant.robots.model import Robot
 
 Array = np.ndarray
 MODULE_EXTENSIONS = (".mod", ".modx", ".sys", ".sysx")
+#: A joint change between two reads above this is motion (rad); a standing arm reads the
+#: same jointtarget every time.
+MOVING_RAD = 1e-5
 
 
 class AbbRwsLink(OperatorButton, RobotLink):
@@ -494,7 +497,11 @@ class AbbRwsLink(OperatorButton, RobotLink):
         while True:
             try:
                 running = self._running(marks, asked)
-                self._last_q = self.read_joints()
+                q_prev, self._last_q = self._last_q, self.read_joints()
+                if np.max(np.abs(self._last_q - q_prev)) > MOVING_RAD:
+                    # Still moving: reduced speed in manual mode or the override may stretch
+                    # a move far past its planned time; only a standing program times out.
+                    deadline = max(deadline, time.monotonic() + timeout_s)
                 if segments is not None:
                     k = _segment(segments, self._last_q)
                 pi = int(index[k]) if index is not None else 0
@@ -506,8 +513,9 @@ class AbbRwsLink(OperatorButton, RobotLink):
                         stop_sent = True
                     if time.monotonic() > deadline:
                         self.stop()
-                        return self._event(LinkEventKind.ERROR, f"program still running after "
-                                           f"{timeout_s:.1f} s; stopped it", pi)
+                        return self._event(LinkEventKind.ERROR, "program still running with "
+                                           f"the arm standing for {timeout_s:.1f} s; stopped it",
+                                           pi)
                     if self.subscription is None:
                         time.sleep(self.poll_period_s)
                     continue

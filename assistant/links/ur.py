@@ -28,7 +28,9 @@ How moves end, mapped onto the session's states as the MELFA and KUKA links do:
   Collision! button: COLLISION_INDICATED, source "operator");
 - a runtime exception from the controller (a refused target, a script it cannot run): ERROR
   quoting the controller's message;
-- a silent or dropped stream, or no finish within the move's time + `timeout_s`: LINK_LOST;
+- a silent or dropped stream, or an arm standing still past the move's time + `timeout_s`
+  without the program's end: LINK_LOST (a moving arm is never timed out - the speed slider
+  may stretch a move far beyond its planned time);
   a garbled stream: ERROR quoting the bytes (RTDE is re-opened on the next call).
 """
 
@@ -60,6 +62,9 @@ Array = np.ndarray
 #: left on the controller never match a new program's number.
 _program_seq = itertools.count(int(time.time()) % 100000 * 100)
 TCP_CHECK_M = 0.002  # the robot's TCP must agree with our model within this
+#: A joint change between two state packages above this is motion (rad); RTDE doubles carry
+#: the encoder value, whose noise on a standing UR is ~1e-6 rad.
+MOVING_RAD = 1e-5
 #: What an e-Series in Local control needs from the operator (PolyScope 5 user manual,
 #: "Remote Control"; the toggle is at the top right of the pendant's header).
 LOCAL_MODE = ("the UR is in Local control: on the teach pendant tap the Local icon at the top "
@@ -384,16 +389,20 @@ class URLink(OperatorButton, RobotLink):
                 return self._event(LinkEventKind.ERROR, f"{exc}; the robot was stopped",
                                    self._index(None, index), {"raw": exc.raw})
             seq = st.seq
+            now = time.monotonic()
+            if np.max(np.abs(st.q - self._last_q)) > MOVING_RAD:
+                # Still moving (the speed slider or a slowed cell may stretch the move far
+                # beyond its planned time): only an arm that stands past its time is lost.
+                deadline = max(deadline, now + self.timeout_s)
             self._last_q = st.q
             running = st["runtime_state"] == w.RuntimeState.PLAYING
             if st["output_int_register_25"] == number or not running or \
                     st["safety_mode"] != w.SafetyMode.NORMAL or self._refused(t_sent):
                 return self._ended(st, number, t_sent, index)
-            now = time.monotonic()
             if now > deadline:
                 self.stop()
-                return self._lost(f"the UR did not finish {expected_s:.2f} s of motion within "
-                                  f"{expected_s * 1.5 + self.timeout_s:.2f} s",
+                return self._lost(f"the UR stood still {self.timeout_s:.1f} s without finishing "
+                                  f"a move planned for {expected_s:.2f} s",
                                   self._index(st, index))
             if now - last_event >= self.event_period_s:
                 last_event = now

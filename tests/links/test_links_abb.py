@@ -267,3 +267,13 @@ def test_an_exported_program_with_tool_and_work_object_lands_where_planned(robot
     # The module carries 0.001 mm and 6-decimal quaternions: ~1e-6 m and rad, bound 1e-5.
     assert np.allclose(emu.arm.q, q2, atol=1e-5)
     assert np.allclose(link.current_pose(), T2, atol=1e-5)
+
+
+def test_reduced_speed_stretches_a_move_and_the_link_follows_it(start):
+    """Manual mode's reduced speed (here the arm at 5 % of the planned pace) stretches a move
+    many times past its planned time plus the timeout: the link follows the moving arm to
+    the end rather than stopping it as a program that never ends."""
+    emu, link = start(link_kw={"timeout_s": 0.3}, time_scale=0.05)
+    ev = link.move_path(np.array([HOME, Q_A]))
+    assert ev.kind == LinkEventKind.REACHED, ev.message
+    assert np.allclose(emu.arm.q, Q_A, atol=TOL)

@@ -236,3 +236,27 @@ def test_a_silent_or_garbled_controller_at_connect_never_hangs(ur5, closing):
         peer.communicate(timeout=5.0)
         for c in accepted:
             c.close()
+
+
+def test_a_slowed_arm_is_followed_and_a_standing_one_is_lost(ready):
+    """The speed slider at 5 % stretches a move twenty-fold past its planned time: the link
+    follows it to the end (a moving arm is never timed out). An arm that stands while its
+    program still plays is lost once it has stood `timeout_s`."""
+    emu, link = ready(link_kw={"timeout_s": 0.3}, time_scale=0.05)
+    ev = link.move_path(np.array([Q_A, Q_B]))
+    assert ev.kind == LinkEventKind.REACHED, ev.message
+    assert np.allclose(emu.arm.q, Q_B, atol=WIRE_TOL)
+
+    def freeze_once_moving() -> None:  # a drive that stalls mid-move; the program plays on
+        end = time.monotonic() + 30.0
+        while np.max(np.abs(emu.arm.q - Q_B)) < 0.01 and time.monotonic() < end:
+            time.sleep(0.002)
+        emu.arm.time_scale = 0.0
+
+    th = threading.Thread(target=freeze_once_moving)
+    th.start()
+    try:
+        ev = link.move_path(np.array([Q_B, Q_A]))
+    finally:
+        th.join(timeout=30.0)
+    assert ev.kind == LinkEventKind.LINK_LOST and "stood still" in ev.message, ev.message
