@@ -63,6 +63,9 @@ def test_plan_execute_with_a_hidden_obstacle_and_export(name, tmp_path):
     s = Session.from_sample(name, tmp_path / "s", with_objects=script.with_objects,
                             with_mission=script.with_mission)
     assert s.robot.dof == axes
+    # The run's wall-clock bound has its own tests; here the arm reaching its goal is the
+    # subject, and a machine loaded 5x stretches the Panda's ~40 s of planning past 120 s.
+    s.set_world_settings(planning_budget_s=900.0)
     lo, hi = s.robot.limits.lower, s.robot.limits.upper
     assert (hi - lo).max() > 5.0  # the URDF's own ranges (a UR5 turns +-360 deg, a Panda's
     # J7 +-166 deg)

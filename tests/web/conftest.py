@@ -68,7 +68,9 @@ def open_ui(request: pytest.FixtureRequest, playwright_driver: Any, tmp_path: Pa
             _no_browser(f"Chromium did not start: {exc}")
         contexts.append(ctx)
         page = ctx.pages[0] if ctx.pages else ctx.new_page()
-        page.set_default_timeout(30_000)
+        # Generous: a software-rendered page on a machine loaded 5x waits tens of seconds
+        # for a stable element (seen: 30 s exceeded at load 11); a broken page still fails.
+        page.set_default_timeout(90_000)
         ui = UI(page, tmp_path / f"screens-{name}")
         ui.open(url)
         uis.append(ui)

@@ -35,9 +35,11 @@ STOP_S = 0.3
 #: How soon the browser and the OS tell the server that a tab closed: ~0.1 s idle, ~0.3 s
 #: with the two cores loaded 3.5x (measured); the bound leaves room for a busier machine.
 TAB_GONE_S = 2.0
-#: A silent page: SILENT_S without an answer, one ping period to notice, and the same 0.3 s
-#: for the stop to reach the robot.
-SILENT_STOP_S = SILENT_S + PING_S + STOP_S
+#: A silent page is known SILENT_S after its last answer, one ping period to notice - on an
+#: idle machine. The server restarts that clock when its own loop ran late (a stalled server
+#: is not a silent page, `web.heartbeat`), so under load it is known later: the bound leaves
+#: room for a busy machine, and the 0.3 s stop is measured from when the server knew.
+SILENT_KNOWN_S = 3.0
 
 
 class PoseClock:
@@ -152,6 +154,9 @@ def test_a_silent_holder_page_stops_the_arm_and_nothing_starts_when_it_answers(
             time.sleep(0.01)
         holder = session.hold.state.holder
         poses = PoseClock(session)
+        silent: list[float] = []  # when the server knew the page was silent
+        session.hold.subscribe(lambda st: silent.append(time.monotonic())
+                               if st.holder is not None and not st.present else None)
         q = session.current_joints().copy()
         q[0] += 2.0
         with session.hold.acting(holder):  # the holder's click, as `web.actions` runs it
@@ -161,9 +166,12 @@ def test_a_silent_holder_page_stops_the_arm_and_nothing_starts_when_it_answers(
         os.kill(page.pid, signal.SIGSTOP)  # the page freezes: no goodbye, no answer
         _wait_mode_not_moving(session)
         time.sleep(1.0)  # watch: no pose update may come late
-        stood = poses.after(t0)
-        print(f"pose updates stopped {stood * 1000:.0f} ms after the holder's page froze")
-        assert stood <= SILENT_STOP_S
+        assert silent, "the server never counted the frozen page as silent"
+        print(f"the server knew the page was silent after {(silent[0] - t0) * 1000:.0f} ms "
+              f"(idle: {(SILENT_S + PING_S) * 1000:.0f} ms); pose updates stopped "
+              f"{poses.after(t0) * 1000:.0f} ms after the freeze")
+        assert silent[0] - t0 <= SILENT_KNOWN_S
+        assert poses.after(silent[0]) <= STOP_S
         assert session.hold.state.holder == holder and not session.hold.state.present
         n = len(poses.times)
         os.kill(page.pid, signal.SIGCONT)  # it answers again ...
