@@ -63,3 +63,20 @@ def test_first_contact_finds_what_brute_force_fcl_finds(exact):
         assert (exact.check_path(path) is None) == (k is None)
         seen[k is None] += 1
     assert seen[True] and seen[False], seen  # free and refused paths both
+
+
+def test_the_batch_quaternions_pose_as_the_matrices_do():
+    """The poser's quaternions (Shepperd's method) against scipy's, on random rotations and
+    the four half-turns where each branch is taken; both are well conditioned there, so
+    they agree to rounding of unit-sized numbers (1e-12), up to the sign of q."""
+    from scipy.spatial.transform import Rotation
+
+    from assistant.collision.certify_path import _quaternions
+
+    R = np.concatenate([Rotation.random(2000, random_state=3).as_matrix(),
+                        np.stack([np.eye(3), np.diag([1.0, -1, -1]), np.diag([-1.0, 1, -1]),
+                                  np.diag([-1.0, -1, 1])])])
+    q = _quaternions(R)
+    ref = Rotation.from_matrix(R).as_quat()[:, [3, 0, 1, 2]]
+    err = np.minimum(np.abs(q - ref).max(axis=1), np.abs(q + ref).max(axis=1))
+    assert err.max() < 1e-12
