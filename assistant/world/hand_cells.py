@@ -80,18 +80,29 @@ class HandCells:
                 link.append(np.full(len(P), k))
         self._local = np.concatenate(pts) if pts else np.zeros((0, 3))
         self._link = np.concatenate(link) if link else np.zeros(0, dtype=np.int64)
+        self._by_link = [(int(k), np.flatnonzero(self._link == k)) for k in np.unique(self._link)]
+
+    def _points(self, Q: Array) -> tuple[Array, Array, Array]:
+        """For rows Q: the flat leaf of every hand point (N, M) (-1 outside the grid), which
+        of them are the hand (within `reach` of the TCP) (N, M), and the TCP's leaf (N,)."""
+        frames = self.robot.batch_link_poses(Q)  # (N, links, 4, 4)
+        P = np.empty((len(Q), len(self._local), 3))
+        for k, idx in self._by_link:  # a few links: one product each, no (N, M, 4, 4) copy
+            F = frames[:, k]
+            P[:, idx] = np.matmul(self._local[idx], F[:, :3, :3].transpose(0, 2, 1)) + \
+                F[:, None, :3, 3]
+        tcp = np.asarray(self.robot.batch_fk(Q).positions, dtype=float)  # (N, 3)
+        d = P - tcp[:, None, :]
+        near = np.einsum("nmi,nmi->nm", d, d) <= self.config.reach ** 2
+        flat = self.grid.flat_of_points(P.reshape(-1, 3)).reshape(len(Q), -1)
+        return flat, near, self.grid.flat_of_points(tcp)
 
     def cells(self, Q: Array) -> list[Array]:
         """Per row of Q, the flat leaves (unique, inside the grid) its hand fills."""
         Q = np.atleast_2d(np.asarray(Q, dtype=float))
         if not len(Q):
             return []
-        poses = self.robot.batch_link_poses(Q)[:, self._link]  # (N, M, 4, 4)
-        P = np.einsum("nmij,mj->nmi", poses[:, :, :3, :3], self._local) + poses[:, :, :3, 3]
-        tcp = np.asarray(self.robot.batch_fk(Q).positions, dtype=float)  # (N, 3)
-        near = np.linalg.norm(P - tcp[:, None, :], axis=2) <= self.config.reach
-        flat = self.grid.flat_of_points(P.reshape(-1, 3)).reshape(len(Q), -1)
-        tcp_flat = self.grid.flat_of_points(tcp)
+        flat, near, tcp_flat = self._points(Q)
         out = []
         for i in range(len(Q)):
             f = np.append(flat[i][near[i]], tcp_flat[i])
@@ -100,4 +111,10 @@ class HandCells:
 
     def blocked(self, Q: Array, mask: Array) -> Array:
         """Bool per row of Q: its hand fills a leaf set in `mask` (flat bool over the grid)."""
-        return np.array([bool(mask[c].any()) for c in self.cells(Q)], dtype=bool)
+        Q = np.atleast_2d(np.asarray(Q, dtype=float))
+        if not len(Q):
+            return np.zeros(0, dtype=bool)
+        flat, near, tcp_flat = self._points(Q)
+        hit = near & (flat >= 0)
+        hit[hit] = mask[flat[hit]]
+        return hit.any(axis=1) | ((tcp_flat >= 0) & mask[np.maximum(tcp_flat, 0)])
