@@ -29,6 +29,15 @@ class LinkEventKind(str, Enum):
 
 
 @dataclass(frozen=True)
+class Halt:
+    """The robot has just halted against something and stands there, waiting for the
+    operator's Collision! or Stop (the simulated robot on the page: `wait_for_operator`)."""
+
+    #: What it touches, in the operator's words ("link J3 touches hidden_box").
+    touching: str
+
+
+@dataclass(frozen=True)
 class LinkEvent:
     kind: LinkEventKind
     q: Array | None = None
@@ -37,6 +46,9 @@ class LinkEvent:
     #: Index into the joint path the motion was executing when the event happened.
     path_index: int | None = None
     details: dict = field(default_factory=dict)
+    #: Set on the event that announces a halt (once per halt; the events while it stands
+    #: there carry `details["halted"]` only).
+    halt: Halt | None = None
 
 
 class LinkError(RuntimeError):

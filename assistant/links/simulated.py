@@ -22,7 +22,7 @@ import numpy as np
 from assistant.collision.checker import CollisionChecker
 from assistant.collision.reports import ObstacleView
 from assistant.links.arm_motion import PathFollower
-from assistant.links.link import LinkError, LinkEvent, LinkEventKind, RobotLink
+from assistant.links.link import Halt, LinkError, LinkEvent, LinkEventKind, RobotLink
 from assistant.links.timing import (
     Clock,
     RealClock,
@@ -265,7 +265,7 @@ class SimulatedRobot(RobotLink):
         what = report.describe() if report is not None else "contact"
         self._emit(LinkEvent(LinkEventKind.MOVED, self._q.copy(), self.clock.now(),
                              f"halted, touching something: {what}", path_index,
-                             {"halted": True}))
+                             {"halted": True}, Halt(what)))
         while True:
             if self._indicate.wait(0.5):
                 contacts = report.contacts if report is not None else ()
