@@ -1,6 +1,8 @@
 """Steps 2 and 3: CAD import, primitives, object roles, placement and measured frames.
 
-A part mixed into `Session`."""
+A part of the `Session`, composed (`Session.objects`): it has no state of its own: it edits the
+session's cell; it reaches the rest of the session only through the parts' contract
+(`PartContract`)."""
 
 from __future__ import annotations
 
@@ -36,8 +38,11 @@ from workflow.machine import TransitionRefused
 Array = np.ndarray
 
 
-class CellActions(PartContract):
+class CellPart:
     """Steps 2 and 3: CAD import, primitives, object roles, placement and measured frames."""
+
+    def __init__(self, core: PartContract) -> None:
+        self._core = core
 
     # ================================================================== 2. CAD
     def import_cad(self, data: bytes, filename: str, *, name: str | None = None,
@@ -64,76 +69,76 @@ class CellActions(PartContract):
             return load_cad(data, filename, units=units,
                             dxf_extrude_height=dxf_extrude_height, progress=progress)
 
-        return self._start_cell_job(
+        return self.start_cell_job(
             f"import {filename}", read,
             lambda cad: (self._add_imported(cad, filename, name, role, T_world_object), cad))
 
-    def _start_cell_job(self, task: str, read: Callable[[Progress], Any],
-                        commit: Callable[[Any], Any]) -> Future:
+    def start_cell_job(self, task: str, read: Callable[[Progress], Any],
+                       commit: Callable[[Any], Any]) -> Future:
         """`read` (seconds of parsing and repair) on the worker without the session lock, with
         progress and Cancel, while the machine is busy (edits are refused with the reason);
         then `commit(what was read)` as one short locked action. The future gives its result."""
-        with self._lock:
+        with self._core.lock:
             try:
-                self.machine.require(EDIT_CELL, task)
+                self._core.machine.require(EDIT_CELL, task)
             except TransitionRefused as exc:
-                self._error(str(exc))
+                self._core.error(str(exc))
                 raise
-            self.machine.begin_busy(task)
-        self._emit_state()
+            self._core.machine.begin_busy(task)
+        self._core.emit_state()
         commit_failed = False
 
         def work(progress: Progress) -> Any:
             nonlocal commit_failed
             got = read(progress.sub(0.0, 0.97))
             progress.update(0.98, "adding to the cell")
-            with self._lock:  # the heavy part is over: add it as an ordinary short action
-                self.machine.end_mode()
+            with self._core.lock:  # the heavy part is over: add it as an ordinary short action
+                self._core.machine.end_mode()
                 commit_failed = True
                 out = commit(got)
                 commit_failed = False
             return out
 
         def done(fut: Future) -> None:
-            with self._lock:
-                self.machine.end_mode()
+            with self._core.lock:
+                self._core.machine.end_mode()
                 exc = fut.exception()
                 if isinstance(exc, Cancelled):
-                    self.bus.emit(Notice(f"{task} cancelled; nothing was changed"))
+                    self._core.bus.emit(Notice(f"{task} cancelled; nothing was changed"))
                 elif exc is not None and not commit_failed:  # the action reported its own
-                    self._error(f"{task}: {exc}", hint_for(exc))
-            self._emit_state()
+                    self._core.error(f"{task}: {exc}", hint_for(exc))
+            self._core.emit_state()
 
         try:
-            return self.worker.submit(task, work, done)
+            return self._core.worker.submit(task, work, done)
         except RuntimeError:
-            with self._lock:
-                self.machine.end_mode()
-            self._emit_state()
+            with self._core.lock:
+                self._core.machine.end_mode()
+            self._core.emit_state()
             raise
 
     def _add_imported(self, cad: CadImport, filename: str, name: str | None,
                       role: ObjectRole | str, T_world_object: Array | None) -> CellObject:
-        with self._action(f"import {filename}", EDIT_CELL, scene="objects"):
+        with self._core.action(f"import {filename}", EDIT_CELL, scene="objects"):
             base = name or Path(filename).stem
-            obj_name = self.cell.unique_name(_safe_name(base)) if name is None else name
+            obj_name = self._core.cell.unique_name(_safe_name(base)) if name is None else name
             obj = CellObject.from_cad(obj_name, cad, T_world_object, role=role)
-            self.cell.add_object(obj)
+            self._core.cell.add_object(obj)
             for w in cad.warnings:
-                self.bus.emit(Notice(f"{filename}: {w}"))
+                self._core.bus.emit(Notice(f"{filename}: {w}"))
             for b in cad.bounded:
-                self.bus.emit(Notice(f"{filename}: {b}"))
-            self._note_working_volume(obj)
+                self._core.bus.emit(Notice(f"{filename}: {b}"))
+            self.note_working_volume(obj)
         return obj
 
-    def _note_working_volume(self, obj: CellObject) -> None:
+    def note_working_volume(self, obj: CellObject) -> None:
         """Say when a part reaches beyond the cube the world model covers (sized to the arm):
         the exact collision check sees all of it, the world model only what lies inside."""
         try:
-            size = float(self.world_settings.world_config(self.robot).size)
+            size = float(self._core.world_settings.world_config(self._core.robot).size)
         except Exception:  # noqa: BLE001 - a robot without a world config: nothing to say
             return
-        T = np.linalg.inv(self.T_world_base()) @ np.asarray(obj.T_world_object, dtype=float)
+        T = np.linalg.inv(self._core.T_world_base()) @ np.asarray(obj.T_world_object, dtype=float)
         lo, hi = obj.part_mesh.bounds
         corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1])
                             for z in (lo[2], hi[2])]) @ T[:3, :3].T + T[:3, 3]
@@ -141,12 +146,12 @@ class CellActions(PartContract):
         if np.all(np.abs(corners).max(axis=0) <= half):
             return
         if np.any(corners.min(axis=0) > half) or np.any(corners.max(axis=0) < -half):
-            self.bus.emit(Notice(
+            self._core.bus.emit(Notice(
                 f"{obj.name} lies entirely outside the robot's working volume (the "
                 f"{size:.2f} m cube around its base): the robot cannot reach it; place it in "
                 "the next step, or check its units if it came out far too large"))
         else:
-            self.bus.emit(Notice(
+            self._core.bus.emit(Notice(
                 f"{obj.name} reaches beyond the robot's working volume (the {size:.2f} m cube "
                 "around its base): collision checks see all of it, the world model only the "
                 "part inside the cube"))
@@ -166,49 +171,49 @@ class CellActions(PartContract):
                       role: ObjectRole | str = ObjectRole.OBSTACLE,
                       T_world_object: Array | None = None) -> CellObject:
         """A box (x, y, z), cylinder (radius, height) or sphere (radius,), metres."""
-        with self._action(f"add a {kind}", EDIT_CELL, scene="objects"):
+        with self._core.action(f"add a {kind}", EDIT_CELL, scene="objects"):
             spec = PrimitiveSpec(PrimitiveKind(kind), tuple(float(v) for v in size))
             if max(spec.size) > MAX_PART_SIZE_M:
                 raise SessionError(f"a {kind} of {max(spec.size):.3g} m is larger than the "
                                    f"{MAX_PART_SIZE_M:g} m a cell part can be; give its size "
                                    "in metres")
-            obj = CellObject.from_primitive(name or self.cell.unique_name(kind), spec,
+            obj = CellObject.from_primitive(name or self._core.cell.unique_name(kind), spec,
                                             T_world_object, role=role)
-            self.cell.add_object(obj)
+            self._core.cell.add_object(obj)
         return obj
 
     def remove_object(self, name: str) -> None:
-        with self._action(f"remove {name}", EDIT_CELL + ("teach", "plan"), scene="objects"):
-            self.cell.remove_object(name)
+        with self._core.action(f"remove {name}", EDIT_CELL + ("teach", "plan"), scene="objects"):
+            self._core.cell.remove_object(name)
 
     def set_object_role(self, name: str, role: ObjectRole | str) -> None:
         from dataclasses import replace
 
-        with self._action(f"change the role of {name}", EDIT_CELL, scene="objects"):
-            obj = self.cell.get_object(name)
+        with self._core.action(f"change the role of {name}", EDIT_CELL, scene="objects"):
+            obj = self._core.cell.get_object(name)
             role = ObjectRole(role)
-            self.cell.objects[name] = replace(obj, role=role, color=None)
+            self._core.cell.objects[name] = replace(obj, role=role, color=None)
 
     # ================================================================== 3. placement
     def place_object(self, name: str, T_world_object: Array) -> CellObject:
-        with self._action(f"place {name}", EDIT_PLACEMENT, scene="objects"):
-            obj = self.cell.set_object_pose(name, np.asarray(T_world_object, dtype=float))
-            self._note_working_volume(obj)
+        with self._core.action(f"place {name}", EDIT_PLACEMENT, scene="objects"):
+            obj = self._core.cell.set_object_pose(name, np.asarray(T_world_object, dtype=float))
+            self.note_working_volume(obj)
         return obj
 
     def fit_object_pose(self, name: str, model_points: Array, measured_points: Array) -> PoseFit:
         """N-point placement: model points (object frame) vs the same points measured."""
-        with self._action(f"place {name} by points", EDIT_PLACEMENT, scene="objects"):
-            self.cell.get_object(name)
+        with self._core.action(f"place {name} by points", EDIT_PLACEMENT, scene="objects"):
+            self._core.cell.get_object(name)
             fit = fit_pose(np.asarray(model_points, float), np.asarray(measured_points, float))
-            self.cell.set_object_pose(name, fit.T_world_object)
+            self._core.cell.set_object_pose(name, fit.T_world_object)
             for w in fit.warnings:
-                self.bus.emit(Notice(w))
+                self._core.bus.emit(Notice(w))
         return fit
 
     def measure_with_robot(self) -> Array:
         """The robot TCP position (world frame) - touch a point of the part with the tool."""
-        return self.tcp_world()[:3, 3].copy()
+        return self._core.tcp_world()[:3, 3].copy()
 
     def calibrate_frame(self, name: str, origin: Array | str, x_point: Array | str,
                         xy_point: Array | str) -> FrameCalibration:
@@ -217,31 +222,31 @@ class CellActions(PartContract):
         point is a position (world, metres) or the name of a taught location (e.g. the tip
         of the tool touched to the pallet and taught from the robot pose). Re-calibrating an
         existing frame replaces it."""
-        with self._action(f"calibrate the frame {name}", EDIT_PLACEMENT, scene="frames"):
+        with self._core.action(f"calibrate the frame {name}", EDIT_PLACEMENT, scene="frames"):
             pts = [self._point_of(p) for p in (origin, x_point, xy_point)]
             cal = frame_from_three_points(name, *pts)
-            self.cell.add_frame(name, cal.T_world_frame, replace_existing=True)
-            self.bus.emit(Notice(cal.describe()))
+            self._core.cell.add_frame(name, cal.T_world_frame, replace_existing=True)
+            self._core.bus.emit(Notice(cal.describe()))
         return cal
 
     def place_object_in_frame(self, name: str, frame: str, T_frame_object: Array) -> CellObject:
         """Place an object relative to a named (e.g. calibrated) frame."""
-        with self._action(f"place {name} on {frame}", EDIT_PLACEMENT, scene="objects"):
-            T_world_frame = self._frame(frame)
-            obj = self.cell.set_object_pose(name, T_world_frame @ np.asarray(T_frame_object,
-                                                                             dtype=float))
+        with self._core.action(f"place {name} on {frame}", EDIT_PLACEMENT, scene="objects"):
+            T_world_frame = self.frame(frame)
+            obj = self._core.cell.set_object_pose(name, T_world_frame @ np.asarray(T_frame_object,
+                                                                                   dtype=float))
         return obj
 
     def _point_of(self, p: Array | str) -> Array:
         if isinstance(p, str):
-            return self._loc(p).position.copy()
+            return self._core.teaching.location(p).position.copy()
         a = np.asarray(p, dtype=float)
         if a.shape != (3,) or not np.all(np.isfinite(a)):
             raise SessionError("a measured point needs 3 finite coordinates")
         return a
 
-    def _frame(self, name: str) -> Array:
-        if name not in self.cell.frames:
-            known = ", ".join(self.cell.frames) or "none yet"
+    def frame(self, name: str) -> Array:
+        if name not in self._core.cell.frames:
+            known = ", ".join(self._core.cell.frames) or "none yet"
             raise SessionError(f"no frame named {name!r} (frames: {known}); calibrate it first")
-        return np.asarray(self.cell.frames[name], dtype=float)
+        return np.asarray(self._core.cell.frames[name], dtype=float)

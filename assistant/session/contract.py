@@ -1,11 +1,13 @@
-"""What a part of the `Session` may use of the whole: the shared state, the lock, the action
-wrapper, the event bus, and the few verbs of other parts it calls.
+"""What a part of the `Session` may use of the whole: the core's shared state, the lock, the
+action wrapper, the long-task runners, the event bus, and the other parts (by their public
+methods).
 
-Every part (`*_part.py`, `saving`) derives from `PartContract`, so a type checker reads each
-part against this one list instead of guessing: a part that reaches for anything else, or
-calls a verb with the wrong arguments, is an error in `.ci/run`'s mypy step. The class holds
-declarations only (annotations, and signatures under TYPE_CHECKING): at run time the state
-is the `Session`'s own (set in `Session.__init__`) and the verbs are the parts' own.
+Every part (`*_part.py`, `saving`) is built with the session as its core, typed as
+`PartContract`, so a type checker reads each part against this one list instead of guessing:
+a part that reaches for anything else, or calls a verb with the wrong arguments, is an error
+in `.ci/run`'s mypy step. The class holds declarations only (annotations, and signatures
+under TYPE_CHECKING): at run time the core is `core.SessionCore` (its base) and the parts are
+the `Session`'s own.
 """
 
 from __future__ import annotations
@@ -20,17 +22,28 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 if TYPE_CHECKING:
-    from assistant.cell.model import Cell, CellObject
+    from assistant.cell.model import Cell
     from assistant.collision.checker import CollisionChecker
-    from assistant.links.link import RobotLink
     from assistant.links.settings import LinkSettings
-    from assistant.mission.model import Location, LocationSource, Mission
+    from assistant.mission.model import Location, Mission
     from assistant.mission.motion import Trajectory
     from assistant.progress import Progress
     from assistant.robots.model import Robot
+    from assistant.session.cell_part import CellPart
     from assistant.session.events import EventBus
+    from assistant.session.export_part import ExportPart
+    from assistant.session.history import History
+    from assistant.session.layout_part import LayoutPart
     from assistant.session.motion_hold import MotionHold
-    from assistant.session.pointer_live import LivePointer
+    from assistant.session.motion_part import MotionPart
+    from assistant.session.persistence_part import PersistencePart
+    from assistant.session.planning_part import PlanningPart
+    from assistant.session.saving import SavingPart
+    from assistant.session.scene_part import ScenePart
+    from assistant.session.setup_part import SetupPart
+    from assistant.session.start_part import StartPosturePart
+    from assistant.session.study_part import StudyPart
+    from assistant.session.teach_part import TeachPart
     from assistant.session.types import Counters, HiddenObstacle
     from assistant.session.worker import Worker
     from assistant.session.world_settings import WorldSettings
@@ -40,13 +53,14 @@ Array = np.ndarray
 
 
 class PartContract:
-    """The state and verbs the parts share (declarations; see the module docstring)."""
+    """The core's state and verbs, and the parts (declarations; see the module docstring)."""
 
     # ------------------------------------------------------------- the core: state, lock, bus
     bus: EventBus
     worker: Worker
     machine: Machine
-    _lock: threading.RLock
+    lock: threading.RLock
+    history: History
     counters: Counters
     hold: MotionHold
     # ------------------------------------------------------------- the operator's document
@@ -60,59 +74,48 @@ class PartContract:
     world_settings: WorldSettings
     sample: str | None
     load_notes: list[str]
-    # ------------------------------------------------------------- results and run state
+    # ------------------------------------------------------------- results
     trajectory: Trajectory | None
-    program: Any  # the exported program (`Session.exporter` owns it)
     plan_report: dict[str, Any] | None
-    recorded_collisions: list[Array]
-    halts_this_run: int
-    _link: RobotLink | None
-    _q_sim: Array | None
-    _world: Any
-    _world_key: tuple | None
-    last_run: dict | None
-    _pointer: LivePointer | None  # while the camera step is open
     # ------------------------------------------------------------- where it is saved
     folder: Path | None
     autosave_enabled: bool
+    # ------------------------------------------------------------- the parts
+    setup: SetupPart
+    objects: CellPart
+    layout: LayoutPart
+    teaching: TeachPart
+    motion: MotionPart
+    planning: PlanningPart
+    exporter: ExportPart
+    studies: StudyPart
+    scene: ScenePart
+    start_posture: StartPosturePart
+    persistence: PersistencePart
+    saving: SavingPart
 
     if TYPE_CHECKING:
-        # the core (session.py)
+        # the core (core.py)
         def __init__(self, folder: str | Path | None = None, *,
                      autosave: bool = True) -> None: ...
         @contextlib.contextmanager
-        def _action(self, label: str, steps: tuple[str, ...] | None, *, undoable: bool = True,
-                    scene: str = "", count: bool = True) -> Iterator[None]: ...
-        def _emit_state(self) -> None: ...
-        def _error(self, message: str, hint: str = "") -> None: ...
-        def _obstacles_key(self) -> tuple: ...
-        def _start_check(self) -> None: ...
+        def action(self, label: str, steps: tuple[str, ...] | None, *, undoable: bool = True,
+                   scene: str = "", count: bool = True) -> Iterator[None]: ...
+        def run_busy(self, task: str, fn: Callable[[Progress], Any],
+                     steps: tuple[str, ...] | None = None, *, moving: bool = False) -> Future: ...
+        def run_motion(self, task: str, fn: Callable[[Progress], Any]) -> Future: ...
+        def emit_state(self) -> None: ...
+        def error(self, message: str, hint: str = "") -> None: ...
+        def obstacles_key(self) -> tuple: ...
+        def known_checker(self) -> CollisionChecker: ...
         @property
         def robot(self) -> Robot: ...
+        @property
+        def program(self) -> Any: ...  # the exported program (`exporter` owns it)
+        @program.setter
+        def program(self, value: Any) -> None: ...
         @property
         def world_ready(self) -> bool: ...
         def current_joints(self) -> Array: ...
         def T_world_base(self) -> Array: ...
         def tcp_world(self, q: Array | None = None) -> Array: ...
-        # saving, persistence
-        def _autosave(self) -> None: ...
-        def save(self, folder: str | Path) -> Path: ...
-        # set-up: the robot link
-        def link(self) -> RobotLink: ...
-        def _drop_link(self) -> None: ...
-        # cell
-        def _frame(self, name: str) -> Array: ...
-        def _note_working_volume(self, obj: CellObject) -> None: ...
-        # teach
-        def _loc(self, name: str) -> Location: ...
-        def _make_location(self, name: str, T_world_tool: Array, source: LocationSource,
-                           q_hint: Array | None, uncertainty_m: float) -> Location: ...
-        def _relink_mission(self, name: str) -> None: ...
-        def stop_pointer(self) -> None: ...
-        # motion, planning, start posture
-        def _known_checker(self) -> CollisionChecker: ...
-        def _run_motion(self, task: str, fn: Callable[[Progress], Any]) -> Future: ...
-        def _planner_config(self) -> Any: ...
-        def _run_busy(self, task: str, fn: Callable[[Progress], Any],
-                      steps: tuple[str, ...] | None = None, *, moving: bool = False) -> Future: ...
-        def _require_free_start(self) -> None: ...

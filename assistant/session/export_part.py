@@ -32,14 +32,14 @@ class ExportPart:
         from assistant.export.program import Frame
 
         s = self._core
-        with s._action("export the program", ("export", "plan"), undoable=False,
-                       scene="program", count=count):
+        with s.action("export the program", ("export", "plan"), undoable=False,
+                      scene="program", count=count):
             if s.trajectory is None:
                 raise SessionError("Plan the mission first: there is no verified trajectory yet")
             d = get_dialect(dialect or s.export_dialect)
             work = None
             if frame is not None:
-                s._frame(frame)
+                s.objects.frame(frame)
                 work = Frame(frame, s.cell.T_base_frame(frame))
             program = program_from_trajectory(s.trajectory, s.robot,
                                               name=name or "MISSION", work=work)
@@ -54,10 +54,10 @@ class ExportPart:
     def upload_program(self) -> str:
         """Send the exported program to the robot controller; returns its name there."""
         s = self._core
-        with s._action("upload the program", ("export",), undoable=False):
+        with s.action("upload the program", ("export",), undoable=False):
             if self.program is None:
                 raise SessionError("Export the program first")
             files = {f.name: f.data for f in self.program.files}
-            name = s.link().upload_program(self.program.files[0].name.split(".")[0], files)
+            name = s.setup.link().upload_program(self.program.files[0].name.split(".")[0], files)
         s.bus.emit(Notice(f"program uploaded to the robot as {name}"))
         return name

@@ -203,12 +203,12 @@ class _Checker:
             self.number(v, "counters replan_times_s", 0.0, 1e9)
 
     def collisions(self) -> None:
-        self.count(self.s.recorded_collisions, "recorded collisions")
-        for i, q in enumerate(self.s.recorded_collisions):
+        self.count(self.s.planning.recorded_collisions, "recorded collisions")
+        for i, q in enumerate(self.s.planning.recorded_collisions):
             self.joints(q, f"recorded collision {i + 1}")
 
     def robot_joints(self) -> None:
-        q = self.s._q_sim  # noqa: SLF001 - the posture as loaded, before any link
+        q = self.s.setup.q_sim  # the posture as loaded, before any link
         if q is not None:
             self.joints(q, "robot_joints")
 

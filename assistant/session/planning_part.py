@@ -1,11 +1,12 @@
 """Steps 5 and 6: the world model, exploration, planning and execution.
 
-A part mixed into `Session`."""
+A part of the `Session`, composed (`Session.planning`): it owns the world model with its
+planner, executor and explorer, and how the last run ended; it reaches the rest of the session
+only through the parts' contract (`PartContract`)."""
 
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import replace
 from typing import Any
@@ -14,9 +15,10 @@ import numpy as np
 
 from assistant.collision.checker import CollisionChecker
 from assistant.links.link import RobotLink
-from assistant.progress import Cancelled, Progress
+from assistant.progress import Progress
 from assistant.session.contract import PartContract
 from assistant.session.events import (
+    CollisionRecorded,
     ExecutionFinished,
     Notice,
     PlanReady,
@@ -29,67 +31,65 @@ from assistant.session.types import (
     SessionError,
     _Backend,
     _report_json,
-    hint_for,
 )
 
 Array = np.ndarray
 
 
-class PlanningActions(PartContract):
+class PlanningPart:
     """Steps 5 and 6: the world model, exploration, planning and execution."""
 
+    def __init__(self, core: PartContract) -> None:
+        self._core = core
+        #: The planning back end (world model, roadmap, planner, executor, explorer), built
+        #: on demand, and the obstacles it was built for (`world_ready`).
+        self.backend: _Backend | None = None
+        self.backend_key: tuple | None = None
+        #: How the last run ended (`ExecutionFinished.summary`); None when planned since.
+        self.last_run: dict | None = None
+        #: Every posture where a collision was indicated, in order: the one record (saved
+        #: with the session; a rebuilt world model learns them again; `forget_indication`
+        #: takes one out). Added to only by `record_collision`.
+        self.recorded_collisions: list[Array] = []
+
+    def record_collision(self, q: Array, source: str, *, learnt_by_run: bool) -> None:
+        """Record a collision indication at posture `q` (source "operator" or "robot"):
+        counted, saved, then announced (`CollisionRecorded`, "Collision #n recorded").
+        `learnt_by_run`: a run's executor or explorer reported it and has fed its world
+        model already; else (the robot standing) the current world model learns it here."""
+        q = np.asarray(q, float).copy()
+        with self._core.lock:
+            self.recorded_collisions.append(q)
+            self._core.counters.collision_indications += 1
+            if not learnt_by_run and self.backend is not None:
+                self.backend.add_collision(q)
+            self._core.saving.autosave()  # saved before the page says "Collision #n recorded"
+        self._core.bus.emit(CollisionRecorded(q.copy(), self._core.counters.collision_indications,
+                                              source))
+
+    @property
+    def world_ready(self) -> bool:
+        """The world model is built for the current obstacles."""
+        return self.backend is not None and self.backend_key == self._core.obstacles_key()
+
     # ================================================================== 5. explore / world
-    def _run_busy(self, task: str, fn: Callable[[Progress], Any],
-                  steps: tuple[str, ...] | None = None, *, moving: bool = False) -> Future:
-        """Run long work on the worker: the machine is busy (or moving) until it ends."""
-        if moving:
-            self.hold.check_start()  # only the present holder of motion authority
-        with self._lock:
-            if steps is not None:
-                self.machine.require(steps, task)
-            if moving:
-                self.machine.begin_moving()
-                self.halted, self.halts_this_run = False, 0
-            else:
-                self.machine.begin_busy(task)
-        self._emit_state()
-
-        def done(fut: Future) -> None:
-            with self._lock:
-                self.machine.end_mode()
-                exc = fut.exception()
-                if exc is not None and not isinstance(exc, Cancelled):
-                    self._error(f"{task}: {exc}", hint_for(exc))
-                elif isinstance(exc, Cancelled):
-                    self.bus.emit(Notice(f"{task} cancelled; nothing was lost"))
-                self._autosave()
-            self._emit_state()
-
-        try:
-            return self.worker.submit(task, fn, done)
-        except RuntimeError:
-            with self._lock:
-                self.machine.end_mode()
-            self._emit_state()
-            raise
-
     def start_build_world(self) -> Future:
         """Reachability table (cached on disk), CAD rasterisation and the Voronoi roadmap."""
-        return self._run_busy("build the world model", self._build_world,
-                              ("explore", "plan", "teach", "place"))
+        return self._core.run_busy("build the world model", self._build_world,
+                                   ("explore", "plan", "teach", "place"))
 
     def set_world_settings(self, **changes: Any) -> dict:
         """Change world settings (`WorldSettings`: resolution_mm, joint_samples, memory_mb,
         store, clearance_mm; the run's bound max_indications, planning_budget_s); the world
         model is rebuilt on the next build or plan (not for the run's bound)."""
         try:
-            settings = self.world_settings.changed(**changes)
+            settings = self._core.world_settings.changed(**changes)
         except (TypeError, ValueError) as exc:
             raise SessionError(str(exc)) from None
-        with self._lock:
-            self.world_settings = settings
-            self._autosave()
-        self._emit_state()
+        with self._core.lock:
+            self._core.world_settings = settings
+            self._core.saving.autosave()
+        self._core.emit_state()
         return settings.to_json()
 
     def build_world(self) -> dict:
@@ -100,10 +100,10 @@ class PlanningActions(PartContract):
         from assistant.world.model import WorldModel
 
         t0 = time.perf_counter()
-        robot = self.robot
-        obstacles = self.cell.collision_objects_in_base()
-        key = self._obstacles_key()
-        world = WorldModel(robot, obstacles, self.world_settings.world_config(robot))
+        robot = self._core.robot
+        obstacles = self._core.cell.collision_objects_in_base()
+        key = self._core.obstacles_key()
+        world = WorldModel(robot, obstacles, self._core.world_settings.world_config(robot))
         world.anchors = self._world_anchors()
         checker = CollisionChecker(robot, obstacles)
         roadmap = RoadmapPlanner(robot, checker, world)
@@ -112,9 +112,9 @@ class PlanningActions(PartContract):
             progress.check()
             roadmap.add_collision(q)
         backend = _Backend(world, roadmap, checker)
-        with self._lock:
-            self._world, self._world_key = backend, key
-        self.bus.emit(SceneChanged("world"))
+        with self._core.lock:
+            self.backend, self.backend_key = backend, key
+        self._core.bus.emit(SceneChanged("world"))
         return {"seconds": time.perf_counter() - t0,
                 "table_from_cache": report.world.table_from_cache,
                 "road_cells": report.road_cells, "regions": report.regions,
@@ -125,11 +125,11 @@ class PlanningActions(PartContract):
         taught location's (as taught from the robot, else by IK from the current one)."""
         from assistant.transforms import inv_T
 
-        robot = self.robot
-        q0 = self.current_joints()
+        robot = self._core.robot
+        q0 = self._core.current_joints()
         out = [q0]
-        T_base_world = inv_T(self.T_world_base())
-        for loc in self.locations.values():
+        T_base_world = inv_T(self._core.T_world_base())
+        for loc in self._core.locations.values():
             if loc.q_hint is not None and np.shape(loc.q_hint) == (robot.dof,):
                 out.append(np.asarray(loc.q_hint, dtype=float))
                 continue
@@ -142,20 +142,21 @@ class PlanningActions(PartContract):
         """The world model for the current obstacles, (re)built if stale."""
         if not self.world_ready:
             self._build_world(progress or Progress())
-        assert self._world is not None
-        return self._world
+        assert self.backend is not None
+        return self.backend
 
     def _mission_planner(self, backend: _Backend) -> Any:
         from assistant.planning import MissionPlanner
 
-        config = self._planner_config()
+        config = self.planner_config()
         if backend.planner is None or backend.planner.config != config:
-            backend.planner = MissionPlanner(self.robot, self.cell.collision_objects_in_base(),
+            backend.planner = MissionPlanner(self._core.robot,
+                                             self._core.cell.collision_objects_in_base(),
                                              backend.world, backend.roadmap, backend.checker,
                                              config)
         return backend.planner
 
-    def _planner_config(self) -> Any:
+    def planner_config(self) -> Any:
         """The planner's defaults; Bezier chains become SPLINE moves when the export dialect
         writes splines (KRL SPLINE ... ENDSPLINE), else linear moves within the tolerance."""
 
@@ -165,7 +166,7 @@ class PlanningActions(PartContract):
 
         config = MissionPlannerConfig()
         try:
-            splines = bool(getattr(get_dialect(self.export_dialect), "spline", False))
+            splines = bool(getattr(get_dialect(self._core.export_dialect), "spline", False))
         except (KeyError, ValueError):
             splines = False
         if splines:
@@ -176,38 +177,39 @@ class PlanningActions(PartContract):
     # ================================================================== 6. plan & execute
     def start_plan(self) -> Future:
         """Plan the mission in the known world (CAD + recorded collisions)."""
-        return self._run_busy("plan the mission", self._plan, ("plan", "explore", "export"))
+        return self._core.run_busy("plan the mission", self._plan, ("plan", "explore", "export"))
 
     def plan(self) -> dict:
         return self.start_plan().result()
 
     def _plan(self, progress: Progress) -> dict:
         t0 = time.perf_counter()
-        self._require_free_start()
+        self._core.start_posture.require_free()
         self.last_run = None  # planned again: the last run's outcome is history
         backend = self._backend(progress.sub(0.0, 0.3, "world model"))
         planner = self._mission_planner(backend)
-        plan = planner.plan_mission(self.mission, self.T_world_base(), self.current_joints(),
+        plan = planner.plan_mission(self._core.mission, self._core.T_world_base(),
+                                    self._core.current_joints(),
                                     progress.sub(0.3, 1.0, "plan"))
-        with self._lock:
-            self.counters.planning_time_s += time.perf_counter() - t0
+        with self._core.lock:
+            self._core.counters.planning_time_s += time.perf_counter() - t0
             if not plan.ok:
-                self.trajectory, self.plan_report, self.program = None, None, None
+                self._core.trajectory, self._core.plan_report, self._core.program = None, None, None
                 raise SessionError(f"no plan: {plan.reason}")
         short = self._clearance_notes(plan, backend)
-        with self._lock:
-            self.trajectory = plan.trajectory
-            self.plan_report = _report_json(plan.report)
-            self.plan_report["clearance_required_mm"] = self.world_settings.clearance_mm
-            self.plan_report["clearance_shortfalls"] = short
+        with self._core.lock:
+            self._core.trajectory = plan.trajectory
+            self._core.plan_report = _report_json(plan.report)
+            self._core.plan_report["clearance_required_mm"] = self._core.world_settings.clearance_mm
+            self._core.plan_report["clearance_shortfalls"] = short
             if short:
-                self.plan_report["description"] += "\n  clearance: " + "; ".join(short)
-            self.program = None
-            self._autosave()  # saved before PlanReady shows it
+                self._core.plan_report["description"] += "\n  clearance: " + "; ".join(short)
+            self._core.program = None
+            self._core.saving.autosave()  # saved before PlanReady shows it
         for line in short:
-            self.bus.emit(Notice(f"Closer than the required clearance: {line}"))
-        self.bus.emit(PlanReady(dict(self.plan_report)))
-        return dict(self.plan_report)
+            self._core.bus.emit(Notice(f"Closer than the required clearance: {line}"))
+        self._core.bus.emit(PlanReady(dict(self._core.plan_report)))
+        return dict(self._core.plan_report)
 
     def _clearance_notes(self, plan: Any, backend: _Backend) -> list[str]:
         """Each transfer closer to a known obstacle than `WorldSettings.clearance_mm`: where
@@ -215,34 +217,35 @@ class PlanningActions(PartContract):
         from assistant.planning.clearance import clearance_shortfalls
 
         found = clearance_shortfalls(plan.pieces, backend.checker,
-                                     self.world_settings.clearance_mm / 1000.0,
-                                     self.T_world_base())
+                                     self._core.world_settings.clearance_mm / 1000.0,
+                                     self._core.T_world_base())
         return [f.describe() for f in found]
 
     def start_execute(self) -> Future:
         """Drive the mission on the robot; collisions (button or hidden obstacle) are learnt,
         the plan repaired and resumed. Ends with a verified final plan ready to export."""
-        return self._run_busy("execute the mission", self._execute, ("plan",), moving=True)
+        return self._core.run_busy("execute the mission", self._execute, ("plan",), moving=True)
 
     def execute(self) -> dict:
         return self.start_execute().result()
 
     def resume_execution(self) -> Future:
         """Continue after a lost link or a stop, re-planning from where the robot is."""
-        return self._run_busy("resume the mission", self._resume, ("plan",), moving=True)
+        return self._core.run_busy("resume the mission", self._resume, ("plan",), moving=True)
 
     def run_state(self) -> RunState:
         """The run's one state and its sentence (`session.run_state`)."""
-        m = self.machine
-        halts = self.halts_this_run if self.halted and m.mode.value == "moving" else 0
-        return run_state(m.mode.value, m.busy_task, halts, self.trajectory is not None,
+        m = self._core.machine
+        setup = self._core.setup
+        halts = setup.halts_this_run if setup.halted and m.mode.value == "moving" else 0
+        return run_state(m.mode.value, m.busy_task, halts, self._core.trajectory is not None,
                          self.last_run, self.final_driven())
 
     def start_drive_final(self) -> Future:
         """Drive the final program once on the robot, from where it stands to the program's
         start and through it (after a completed run; the operator starts it)."""
-        return self._run_busy("drive the final program", self._drive_final, ("plan",),
-                              moving=True)
+        return self._core.run_busy("drive the final program", self._drive_final, ("plan",),
+                                   moving=True)
 
     def drive_final(self) -> dict:
         return self.start_drive_final().result()
@@ -260,7 +263,7 @@ class PlanningActions(PartContract):
         ex = self._backend_executor()
         if ex is None or ex.report.final_plan is None:
             raise SessionError("no final program to drive: execute the mission first")
-        if ex.link is not self.link():
+        if ex.link is not self._core.setup.link():
             raise SessionError("the link changed since the run: execute the mission again")
         t0 = time.perf_counter()
         report = ex.drive_final(progress.sub(0.0, 1.0, "final program"))
@@ -268,7 +271,7 @@ class PlanningActions(PartContract):
 
     def _backend_executor(self) -> Any:
         """The executor of the last run, if the world it ran in is still the current one."""
-        backend = self._world if self.world_ready else None
+        backend = self.backend if self.world_ready else None
         return None if backend is None else backend.executor
 
     def _executor(self, backend: _Backend, link: RobotLink) -> Any:
@@ -280,7 +283,7 @@ class PlanningActions(PartContract):
                 ex.detach()
             ex = MissionExecutor(self._mission_planner(backend), link)
             backend.executor = ex
-        ws = self.world_settings
+        ws = self._core.world_settings
         ex.config = replace(ex.config, max_indications=int(ws.max_indications),
                             max_planning_seconds=float(ws.planning_budget_s))
         return ex
@@ -289,48 +292,49 @@ class PlanningActions(PartContract):
         """Forget collision indication `number` (as a run names it, from 1): what it taught
         leaves the world model, so a plan may pass there again (the operator knows nothing
         is there)."""
-        b = self._world if self.world_ready else None
+        b = self.backend if self.world_ready else None
         count = 0 if b is None else len(b.world.collisions)
         if b is None or not 1 <= int(number) <= count:
             raise SessionError(f"no indication {number} to forget: {count} learnt")
-        if self.machine.busy_task:
-            raise SessionError(f"wait for '{self.machine.busy_task}' to finish first")
-        with self._lock:
+        if self._core.machine.busy_task:
+            raise SessionError(f"wait for '{self._core.machine.busy_task}' to finish first")
+        with self._core.lock:
             q = b.world.collisions[int(number) - 1].q
             b.roadmap.forget_collision(int(number) - 1)
             # and from the session's own record, so a rebuilt world does not learn it again
             self.recorded_collisions = [r for r in self.recorded_collisions
-                                        if not np.allclose(r, q, atol=1e-9)]
-            self._autosave()
-        self.bus.emit(SceneChanged("world"))
+                                              if not np.allclose(r, q, atol=1e-9)]
+            self._core.saving.autosave()
+        self._core.bus.emit(SceneChanged("world"))
         return {"forgotten": int(number), "learnt": len(b.world.collisions)}
 
     def _execute(self, progress: Progress) -> dict:
         backend = self._backend(progress.sub(0.0, 0.1, "world model"))
-        link = self.link()
+        link = self._core.setup.link()
         ex = self._executor(backend, link)
         t0 = time.perf_counter()
-        report = ex.run(self.mission, self.T_world_base(), progress.sub(0.1, 1.0, "execute"))
+        report = ex.run(self._core.mission, self._core.T_world_base(),
+                        progress.sub(0.1, 1.0, "execute"))
         return self._after_execution(report, time.perf_counter() - t0)
 
     def _resume(self, progress: Progress) -> dict:
         backend = self._backend(progress.sub(0.0, 0.1, "world model"))
-        ex = self._executor(backend, self.link())
+        ex = self._executor(backend, self._core.setup.link())
         t0 = time.perf_counter()
         report = ex.resume(progress.sub(0.1, 1.0, "resume"))
         return self._after_execution(report, time.perf_counter() - t0)
 
     def _after_execution(self, report: Any, seconds: float) -> dict:
-        with self._lock:
-            self.counters.replans += report.replans
-            self.counters.replan_times_s += list(report.replan_seconds)
-            self.counters.planning_time_s += sum(report.replan_seconds)
+        with self._core.lock:
+            self._core.counters.replans += report.replans
+            self._core.counters.replan_times_s += list(report.replan_seconds)
+            self._core.counters.planning_time_s += sum(report.replan_seconds)
             final = report.final_plan
             if report.ok and final is not None and final.ok:
-                self.trajectory = final.trajectory
-                self.plan_report = _report_json(final.report)
-                self.program = None
-            self._autosave()  # saved before ExecutionFinished / PlanReady show it
+                self._core.trajectory = final.trajectory
+                self._core.plan_report = _report_json(final.report)
+                self._core.program = None
+            self._core.saving.autosave()  # saved before ExecutionFinished / PlanReady show it
         self.last_run = summary = {
             "ok": report.ok, "end": report.end.value if report.end else None,
             "reason": report.reason, "collision_indications": report.collision_indications,
@@ -338,9 +342,9 @@ class PlanningActions(PartContract):
             "executed_tcp_length_m": report.executed_tcp_length,
             "median_replan_s": report.median_replan_seconds, "seconds": seconds,
             "resumable": report.resumable}
-        self.bus.emit(ExecutionFinished(report.ok, dict(summary), report.resumable))
-        if report.ok and self.plan_report is not None:
-            self.bus.emit(PlanReady(dict(self.plan_report)))
+        self._core.bus.emit(ExecutionFinished(report.ok, dict(summary), report.resumable))
+        if report.ok and self._core.plan_report is not None:
+            self._core.bus.emit(PlanReady(dict(self._core.plan_report)))
         elif not report.ok:
             raise SessionError(f"execution ended: {report.reason}" + (
                 " - press Resume to continue" if report.resumable else ""))
@@ -350,9 +354,9 @@ class PlanningActions(PartContract):
         """Explore the workspace with the robot: random moves, replay the plan, or the roads."""
         if mode not in ("random", "replay", "roads"):
             raise SessionError(f"unknown exploration mode {mode!r} (random, replay, roads)")
-        return self._run_busy(f"explore ({mode})",
-                              lambda p: self._explore(p, mode, moves, seed),
-                              ("explore", "plan"), moving=True)
+        return self._core.run_busy(f"explore ({mode})",
+                                   lambda p: self._explore(p, mode, moves, seed),
+                                   ("explore", "plan"), moving=True)
 
     def explore(self, mode: str = "random", moves: int = 5, *, seed: int = 0) -> dict:
         return self.start_explore(mode, moves, seed=seed).result()
@@ -361,7 +365,7 @@ class PlanningActions(PartContract):
         from assistant.planning import Explorer
 
         backend = self._backend(progress.sub(0.0, 0.2, "world model"))
-        link = self.link()
+        link = self._core.setup.link()
         if backend.explorer is None or backend.explorer.link is not link:
             if backend.explorer is not None:
                 backend.explorer.detach()
@@ -373,9 +377,9 @@ class PlanningActions(PartContract):
         elif mode == "roads":
             rep = ex.follow_roads(max_targets=moves, progress=sub)
         else:
-            if self.trajectory is None:
+            if self._core.trajectory is None:
                 raise SessionError("nothing to replay: plan the mission first")
-            rep = ex.replay(self.trajectory, progress=sub)
+            rep = ex.replay(self._core.trajectory, progress=sub)
         return {"ok": rep.ok, "description": rep.describe()}
 
     def order_mission(self) -> list[str]:
@@ -383,37 +387,37 @@ class PlanningActions(PartContract):
 
         from assistant.trajectory.ordering import order_mission
 
-        with self._action("order the mission", EDIT_MISSION, scene="mission"):
-            if self.mission.start is None or self.mission.goal is None:
+        with self._core.action("order the mission", EDIT_MISSION, scene="mission"):
+            if self._core.mission.start is None or self._core.mission.goal is None:
                 raise SessionError("The mission needs a start and a goal")
-            ordering = order_mission(self.mission)
-            self.mission = replace(self.mission, order=list(ordering.order))
-        return [self.mission.paths[i].name for i in ordering.order]
+            ordering = order_mission(self._core.mission)
+            self._core.mission = replace(self._core.mission, order=list(ordering.order))
+        return [self._core.mission.paths[i].name for i in ordering.order]
 
     def occupancy_cells(self, min_p: float = 0.05) -> OccupiedCells | None:
         """Octree leaves with occupancy >= min_p, in the world frame."""
-        b = self._world
+        b = self.backend
         if b is None:
             return None
         occ = np.asarray(b.world.occupancy())
         ijk = np.argwhere(occ >= min_p)
         grid = b.world.grid
         centres = grid.centres_of_ijk(ijk)
-        T = self.T_world_base()
+        T = self._core.T_world_base()
         return OccupiedCells(centres @ T[:3, :3].T + T[:3, 3], occ[tuple(ijk.T)].astype(float),
                              float(grid.leaf), T[:3, :3].copy())
 
     def learnt_cells(self) -> OccupiedCells | None:
         """The obstacle learnt from collision indications: occupied leaves that no CAD part
         explains (world frame), for display."""
-        b = self._world
+        b = self.backend
         if b is None or not b.world.collisions:
             return None
         occ = np.asarray(b.world.occupancy())
         cad = np.asarray(b.world.cad_leaves()).reshape(occ.shape)
         ijk = np.argwhere((occ >= b.world.threshold) & ~cad)
         grid = b.world.grid
-        T = self.T_world_base()
+        T = self._core.T_world_base()
         return OccupiedCells(grid.centres_of_ijk(ijk) @ T[:3, :3].T + T[:3, 3],
                              occ[tuple(ijk.T)].astype(float), float(grid.leaf),
                              T[:3, :3].copy())
@@ -427,15 +431,15 @@ class PlanningActions(PartContract):
         cells = self.learnt_cells()
         if cells is None:
             return None
-        postures = np.array([self.current_joints(), *self.recorded_collisions])
-        return learnt_view(cells, self.robot, postures, self.T_world_base())
+        postures = np.array([self._core.current_joints(), *self.recorded_collisions])
+        return learnt_view(cells, self._core.robot, postures, self._core.T_world_base())
 
     def road_cells(self) -> tuple[Array, float] | None:
         """Centres (world frame) of the Voronoi road cells and the leaf size."""
-        b = self._world
+        b = self.backend
         if b is None or b.roadmap.voronoi is None:
             return None
         ijk = np.argwhere(b.roadmap.voronoi.roads())
         grid = b.world.grid
-        T = self.T_world_base()
+        T = self._core.T_world_base()
         return grid.centres_of_ijk(ijk) @ T[:3, :3].T + T[:3, 3], float(grid.leaf)

@@ -10,7 +10,8 @@ If the disk refuses a save, the change stays in memory (undoing the operator's w
 disk is full would lose it for sure), `save_error` says why, and `SaveStateChanged` tells the
 page to mark the session as not saved until a later save works; every change retries.
 
-A part mixed into `Session`.
+A part of the `Session`, composed (`Session.saving`): it owns why the last autosave failed; it
+reaches the rest of the session only through the parts' contract (`PartContract`).
 """
 
 from __future__ import annotations
@@ -30,36 +31,38 @@ NOT_SAVED_HINT = "Free space on the disk or make the session folder writable, or
     "session to another folder (Session file)."
 
 
-class Saving(PartContract):
+class SavingPart:
     """Autosave with its outcome kept (`save_error`) and the page's settled view."""
 
-    #: Why the last autosave failed ("" when the session on disk is up to date).
-    save_error: str = ""
+    def __init__(self, core: PartContract) -> None:
+        self._core = core
+        #: Why the last autosave failed ("" when the session on disk is up to date).
+        self.save_error = ""
 
-    def _autosave(self) -> None:
+    def autosave(self) -> None:
         """Save to the session folder (when it has one); call under the session lock, after
         the change and before the lock is let go."""
-        if not (self.autosave_enabled and self.folder is not None):
+        if not (self._core.autosave_enabled and self._core.folder is not None):
             return
         try:
-            self.save(self.folder)
+            self._core.persistence.save(self._core.folder)
         except (OSError, ValueError) as exc:
             reason = _reason(exc)
-            log.warning("autosave to %s failed: %s", self.folder, exc)
+            log.warning("autosave to %s failed: %s", self._core.folder, exc)
             if reason != self.save_error:
                 self.save_error = reason
-                self.bus.emit(SaveStateChanged(False, reason))
-                self.bus.emit(ErrorRaised(NOT_SAVED.format(reason=reason), NOT_SAVED_HINT))
+                self._core.bus.emit(SaveStateChanged(False, reason))
+                self._core.bus.emit(ErrorRaised(NOT_SAVED.format(reason=reason), NOT_SAVED_HINT))
             return
         if self.save_error:
             self.save_error = ""
-            self.bus.emit(SaveStateChanged(True, ""))
+            self._core.bus.emit(SaveStateChanged(True, ""))
 
     @contextlib.contextmanager
     def settled(self) -> Iterator[None]:
         """Hold actions off while a page reads the session: what it reads is then either from
         before an action or saved with it (never an action's change in flight)."""
-        with self._lock:
+        with self._core.lock:
             yield
 
 

@@ -1,204 +1,201 @@
 """`Session`: the one facade every operator action goes through (web UI, scripts, tests, CLI).
 
-Each action is checked by the workflow machine (a refused action raises `TransitionRefused`
-with the sentence to show and changes nothing), applied under the session lock, recorded for
-undo if it edits the document, counted, autosaved before the lock is let go (a page reads the
-session under the same lock: what it shows is saved, `saving.py`), and announced on the event
-bus. An action that fails half-way is rolled back to the snapshot taken before it. Long work
-(world model, planning, execution, exploration) runs on the worker thread with progress and
-Cancel; the machine's busy/moving modes keep edits out meanwhile.
+A thin front, composed the way viser's server is (`server.scene`, `server.gui`): the core
+(`core.py`: the shared state, the lock, the action wrapper, the long-task runners, the event
+bus and the workflow) and the parts by concern, each an object that owns its own state and
+reaches the rest only through the core's public methods and the other parts' public ones
+(`contract.PartContract` declares that list; mypy reads every part against it):
 
-The actions live in parts by concern (`*_part.py`). Some are composed: an object built with
-the session as its core, owning its own state, whose verbs the session hands over to (`export`
--> `exporter.export`). The rest are still mixed into `Session`: their methods run on the
-Session's state, under its lock and workflow. Either kind reaches the whole only through
-`contract.PartContract`.
+    setup (robot, tool, link)      objects (CAD, placement, frames)   layout (a layout DXF)
+    teaching (locations, paths,    motion (jog, Stop, Collision!)     planning (world model,
+      the marker pointer)                                               plan, execute, explore)
+    start_posture                  studies (placement studies)        exporter (step 7)
+    scene (what the page draws)    persistence (samples, save, load)  saving (autosave)
+
+Every verb the page and the scripts call stays on the session as a one-line hand-over to the
+part that does the work (`hand_over`), so `session.plan()` is `session.planning.plan()`.
 """
 
 from __future__ import annotations
 
-import contextlib
-import threading
-from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
-from assistant.cell.model import Cell, CellObject
-from assistant.links.link import RobotLink
-from assistant.links.settings import LinkSettings
-from assistant.mission.model import (
-    Location,
-    Mission,
-)
-from assistant.mission.motion import Trajectory
-from assistant.robots.model import Robot
-from assistant.session.cell_part import CellActions
-from assistant.session.document import Document
-from assistant.session.events import (
-    ErrorRaised,
-    EventBus,
-    Notice,
-    SceneChanged,
-    StateChanged,
-)
+from assistant.session.cell_part import CellPart
+from assistant.session.core import SessionCore
 from assistant.session.export_part import ExportPart
-from assistant.session.history import History
-from assistant.session.layout_part import LayoutActions
-from assistant.session.motion_hold import MotionHold
-from assistant.session.motion_part import MotionActions
-from assistant.session.persistence_part import Persistence
-from assistant.session.planning_part import PlanningActions
-from assistant.session.saving import Saving
+from assistant.session.handover import Forward, hand_over
+from assistant.session.layout_part import LayoutPart
+from assistant.session.motion_part import MotionPart
+from assistant.session.persistence_part import (
+    PersistencePart,
+    load_session,
+    session_from_sample,
+)
+from assistant.session.planning_part import PlanningPart
+from assistant.session.saving import SavingPart
 from assistant.session.scene_part import ScenePart
-from assistant.session.setup_part import SetupActions
+from assistant.session.setup_part import SetupPart
 from assistant.session.start_part import StartPosturePart
 from assistant.session.study_part import StudyPart
-from assistant.session.teach_part import TeachActions
-from assistant.session.types import (
-    Counters,
-    HiddenObstacle,
-    hint_for,
-)
-from assistant.session.worker import Worker
-from assistant.session.world_settings import WorldSettings
-from workflow.machine import Facts, Machine, Mode, TransitionRefused
+from assistant.session.teach_part import TeachPart
 
 if TYPE_CHECKING:
-    from concurrent.futures import Future
+    from typing_extensions import Self
 
-    from assistant.session.pointer_live import LivePointer
-    from assistant.study import Region, Scoring, StudyProblem, StudyResult, StudySettings
+    from assistant.study import StudyResult
 
 Array = np.ndarray
 
 
-class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActions,
-              PlanningActions, Persistence, Saving):
-    """Everything the operator does, headless or behind the web page: the state, the action
-    plumbing and the workflow here; the actions by concern in its parts - composed
-    (`exporter`, `studies`, `scene`, `start_posture`) or, for the rest, mixed in."""
+class Session(SessionCore):
+    """Everything the operator does, headless or behind the web page: the core's state and
+    workflow, and the verbs of its composed parts (see the module)."""
 
     def __init__(self, folder: str | Path | None = None, *, autosave: bool = True):
-        self.bus = EventBus()
-        self.worker = Worker(self.bus)
-        self.machine = Machine()
-        self.cell = Cell()
-        self.locations: dict[str, Location] = {}
-        self.mission = Mission()
-        self.link_settings = LinkSettings()
-        self.hidden: list[HiddenObstacle] = []
-        self.counters = Counters()
-        self.history = History()
-        self.folder = Path(folder) if folder is not None else None
-        self.autosave_enabled = autosave and self.folder is not None
-        self.pointer_config: dict[str, Any] = {}
-        self.export_dialect = "melfa"
-        self.world_settings = WorldSettings()
-        self.trajectory: Trajectory | None = None
-        self.plan_report: dict[str, Any] | None = None
-        #: Step 7, composed: the exported program and the verbs that make and send it.
+        super().__init__(folder, autosave=autosave)
+        #: Step 1: the robot, its tool, the link (owns the link and the simulated joints).
+        self.setup = SetupPart(self)
+        #: Steps 2-3: CAD import, primitives, roles, placement, measured frames.
+        self.objects = CellPart(self)
+        #: Step 2: a cell-layout drawing's parts and locations in one action.
+        self.layout = LayoutPart(self)
+        #: Step 4: locations, start and goal, paths (owns the live pointer).
+        self.teaching = TeachPart(self)
+        #: Moving the robot by hand: jog, Stop, Collision!, cancel, close.
+        self.motion = MotionPart(self)
+        #: Steps 5-6: world model, explore, plan, execute (owns the world and the last run).
+        self.planning = PlanningPart(self)
+        #: Step 7: the exported program and the verbs that make and send it.
         self.exporter = ExportPart(self)
-        #: Placement studies, composed: the last study's result and the verbs that run one.
+        #: Placement studies: the last study's result and the verbs that run one.
         self.studies = StudyPart(self)
-        #: What the page draws, composed (as viser's `server.scene`).
+        #: What the page draws (as viser's `server.scene`).
         self.scene = ScenePart(self)
-        #: The start posture against the cell, composed: what touches and the way out.
+        #: The start posture against the cell: what touches and the way out.
         self.start_posture = StartPosturePart(self)
-        self.recorded_collisions: list[Array] = []
-        #: The enabling switch: who may move the robot (enforced once pages serve this).
-        self.hold = MotionHold()
-        self.hold.on_lost(self._holder_gone)
-        self._lock = threading.RLock()
-        self._link: RobotLink | None = None
-        self._q_sim: Array | None = None  # joints of the robot when no link is connected
-        #: The page's simulated robot halts against a hidden obstacle and waits for the
-        #: operator's Collision!; scripts keep the self-reporting robot.
-        self.operator_confirms_contacts = False
-        #: The simulated robot stands against something unknown, waiting for Collision!.
-        self.halted = False
-        self.halts_this_run = 0
-        #: How the last run ended (`ExecutionFinished.summary`); None when planned since.
-        self.last_run: dict | None = None
-        self._world: Any = None  # planning back end (world model + roadmap), built on demand
-        self._world_key: tuple | None = None
-        self._last_error: str = ""
-        self._pointer: LivePointer | None = None  # while the camera step is open
-        self.pending_point: Any = None  # the last dwell TaughtPoint, waiting for a name
-        self.sample: str | None = None  # the sample cell this session started from
-        self.load_notes: list[str] = []  # what loading ignored (unknown keys), to report
+        #: Samples, save and load (owns what was last written to secrets.json).
+        self.persistence = PersistencePart(self)
+        #: Autosave and the page's settled view (owns why the last autosave failed).
+        self.saving = SavingPart(self)
+        self.hold.on_lost(self.motion.holder_gone)
 
-    # ================================================================== queries
-    @property
-    def robot(self) -> Robot:
-        return self.cell.robot()
+    # ================================================================== samples, load
+    @classmethod
+    def from_sample(cls, name_or_path: str | Path = "thesis_rv2aj",
+                    folder: str | Path | None = None, *, with_objects: bool = True,
+                    with_mission: bool = True, autosave: bool = True) -> Self:
+        """A session on a sample cell (`persistence_part.session_from_sample`)."""
+        return session_from_sample(cls, name_or_path, folder, with_objects=with_objects,
+                                   with_mission=with_mission, autosave=autosave)
 
-    def facts(self) -> Facts:
-        m = self.mission
-        return Facts(robot_ready=True, objects=len(self.cell.objects),
-                     locations=len(self.locations), has_start=m.start is not None,
-                     has_goal=m.goal is not None, paths=len(m.paths),
-                     world_ready=self.world_ready, plan_ready=self.trajectory is not None,
-                     program_ready=self.program is not None,
-                     link_ok=self.machine.mode != Mode.ERROR)
+    @classmethod
+    def load(cls, folder: str | Path, *, autosave: bool = True) -> Self:
+        """Restore a saved session (`persistence_part.load_session`)."""
+        return load_session(cls, folder, autosave=autosave)
+
+    # ================================================================== state in the parts
+    pending_point = Forward[Any]("teaching", "pending_point")
+    last_run = Forward["dict | None"]("planning", "last_run")
+    save_error = Forward[str]("saving", "save_error")
+    recorded_collisions = Forward["list[Array]"]("planning", "recorded_collisions")
 
     @property
-    def world_ready(self) -> bool:
-        return self._world is not None and self._world_key == self._obstacles_key()
+    def placement_study(self) -> StudyResult | None:
+        """The last placement study's result (owned by `studies`); None before the first."""
+        return self.studies.placement_study
 
-    def transitions(self):
-        return self.machine.transitions(self.facts())
-
-    def document(self) -> Document:
-        return Document.capture(self.cell, self.locations, self.mission)
-
-    def current_joints(self) -> Array:
-        if self._link is not None and self._link.connected:
-            return np.asarray(self._link.current_joints(), dtype=float)
-        if self._q_sim is None:
-            self._q_sim = self._home()
-        return self._q_sim.copy()
-
-    def _home(self) -> Array:
-        """Where the simulated robot starts: the zero posture (clipped to the limits) unless
-        that puts a moving link below the mounting plane (a UR arm at zero lies stretched
-        over its table), else the nearest posture that keeps every moving link 50 mm above
-        it (`home.raised_posture`); free of the cell's objects when there are any."""
-        from assistant.session.home import raised_posture
-
-        return raised_posture(self.robot, self.cell.collision_objects_in_base())
-
-    def T_world_base(self) -> Array:
-        return np.asarray(self.cell.T_world_base, dtype=float)
-
-    def tcp_world(self, q: Array | None = None) -> Array:
-        q = self.current_joints() if q is None else q
-        return self.T_world_base() @ self.robot.fk(q)
-
-    @property
-    def program(self) -> Any:
-        """The last exported program (owned by `exporter`); None when stale or not yet."""
-        return self.exporter.program
-
-    @program.setter
-    def program(self, value: Any) -> None:
-        self.exporter.program = value
-
+    # ================================================================== 1. set-up
+    choose_robot = hand_over("setup", SetupPart.choose_robot)
+    set_tool = hand_over("setup", SetupPart.set_tool)
+    set_link = hand_over("setup", SetupPart.set_link)
+    set_simulation_speed = hand_over("setup", SetupPart.set_simulation_speed)
+    set_hidden_obstacles = hand_over("setup", SetupPart.set_hidden_obstacles)
+    link = hand_over("setup", SetupPart.link)
+    link_log_dir = hand_over("setup", SetupPart.link_log_dir)
+    self_collision_rule = hand_over("setup", SetupPart.self_collision_rule)
+    check_link = hand_over("setup", SetupPart.check_link)
+    set_operator_confirms_contacts = hand_over("setup", SetupPart.set_operator_confirms_contacts)
+    reconnect_link = hand_over("setup", SetupPart.reconnect_link)
+    acknowledge_error = hand_over("setup", SetupPart.acknowledge_error)
+    # ================================================================== 2-3. CAD, placement
+    import_cad = hand_over("objects", CellPart.import_cad)
+    start_import_cad = hand_over("objects", CellPart.start_import_cad)
+    import_cad_path = hand_over("objects", CellPart.import_cad_path)
+    add_primitive = hand_over("objects", CellPart.add_primitive)
+    remove_object = hand_over("objects", CellPart.remove_object)
+    set_object_role = hand_over("objects", CellPart.set_object_role)
+    place_object = hand_over("objects", CellPart.place_object)
+    fit_object_pose = hand_over("objects", CellPart.fit_object_pose)
+    measure_with_robot = hand_over("objects", CellPart.measure_with_robot)
+    calibrate_frame = hand_over("objects", CellPart.calibrate_frame)
+    place_object_in_frame = hand_over("objects", CellPart.place_object_in_frame)
+    read_layout = hand_over("layout", LayoutPart.read_layout)
+    import_layout = hand_over("layout", LayoutPart.import_layout)
+    start_import_layout = hand_over("layout", LayoutPart.start_import_layout)
+    start_import_file = hand_over("layout", LayoutPart.start_import_file)
+    import_layout_path = hand_over("layout", LayoutPart.import_layout_path)
+    # ================================================================== 4. teach
+    teach = hand_over("teaching", TeachPart.teach)
+    teach_from_robot = hand_over("teaching", TeachPart.teach_from_robot)
+    teach_from_cad_click = hand_over("teaching", TeachPart.teach_from_cad_click)
+    teach_from_pointer = hand_over("teaching", TeachPart.teach_from_pointer)
+    teach_by_pointer_dwell = hand_over("teaching", TeachPart.teach_by_pointer_dwell)
+    simulate_pointer_dwell = hand_over("teaching", TeachPart.simulate_pointer_dwell)
+    start_pointer = hand_over("teaching", TeachPart.start_pointer)
+    stop_pointer = hand_over("teaching", TeachPart.stop_pointer)
+    pointer_move_to = hand_over("teaching", TeachPart.pointer_move_to)
+    pointer_state = hand_over("teaching", TeachPart.pointer_state)
+    teach_pending_point = hand_over("teaching", TeachPart.teach_pending_point)
+    calibrate_pointer_color = hand_over("teaching", TeachPart.calibrate_pointer_color)
+    camera_models = hand_over("teaching", TeachPart.camera_models)
+    remove_location = hand_over("teaching", TeachPart.remove_location)
+    set_start = hand_over("teaching", TeachPart.set_start)
+    set_goal = hand_over("teaching", TeachPart.set_goal)
+    add_path = hand_over("teaching", TeachPart.add_path)
+    remove_path = hand_over("teaching", TeachPart.remove_path)
+    move_path = hand_over("teaching", TeachPart.move_path)
+    add_drawing = hand_over("teaching", TeachPart.add_drawing)
+    set_path_actions = hand_over("teaching", TeachPart.set_path_actions)
+    # ================================================================== moving the robot
+    jog_joints = hand_over("motion", MotionPart.jog_joints)
+    jog_tcp = hand_over("motion", MotionPart.jog_tcp)
+    adopt_hold = hand_over("motion", MotionPart.adopt_hold)
+    stop = hand_over("motion", MotionPart.stop)
+    indicate_collision = hand_over("motion", MotionPart.indicate_collision)
+    close = hand_over("motion", MotionPart.close)
+    cancel = hand_over("motion", MotionPart.cancel)
+    # ================================================================== 5-6. world, plan, run
+    start_build_world = hand_over("planning", PlanningPart.start_build_world)
+    set_world_settings = hand_over("planning", PlanningPart.set_world_settings)
+    build_world = hand_over("planning", PlanningPart.build_world)
+    start_plan = hand_over("planning", PlanningPart.start_plan)
+    plan = hand_over("planning", PlanningPart.plan)
+    start_execute = hand_over("planning", PlanningPart.start_execute)
+    execute = hand_over("planning", PlanningPart.execute)
+    resume_execution = hand_over("planning", PlanningPart.resume_execution)
+    run_state = hand_over("planning", PlanningPart.run_state)
+    start_drive_final = hand_over("planning", PlanningPart.start_drive_final)
+    drive_final = hand_over("planning", PlanningPart.drive_final)
+    final_driven = hand_over("planning", PlanningPart.final_driven)
+    forget_indication = hand_over("planning", PlanningPart.forget_indication)
+    start_explore = hand_over("planning", PlanningPart.start_explore)
+    explore = hand_over("planning", PlanningPart.explore)
+    order_mission = hand_over("planning", PlanningPart.order_mission)
+    occupancy_cells = hand_over("planning", PlanningPart.occupancy_cells)
+    learnt_cells = hand_over("planning", PlanningPart.learnt_cells)
+    learnt_view = hand_over("planning", PlanningPart.learnt_view)
+    road_cells = hand_over("planning", PlanningPart.road_cells)
+    #: (the sample scripts' tests compare their planner settings with the session's)
+    _planner_config = hand_over("planning", PlanningPart.planner_config)
     # ================================================================== 7. export
-    def export(self, dialect: str | None = None, *, name: str | None = None,
-               frame: str | None = None, count: bool = True) -> Any:
-        """Write the planned mission as a robot program (`ExportPart.export`)."""
-        return self.exporter.export(dialect, name=name, frame=frame, count=count)
-
-    def upload_program(self) -> str:
-        """Send the exported program to the robot controller (`ExportPart.upload_program`)."""
-        return self.exporter.upload_program()
-
+    export = hand_over("exporter", ExportPart.export)
+    upload_program = hand_over("exporter", ExportPart.upload_program)
     # ================================================================== the start posture
-    def start_posture_problem(self) -> str | None:
-        """What the current posture touches, checked now (`StartPosturePart.problem_now`)."""
-        return self.start_posture.problem_now()
+    start_posture_problem = hand_over("start_posture", StartPosturePart.problem_now)
+    move_to_free_posture = hand_over("start_posture", StartPosturePart.move_to_free_posture)
 
     def start_posture_links(self) -> tuple[str, ...]:
         """The links the last start check found touching (the page draws them red)."""
@@ -208,194 +205,18 @@ class Session(SetupActions, CellActions, LayoutActions, TeachActions, MotionActi
         """What the last start check found touching, in the operator's words ("" if free)."""
         return self.start_posture.problem or ""
 
-    def move_to_free_posture(self, *, wait: bool = True) -> Future:
-        """Drive the robot out of what it touches (`StartPosturePart.move_to_free_posture`)."""
-        return self.start_posture.move_to_free_posture(wait=wait)
-
-    def _require_free_start(self) -> None:
-        """Planning refuses a start posture that touches the cell (`require_free`)."""
-        self.start_posture.require_free()
-
-    # ================================================================== scene for the UI
-    def scene_objects(self) -> list[CellObject]:
-        """Placed objects (`ScenePart.scene_objects`)."""
-        return self.scene.scene_objects()
-
-    def robot_visuals(self) -> list[tuple[str, Any, tuple[int, int, int]]]:
-        """(link name, mesh, colour) of every visual link (`ScenePart.robot_visuals`)."""
-        return self.scene.robot_visuals()
-
-    def link_poses_world(self, q: Array | None = None) -> Array:
-        """T_world_link for every robot link at q (`ScenePart.link_poses_world`)."""
-        return self.scene.link_poses_world(q)
-
-    def path_polylines(self, tol: float = 0.0005) -> list[tuple[str, Array]]:
-        """Each application path as points for drawing (`ScenePart.path_polylines`)."""
-        return self.scene.path_polylines(tol)
-
-    def plan_polylines(self) -> list[tuple[str, Array]]:
-        """The planned trajectory per motion (`ScenePart.plan_polylines`)."""
-        return self.scene.plan_polylines()
-
+    # ================================================================== what the page draws
+    scene_objects = hand_over("scene", ScenePart.scene_objects)
+    robot_visuals = hand_over("scene", ScenePart.robot_visuals)
+    link_poses_world = hand_over("scene", ScenePart.link_poses_world)
+    path_polylines = hand_over("scene", ScenePart.path_polylines)
+    plan_polylines = hand_over("scene", ScenePart.plan_polylines)
     # ================================================================== placement studies
-    @property
-    def placement_study(self) -> StudyResult | None:
-        """The last placement study's result (owned by `studies`); None before the first."""
-        return self.studies.placement_study
-
-    def study_problem(self, *, object_name: str | None = None, carry: bool = True,
-                      joint_margin_deg: float = 5.0,
-                      clearance_mm: float | None = None) -> StudyProblem:
-        """The study of this cell and mission (`StudyPart.study_problem`)."""
-        return self.studies.study_problem(object_name=object_name, carry=carry,
-                                          joint_margin_deg=joint_margin_deg,
-                                          clearance_mm=clearance_mm)
-
-    def start_study_placement(self, region: Region, settings: StudySettings | None = None,
-                              *, scoring: Scoring | None = None, **problem: Any) -> Future:
-        """A placement study in the background (`StudyPart.start_study_placement`)."""
-        return self.studies.start_study_placement(region, settings, scoring=scoring,
-                                                   **problem)
-
-    def study_placement(self, region: Region, settings: StudySettings | None = None,
-                        *, scoring: Scoring | None = None, **problem: Any) -> StudyResult:
-        """A placement study, waited for (`StudyPart.study_placement`)."""
-        return self.studies.study_placement(region, settings, scoring=scoring, **problem)
-
-    def apply_placement(self, index: int) -> Array:
-        """Move the study's subject to candidate `index` (`StudyPart.apply_placement`)."""
-        return self.studies.apply_placement(index)
-
-    # ================================================================== action plumbing
-    @contextlib.contextmanager
-    def _action(self, label: str, steps: tuple[str, ...] | None, *, undoable: bool = True,
-                scene: str = "", count: bool = True) -> Iterator[None]:
-        with self._lock:
-            try:
-                if steps is not None:
-                    self.machine.require(steps, label)
-                elif self.machine.mode not in (Mode.IDLE,):
-                    self.machine.require((self.machine.main,), label)
-            except TransitionRefused as exc:
-                self._error(str(exc))
-                raise
-            before = self.document()
-            mission_before = self.mission
-            try:
-                yield
-            except TransitionRefused:
-                raise
-            except Exception as exc:
-                mission = before.restore(self.cell, self.locations)
-                self.mission = mission if mission_before is not None else Mission()
-                self._error(f"{label}: {exc}", hint_for(exc))
-                raise
-            if undoable:
-                self.history.record(label, before)
-                self._invalidate(before)
-            if count:
-                self.counters.operator_actions += 1
-            self._autosave()
-        if scene:
-            self.bus.emit(SceneChanged(scene))
-        self._emit_state()
-
-    def _invalidate(self, before: Document) -> None:
-        """Edits make the plan and the program stale (the world only if obstacles moved)."""
-        now = self.document()
-        if now.mission != before.mission or now.locations != before.locations or \
-                now.obstacles_key() != before.obstacles_key():
-            self.trajectory = None
-            self.plan_report = None
-            self.program = None
-        if now.obstacles_key() != before.obstacles_key():
-            self._start_check()
-
-    def _start_check(self) -> None:
-        """`start_posture.check` after an edit; a check that cannot run (a lost link) is
-        said, and never undoes the edit."""
-        try:
-            self.start_posture.check()
-        except Exception as exc:  # noqa: BLE001 - the edit stands; the operator is told
-            self.bus.emit(Notice(f"the start posture could not be checked against the cell: "
-                                 f"{exc}"))
-
-    def _obstacles_key(self) -> tuple:
-        return (self.document().obstacles_key(), self.cell.robot_spec, self.world_settings)
-
-    def _error(self, message: str, hint: str = "") -> None:
-        self._last_error = message
-        self.bus.emit(ErrorRaised(message, hint))
-
-    def _emit_state(self) -> None:
-        m = self.machine
-        self.bus.emit(StateChanged(m.state, m.number, m.title, m.mode.value))
-
-    # ================================================================== workflow
-    def next(self) -> str:
-        return self.fire("next")
-
-    def previous(self) -> str:
-        return self.fire("previous")
-
-    def fire(self, event: str) -> str:
-        """A toolbar transition (next, previous, a jump, cancel, stop, collision, ...)."""
-        if event == "cancel":
-            self.cancel()
-            return self.machine.state
-        if event == "stop":
-            self.stop()
-            return self.machine.state
-        if event == "collision":
-            self.indicate_collision()
-            return self.machine.state
-        if event == "acknowledge":
-            self.acknowledge_error()
-            return self.machine.state
-        if event == "reconnect":
-            self.reconnect_link()
-            return self.machine.state
-        with self._lock:
-            try:
-                state = self.machine.fire(event, self.facts())
-            except TransitionRefused as exc:
-                self._error(str(exc))
-                raise
-            self.counters.operator_actions += 1
-            self._autosave()
-        self._emit_state()
-        return state
-
-    def goto(self, step: str) -> str:
-        with self._lock:
-            try:
-                state = self.machine.goto(step, self.facts())
-            except TransitionRefused as exc:
-                self._error(str(exc))
-                raise
-            self.counters.operator_actions += 1
-            self._autosave()
-        self._emit_state()
-        return state
-
-    def undo(self) -> str:
-        return self._travel("undo", self.history.undo)
-
-    def redo(self) -> str:
-        return self._travel("redo", self.history.redo)
-
-    def _travel(self, what: str, step: Callable[[Document], tuple[str, Document]]) -> str:
-        """Undo or redo: the document `step` returns replaces the current one."""
-        with self._lock:
-            self.machine.require((self.machine.main,), what)
-            label, doc = step(self.document())
-            self._restore(doc)
-        self.bus.emit(SceneChanged("all"))
-        self._emit_state()
-        return label
-
-    def _restore(self, doc: Document) -> None:
-        before = self.document()
-        self.mission = doc.restore(self.cell, self.locations)
-        self._invalidate(before)
-        self._autosave()
+    study_problem = hand_over("studies", StudyPart.study_problem)
+    start_study_placement = hand_over("studies", StudyPart.start_study_placement)
+    study_placement = hand_over("studies", StudyPart.study_placement)
+    apply_placement = hand_over("studies", StudyPart.apply_placement)
+    # ================================================================== save
+    save = hand_over("persistence", PersistencePart.save)
+    save_as = hand_over("persistence", PersistencePart.save_as)
+    settled = hand_over("saving", SavingPart.settled)

@@ -33,7 +33,7 @@ class StartPosturePart:
         """What the robot's current posture touches, in the operator's words ("the J3 link
         (forearm_link) touches wall"); None when it is free. The same check as teach and
         plan (the cell's objects and the robot's self-collision rule)."""
-        checker = self._core._known_checker()
+        checker = self._core.known_checker()
         report = checker.check(self._core.current_joints())
         if not report.contacts:
             return None
@@ -42,7 +42,7 @@ class StartPosturePart:
     def check(self) -> None:
         """After a cell change, a robot move or a load: check the start posture; a new
         problem is announced once with the way out, and the page redraws the robot."""
-        checker = self._core._known_checker()
+        checker = self._core.known_checker()
         report = checker.check(self._core.current_joints())
         links = tuple(sorted({c.link for c in report.contacts}
                              | {c.other for c in report.contacts if c.self_collision}))
@@ -52,11 +52,20 @@ class StartPosturePart:
         if problem is not None and problem != before:
             objects = sorted({c.other for c in report.contacts if not c.self_collision})
             place = f"place {', '.join(objects)} elsewhere or " if objects else ""
-            self._core.bus.emit(Notice(f"The start posture touches something: {problem}. Before "
-                                 f"planning, {place}move the robot to a free posture (Jog the "
-                                 "robot: Move to a free posture)"))
+            self._core.bus.emit(Notice(
+                f"The start posture touches something: {problem}. Before planning, {place}move "
+                "the robot to a free posture (Jog the robot: Move to a free posture)"))
         if problem != before:
             self._core.bus.emit(SceneChanged("start"))
+
+    def recheck(self) -> None:
+        """`check` after an edit; a check that cannot run (a lost link) is said, and never
+        undoes the edit."""
+        try:
+            self.check()
+        except Exception as exc:  # noqa: BLE001 - the edit stands; the operator is told
+            self._core.bus.emit(Notice(f"the start posture could not be checked against the "
+                                       f"cell: {exc}"))
 
     def require_free(self) -> None:
         """Planning refuses a start posture that touches the cell (the run could not leave
@@ -72,7 +81,7 @@ class StartPosturePart:
         a path that never touches anything new (`home.way_to_free_posture`)."""
         from assistant.session.home import way_to_free_posture
 
-        checker = self._core._known_checker()
+        checker = self._core.known_checker()
         q0 = self._core.current_joints()
         if checker.check(q0).valid:
             raise SessionError("the robot's posture touches nothing: no need to move it")
@@ -81,11 +90,11 @@ class StartPosturePart:
             raise SessionError("no free posture found that the robot can reach without "
                                "touching something else: jog it out joint by joint")
         def run(progress: object) -> object:
-            event = self._core.link().move_path(np.asarray(path))
+            event = self._core.setup.link().move_path(np.asarray(path))
             self.check()  # clears the red start before the move reports done
             return event
 
-        fut = self._core._run_motion("move to a free posture", run)
+        fut = self._core.run_motion("move to a free posture", run)
         if wait:
             fut.result()
         return fut

@@ -45,7 +45,7 @@ class StudyPart:
         from assistant.cell.model import Cell
         from assistant.study import StudyCriteria, StudyProblem, Subject
 
-        with self._core._lock:
+        with self._core.lock:
             cell = Cell(self._core.cell.robot_spec, self._core.T_world_base().copy(),
                         dict(self._core.cell.objects), dict(self._core.cell.frames))
             mission = replace(self._core.mission, paths=list(self._core.mission.paths))
@@ -58,7 +58,7 @@ class StudyPart:
                                   float(clearance) / 1000.0),
                     q_seed=self._core.current_joints(),
                     world_config=self._core.world_settings.world_config(self._core.robot),
-                    planner_config=self._core._planner_config(),
+                    planner_config=self._core.planning.planner_config(),
                     location_names={n: loc.position.copy()
                                     for n, loc in self._core.locations.items()})
             except (ValueError, KeyError) as exc:
@@ -77,7 +77,7 @@ class StudyPart:
 
         def work(progress: Progress) -> StudyResult:
             result = run_study(prob, region, settings, progress, scoring=scoring)
-            with self._core._lock:
+            with self._core.lock:
                 self.placement_study = result
             best = result.best()
             c = result.counts
@@ -89,7 +89,7 @@ class StudyPart:
             self._core.bus.emit(SceneChanged("study"))
             return result
 
-        return self._core._run_busy("placement study", work, STUDY_STEPS)
+        return self._core.run_busy("placement study", work, STUDY_STEPS)
 
     def study_placement(self, region: Region, settings: StudySettings | None = None,
                         *, scoring: Scoring | None = None, **problem: Any) -> StudyResult:
@@ -110,12 +110,13 @@ class StudyPart:
             raise SessionError("the study's problem is not kept: run the study again")
         T = problem.pose_at(match[0].candidate)
         label = f"move {problem.subject.describe()} to {match[0].candidate.label()}"
-        with self._core._action(label, EDIT_PLACEMENT, scene="robot" if problem.subject.is_base
-                          else "objects"):
+        with self._core.action(label, EDIT_PLACEMENT, scene="robot" if problem.subject.is_base
+                               else "objects"):
             if problem.subject.is_base:
                 self._core.cell.set_base_pose(T)
                 if self._core.link_settings.kind == "simulated":
-                    self._core._drop_link()  # its hidden obstacles are placed in the base frame
+                    # its hidden obstacles are placed in the base frame
+                    self._core.setup.drop_link()
             else:
                 assert problem.subject.object_name is not None
                 self._core.cell.set_object_pose(problem.subject.object_name, T)

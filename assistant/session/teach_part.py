@@ -1,11 +1,13 @@
 """Step 4: locations (typed, robot, CAD click, marker pointer), start/goal, application paths.
 
-A part mixed into `Session`."""
+A part of the `Session`, composed (`Session.teaching`): it owns the live pointer and the point
+its last dwell measured; it reaches the rest of the session only through the parts' contract
+(`PartContract`)."""
 
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -38,11 +40,21 @@ from assistant.session.types import (
 )
 from assistant.transforms import inv_T
 
+if TYPE_CHECKING:
+    from assistant.session.pointer_live import LivePointer
+
 Array = np.ndarray
 
 
-class TeachActions(PartContract):
+class TeachPart:
     """Step 4: locations (typed, robot, CAD click, marker pointer), start/goal, paths."""
+
+    def __init__(self, core: PartContract) -> None:
+        self._core = core
+        #: The live pointer while the camera step is open (None otherwise).
+        self.pointer: LivePointer | None = None
+        #: The last point a pointer dwell measured (`TaughtPoint`), waiting for a name.
+        self.pending_point: Any = None
 
     # ================================================================== 4. teach
     def teach(self, name: str, T_world_tool: Array, *,
@@ -52,36 +64,36 @@ class TeachActions(PartContract):
         touching itself; one inside a cell object is kept with a warning (`_free_solution`).
         A 5-axis robot's orientation is projected into its arm plane (the operator is told
         by how much)."""
-        with self._action(f"teach {name}", TEACH_STEPS, scene="locations"):
-            loc = self._make_location(name, np.asarray(T_world_tool, float), source, q_hint,
-                                      uncertainty_m)
-            if name in self.locations and not replace_existing:
+        with self._core.action(f"teach {name}", TEACH_STEPS, scene="locations"):
+            loc = self.make_location(name, np.asarray(T_world_tool, float), source, q_hint,
+                                     uncertainty_m)
+            if name in self._core.locations and not replace_existing:
                 raise SessionError(f"a location named {name!r} exists already")
-            self.locations[name] = loc
-            self._relink_mission(name)
-        return self.locations[name]
+            self._core.locations[name] = loc
+            self.relink_mission(name)
+        return self._core.locations[name]
 
-    def _make_location(self, name: str, T_world_tool: Array, source: LocationSource,
-                       q_hint: Array | None, uncertainty_m: float) -> Location:
+    def make_location(self, name: str, T_world_tool: Array, source: LocationSource,
+                      q_hint: Array | None, uncertainty_m: float) -> Location:
         _check_identifier(name, "location")
-        T_base_world = inv_T(self.T_world_base())
+        T_base_world = inv_T(self._core.T_world_base())
         T_base = T_base_world @ T_world_tool
-        seed = q_hint if q_hint is not None else self.current_joints()
-        res: IKResult = self.robot.ik(T_base, seed=seed)
+        seed = q_hint if q_hint is not None else self._core.current_joints()
+        res: IKResult = self._core.robot.ik(T_base, seed=seed)
         if not res.ok and res.nearest_T_base_tool is not None and \
                 res.failure is not None and res.failure.value == "orientation":
             near = res.nearest_T_base_tool
-            res2 = self.robot.ik(near, seed=seed)
+            res2 = self._core.robot.ik(near, seed=seed)
             if res2.ok:
                 ang = np.degrees(_angle(near[:3, :3], T_base[:3, :3]))
-                self.bus.emit(Notice(f"{name}: {res.message}; the orientation was turned by "
-                                     f"{ang:.1f} deg into the arm plane"))
+                self._core.bus.emit(Notice(f"{name}: {res.message}; the orientation was turned by "
+                                           f"{ang:.1f} deg into the arm plane"))
                 T_base, res = near, res2
         if not res.ok:
-            note = reach_note(self.robot, T_base[:3, 3])
+            note = reach_note(self._core.robot, T_base[:3, 3])
             raise UnreachableError(res.message + (f"; {note}" if note else ""), res)
         q = self._free_solution(name, res, seed)
-        return Location(name, self.T_world_base() @ T_base, source, q, uncertainty_m)
+        return Location(name, self._core.T_world_base() @ T_base, source, q, uncertainty_m)
 
     def _free_solution(self, name: str, res: IKResult, seed: Array) -> Array:
         """The IK solution nearest `seed` that the planner's check accepts (the same rule,
@@ -93,16 +105,16 @@ class TeachActions(PartContract):
 
         sols = sorted((np.asarray(q, dtype=float) for q in res.solutions),
                       key=lambda q: float(np.linalg.norm(q - seed)))
-        k, problem = first_free(self._known_checker(), name, sols)
+        k, problem = first_free(self._core.known_checker(), name, sols)
         if problem is not None and problem.problem == LocationProblem.SELF_COLLISION:
             raise SessionError(str(problem))
         if problem is not None:
-            self.bus.emit(Notice(f"{problem}: planning refuses it until the cell changes"))
+            self._core.bus.emit(Notice(f"{problem}: planning refuses it until the cell changes"))
         return sols[k]
 
     def teach_from_robot(self, name: str) -> Location:
-        q = self.current_joints()
-        return self.teach(name, self.tcp_world(q), source=LocationSource.ROBOT_POSE, q_hint=q)
+        q = self._core.current_joints()
+        return self.teach(name, self._core.tcp_world(q), source=LocationSource.ROBOT_POSE, q_hint=q)
 
     def teach_from_cad_click(self, name: str, point_world: Array,
                              normal_world: Array | None = None,
@@ -145,14 +157,14 @@ class TeachActions(PartContract):
         def system(scene: Any) -> _AnnouncedDwell:
             # 30 frames a second, a common camera's rate: half the rendering of 60
             return _AnnouncedDwell(PointerSystem.synthetic(models, scene, seed=seed, fps=30.0),
-                                   self.bus)
+                                   self._core.bus)
 
         try:
             # _AnnouncedDwell is a PointerSystem that also reports each state (duck-typed)
             return simulate_dwell(system, np.asarray(point_world, float),  # type: ignore[arg-type]
                                   seed=seed)
         finally:
-            self.bus.emit(PointerUpdated(None))
+            self._core.bus.emit(PointerUpdated(None))
 
     # -- live pointer (UI) ------------------------------------------------------------------
     def start_pointer(self) -> None:
@@ -160,48 +172,49 @@ class TeachActions(PartContract):
         from assistant.session.pointer_live import LivePointer
         from vision.color import ColorProfile
 
-        with self._lock:
-            if self._pointer is not None and self._pointer.running:
+        with self._core.lock:
+            if self.pointer is not None and self.pointer.running:
                 return
-            self._pointer = LivePointer(self.camera_models(), on_state=self._on_pointer,
-                                        seed=int(self.pointer_config.get("seed", 0)))
-            prof = self.pointer_config.get("profile")
+            self.pointer = LivePointer(self.camera_models(), on_state=self._on_pointer,
+                                       seed=int(self._core.pointer_config.get("seed", 0)))
+            prof = self._core.pointer_config.get("profile")
             if prof:
-                self._pointer.system.profile = ColorProfile.from_dict(prof)
-            self._pointer.start()
+                self.pointer.system.profile = ColorProfile.from_dict(prof)
+            self.pointer.start()
 
     def stop_pointer(self) -> None:
-        with self._lock:
-            p, self._pointer = self._pointer, None
+        with self._core.lock:
+            p, self.pointer = self.pointer, None
         if p is not None:
             p.stop()
 
     def pointer_move_to(self, point_world: Array | None) -> None:
         """Synthetic camera only: the simulated hand brings the ball to a point (None: away)."""
-        if self._pointer is None:
+        if self.pointer is None:
             self.start_pointer()
-        assert self._pointer is not None
-        self._pointer.hand.move_to(None if point_world is None else np.asarray(point_world, float))
+        assert self.pointer is not None
+        self.pointer.hand.move_to(None if point_world is None else np.asarray(point_world, float))
 
     def _on_pointer(self, state: Any) -> None:
         from assistant.session.events import PointerUpdated
 
         pos = None if state.position_world is None else np.asarray(state.position_world)
         std = float(np.sqrt(np.trace(state.covariance))) if pos is not None else 0.0
-        live = self._pointer
+        live = self.pointer
         dwell_s = float(live.system.params.dwell.dwell_s) if live is not None else 0.0
-        self.bus.emit(PointerUpdated(pos, std, state.mode, float(state.dwell_progress), dwell_s))
+        self._core.bus.emit(PointerUpdated(pos, std, state.mode, float(state.dwell_progress),
+                                           dwell_s))
         if state.taught is not None:
             self.pending_point = state.taught
             p = np.asarray(state.taught.position_world) * 1000
-            self.bus.emit(Notice(f"pointer held still: point measured at "
-                                 f"({p[0]:.1f}, {p[1]:.1f}, {p[2]:.1f}) mm "
-                                 f"+- {state.taught.uncertainty * 1000:.1f} mm"))
+            self._core.bus.emit(Notice(f"pointer held still: point measured at "
+                                       f"({p[0]:.1f}, {p[1]:.1f}, {p[2]:.1f}) mm "
+                                       f"+- {state.taught.uncertainty * 1000:.1f} mm"))
 
     def pointer_state(self) -> Any:
         """The last `vision.PointerState` of the live pointer (None when it is not running):
         camera views with frames and detections for the UI."""
-        p = self._pointer
+        p = self.pointer
         return None if p is None else p.last_state
 
     def teach_pending_point(self, name: str) -> Location:
@@ -219,72 +232,72 @@ class TeachActions(PartContract):
         """Colour calibration: the ellipse the operator drew over the ball in a live view."""
         from vision.color_calibration import calibrate_from_ellipse
 
-        with self._action("calibrate the pointer colour", None, undoable=False):
-            if self._pointer is None or self._pointer.last_state is None:
+        with self._core.action("calibrate the pointer colour", None, undoable=False):
+            if self.pointer is None or self.pointer.last_state is None:
                 raise SessionError("start the cameras first (the live view needs a frame)")
-            views = list(self._pointer.last_state.cameras.values())
+            views = list(self.pointer.last_state.cameras.values())
             frame = views[camera_index].frame if 0 <= camera_index < len(views) else None
             if frame is None:
                 raise SessionError(f"no live frame from camera {camera_index}")
             prof = calibrate_from_ellipse(frame.image, center_px, axes_px, angle_deg)
-            self._pointer.system.profile = prof
-            self.pointer_config["profile"] = prof.to_dict()
+            self.pointer.system.profile = prof
+            self._core.pointer_config["profile"] = prof.to_dict()
         return prof
 
     def camera_models(self) -> list:
         from vision.camera_model import CameraModel
         from vision.rigs import default_stereo_rig
 
-        cams = self.pointer_config.get("cameras")
+        cams = self._core.pointer_config.get("cameras")
         if cams:
             return [CameraModel.from_dict(c) for c in cams]
         return default_stereo_rig()
 
     def remove_location(self, name: str) -> None:
-        with self._action(f"delete {name}", TEACH_STEPS, scene="locations"):
-            if name not in self.locations:
+        with self._core.action(f"delete {name}", TEACH_STEPS, scene="locations"):
+            if name not in self._core.locations:
                 raise SessionError(f"no location named {name!r}")
             used = self._location_uses(name)
             if used:
                 raise SessionError(f"{name} is used by {', '.join(used)}; change that first")
-            del self.locations[name]
+            del self._core.locations[name]
 
     def _location_uses(self, name: str) -> list[str]:
         uses = []
-        m = self.mission
+        m = self._core.mission
         if m.start is not None and m.start.name == name:
             uses.append("the mission start")
         if m.goal is not None and m.goal.name == name:
             uses.append("the mission goal")
         return uses
 
-    def _relink_mission(self, name: str) -> None:
+    def relink_mission(self, name: str) -> None:
         """A re-taught location updates the mission's start/goal that refer to it."""
         from dataclasses import replace
 
-        loc = self.locations[name]
-        if self.mission.start is not None and self.mission.start.name == name:
-            self.mission = replace(self.mission, start=loc)
-        if self.mission.goal is not None and self.mission.goal.name == name:
-            self.mission = replace(self.mission, goal=loc)
+        loc = self._core.locations[name]
+        if self._core.mission.start is not None and self._core.mission.start.name == name:
+            self._core.mission = replace(self._core.mission, start=loc)
+        if self._core.mission.goal is not None and self._core.mission.goal.name == name:
+            self._core.mission = replace(self._core.mission, goal=loc)
 
     def set_start(self, name: str) -> None:
         from dataclasses import replace
 
-        with self._action("set the mission start", EDIT_MISSION, scene="mission"):
-            self.mission = replace(self.mission, start=self._loc(name), order=None)
+        with self._core.action("set the mission start", EDIT_MISSION, scene="mission"):
+            self._core.mission = replace(self._core.mission, start=self.location(name), order=None)
 
     def set_goal(self, name: str) -> None:
         from dataclasses import replace
 
-        with self._action("set the mission goal", EDIT_MISSION, scene="mission"):
-            self.mission = replace(self.mission, goal=self._loc(name), order=None)
+        with self._core.action("set the mission goal", EDIT_MISSION, scene="mission"):
+            self._core.mission = replace(self._core.mission, goal=self.location(name), order=None)
 
-    def _loc(self, name: str) -> Location:
-        if name not in self.locations:
-            known = ", ".join(self.locations) or "none yet"
+    def location(self, name: str) -> Location:
+        if name not in self._core.locations:
+            known = ", ".join(self._core.locations) or "none yet"
             raise SessionError(f"no location named {name!r} (taught: {known})")
-        return self.locations[name]
+        return self._core.locations[name]
 
     def add_path(self, name: str, kind: str, points: Sequence[str | Array], *,
                  before: Sequence[ToolAction] = (), after: Sequence[ToolAction] = (),
@@ -297,9 +310,9 @@ class TeachActions(PartContract):
         the start and off the end along the tool axis, as a programmer writes them."""
         from dataclasses import replace
 
-        with self._action(f"add the path {name}", EDIT_MISSION, scene="mission"):
+        with self._core.action(f"add the path {name}", EDIT_MISSION, scene="mission"):
             _check_identifier(name, "path")
-            if any(p.name == name for p in self.mission.paths):
+            if any(p.name == name for p in self._core.mission.paths):
                 raise SessionError(f"a path named {name!r} exists already")
             pts, R = self._path_points(points)
             names = [p if isinstance(p, str) else "" for p in points]
@@ -311,7 +324,8 @@ class TeachActions(PartContract):
                     raise SessionError(f"the {what} distance must be 0 to 500 mm")
             path = ApplicationPath(name, segs, R_tool, list(before), list(after), float(speed),
                                    bool(reversible), float(approach), float(depart))
-            self.mission = replace(self.mission, paths=[*self.mission.paths, path], order=None)
+            m = self._core.mission
+            self._core.mission = replace(m, paths=[*m.paths, path], order=None)
         return path
 
     def _path_points(self, points: Sequence[str | Array]) -> tuple[list[Array], Array | None]:
@@ -319,7 +333,7 @@ class TeachActions(PartContract):
         R: Array | None = None
         for p in points:
             if isinstance(p, str):
-                loc = self._loc(p)
+                loc = self.location(p)
                 out.append(loc.position.copy())
                 if R is None:
                     R = loc.T_world_tool[:3, :3]
@@ -330,24 +344,24 @@ class TeachActions(PartContract):
     def remove_path(self, name: str) -> None:
         from dataclasses import replace
 
-        with self._action(f"delete the path {name}", EDIT_MISSION, scene="mission"):
-            paths = [p for p in self.mission.paths if p.name != name]
-            if len(paths) == len(self.mission.paths):
+        with self._core.action(f"delete the path {name}", EDIT_MISSION, scene="mission"):
+            paths = [p for p in self._core.mission.paths if p.name != name]
+            if len(paths) == len(self._core.mission.paths):
                 raise SessionError(f"no path named {name!r}")
-            self.mission = replace(self.mission, paths=paths, order=None)
+            self._core.mission = replace(self._core.mission, paths=paths, order=None)
 
     def move_path(self, name: str, index: int) -> None:
         """Reorder the mission's paths (the operator's order; the planner may reorder)."""
         from dataclasses import replace
 
-        with self._action(f"move the path {name}", EDIT_MISSION, scene="mission"):
-            paths = list(self.mission.paths)
+        with self._core.action(f"move the path {name}", EDIT_MISSION, scene="mission"):
+            paths = list(self._core.mission.paths)
             i = next((k for k, p in enumerate(paths) if p.name == name), None)
             if i is None:
                 raise SessionError(f"no path named {name!r}")
             p = paths.pop(i)
             paths.insert(max(0, min(index, len(paths))), p)
-            self.mission = replace(self.mission, paths=paths, order=None)
+            self._core.mission = replace(self._core.mission, paths=paths, order=None)
 
     def add_drawing(self, name: str, frame: str, drawing: int | Array, *,
                     at: tuple[float, float] = (0.0, 0.0), angle: float = 0.0,
@@ -372,31 +386,32 @@ class TeachActions(PartContract):
         """
         from dataclasses import replace
 
-        with self._action(f"add the drawing {name}", EDIT_MISSION, scene="mission"):
+        with self._core.action(f"add the drawing {name}", EDIT_MISSION, scene="mission"):
             _check_identifier(name, "path")
-            if any(p.name == name for p in self.mission.paths):
+            if any(p.name == name for p in self._core.mission.paths):
                 raise SessionError(f"a path named {name!r} exists already")
-            path = drawing_path(name, self._frame(frame), _drawing_control(drawing),
+            path = drawing_path(name, self._core.objects.frame(frame), _drawing_control(drawing),
                                 at=at, angle=angle, lift=lift, before=before, after=after,
                                 speed=speed, reversible=reversible, tool_angle=tool_angle)
-            self.mission = replace(self.mission, paths=[*self.mission.paths, path], order=None)
+            m = self._core.mission
+            self._core.mission = replace(m, paths=[*m.paths, path], order=None)
         return path
 
     def set_path_actions(self, name: str, before: list[ToolAction],
                          after: list[ToolAction]) -> None:
         from dataclasses import replace
 
-        with self._action(f"change the tool actions of {name}", EDIT_MISSION, scene="mission"):
+        with self._core.action(f"change the tool actions of {name}", EDIT_MISSION, scene="mission"):
             paths = []
             found = False
-            for p in self.mission.paths:
+            for p in self._core.mission.paths:
                 if p.name == name:
                     p = replace(p, actions_before=list(before), actions_after=list(after))
                     found = True
                 paths.append(p)
             if not found:
                 raise SessionError(f"no path named {name!r}")
-            self.mission = replace(self.mission, paths=paths)
+            self._core.mission = replace(self._core.mission, paths=paths)
 
 
 class _AnnouncedDwell:

@@ -52,7 +52,7 @@ def test_a_wall_through_the_home_posture_is_said_when_placed_and_refuses_plannin
     # the way out: a path that leaves the wall and touches nothing new, then planning works
     s.move_to_free_posture()
     assert s.start_posture_links() == ()
-    checker = s._known_checker()
+    checker = s.known_checker()
     assert checker.is_valid(s.current_joints())
     s.plan()
     assert s.trajectory is not None

@@ -37,11 +37,11 @@ def test_a_bad_setting_is_refused_naming_what_is_allowed(tmp_path, changes, word
 def test_settings_are_saved_and_make_the_world_stale(tmp_path):
     folder = tmp_path / "s"
     s = Session.from_sample("thesis_rv2aj", folder)
-    key = s._obstacles_key()
+    key = s.obstacles_key()
     out = s.set_world_settings(joint_samples=100_000, memory_mb="800", resolution_mm="")
     assert out["joint_samples"] == 100_000 and out["memory_mb"] == 800
     assert out["resolution_mm"] is None
-    assert s._obstacles_key() != key  # a built world would be rebuilt
+    assert s.obstacles_key() != key  # a built world would be rebuilt
     s.save(folder)
     back = Session.load(folder, autosave=False)
     assert back.world_settings == s.world_settings
@@ -82,10 +82,10 @@ def test_the_run_bound_is_a_setting_that_rebuilds_nothing(tmp_path):
 
     s = Session.from_sample("thesis_rv2aj", tmp_path / "s")
     assert (s.world_settings.max_indications, s.world_settings.planning_budget_s) == (20, 120.0)
-    key = s._obstacles_key()
+    key = s.obstacles_key()
     out = s.set_world_settings(max_indications="5", planning_budget_s=30)
     assert out["max_indications"] == 5 and out["planning_budget_s"] == 30.0
-    assert s._obstacles_key() == key  # a built world stays
+    assert s.obstacles_key() == key  # a built world stays
     with pytest.raises(SessionError, match="1-3600 s"):
         s.set_world_settings(planning_budget_s=0)
     with pytest.raises(SessionError, match="1-1000"):
