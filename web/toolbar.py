@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING, Any, Literal
 
 import viser
 
+from assistant.session.commands import PageCommand
 from assistant.session.events import (
     CollisionRecorded,
     ErrorRaised,
@@ -102,23 +103,24 @@ class Toolbar:
                                         modifier="cmd/ctrl", icon=viser.Icon.ARROW_FORWARD_UP)
 
         acts = app.actions
-        acts.bind(self.prev, lambda e: self.app.session.fire("previous"))
-        acts.bind(self.next, lambda e: self.app.session.fire("next"))
+        acts.bind(self.prev, lambda e: self.app.session.fire(PageCommand.PREVIOUS))
+        acts.bind(self.next, lambda e: self.app.session.fire(PageCommand.NEXT))
         acts.bind(self.exit, lambda e: self._exit(e.client))
         acts.bind(self.undo, lambda e: self._undo(e.client, redo=False))
         acts.bind(self.redo, lambda e: self._undo(e.client, redo=True))
         acts.bind(self.goto, lambda e: self._goto())
-        acts.bind(self.key_collision, lambda e: self.app.session.fire("collision"))
+        acts.bind(self.key_collision, lambda e: self.app.session.fire(PageCommand.COLLISION))
         acts.bind(self.key_stop, lambda e: self._stop_or_cancel())
-        acts.bind(self.key_next, lambda e: self.app.session.fire("next"))
-        acts.bind(self.key_prev, lambda e: self.app.session.fire("previous"))
+        acts.bind(self.key_next, lambda e: self.app.session.fire(PageCommand.NEXT))
+        acts.bind(self.key_prev, lambda e: self.app.session.fire(PageCommand.PREVIOUS))
         acts.bind(self.key_undo, lambda e: self._undo(e.client, redo=False))
         acts.bind(self.key_redo, lambda e: self._undo(e.client, redo=True))
         app.notifier.on_message = self._on_message
 
     # ------------------------------------------------------------------ actions
     def _fire(self, event: str) -> None:
-        self.app.session.fire(event)
+        """A transition the machine listed (a mode's command, or a jump by its name)."""
+        self.app.session.fire(_command(event))
 
     def _firing(self, event: str) -> Callable[[Any], None]:
         """A button's callback that fires `event`."""
@@ -131,7 +133,7 @@ class Toolbar:
 
     def _stop_or_cancel(self) -> None:
         s = self.app.session
-        s.fire("stop" if s.machine.mode.value == "moving" else "cancel")
+        s.fire(PageCommand.STOP if s.machine.mode.value == "moving" else PageCommand.CANCEL)
 
     def _undo(self, client: viser.ClientHandle | None, *, redo: bool) -> None:
         s = self.app.session
@@ -140,7 +142,7 @@ class Toolbar:
 
     def _exit(self, client: viser.ClientHandle | None) -> None:
         s = self.app.session
-        s.fire("exit")
+        s.fire(PageCommand.EXIT)
         if s.folder is not None:
             s.save(s.folder)
             self.app.notifier.success(f"Session saved to {s.folder}. You can close this page; "
@@ -270,6 +272,14 @@ class Toolbar:
         """The toolbar button of a transition (tests)."""
         return {"previous": self.prev, "next": self.next, "exit": self.exit}.get(event) or \
             self._buttons.get(event)
+
+
+def _command(event: str) -> PageCommand | str:
+    """The machine's event as a `PageCommand` where it is one (a jump keeps its name)."""
+    try:
+        return PageCommand(event)
+    except ValueError:
+        return event
 
 
 def _short(text: str, n: int = 36) -> str:

@@ -12,6 +12,7 @@ import viser
 from assistant.cell.model import ObjectRole
 from assistant.progress import Cancelled
 from assistant.session.events import Event, SceneChanged
+from assistant.session.layout_part import FileImport
 from web.gui_value import set_value
 from web.panels.base import Panel, gate
 from web.units import point_from_mm
@@ -91,15 +92,12 @@ class CadPanel(Panel):
         f = event.target.value
         check_upload_size(self.app, f.name, len(f.content))
         units = None if self.units.value == UNITS[0] else self.units.value
-        if self.session.read_layout(f.content, f.name) is not None:
-            self._import_layout(f.name, f.content, units)
-            return
-        self._import(f.name, f.content, units, name=None)
+        self._import(f.name, f.content, units, name=None, decide=True)
 
-    def _import_layout(self, filename: str, data: bytes, units: str | None) -> None:
+    def _layout_started(self, filename: str, job: FileImport) -> None:
         """A cell layout: its parts stand where drawn, its locations are taught (one action)."""
-        fut = self.session.start_import_layout(data, filename, units=units,
-                                               role=self.role.value)
+        layout, fut = job.layout, job.future
+        assert layout is not None
         self.report.content = f"*Importing the cell layout {filename}...*"
 
         def shown(f: Future) -> None:
@@ -107,22 +105,33 @@ class CadPanel(Panel):
                 self.report.content = f"*{filename}: not imported.*"
                 return
             names = ", ".join(o.name for o in f.result())
-            layout = self.session.read_layout(data, filename)
             locs = ", ".join(loc.name + (f" ({loc.role})" if loc.role else "")
-                             for loc in (layout.locations if layout else []))
+                             for loc in layout.locations)
             self.report.content = (f"**Imported {names}** from the cell layout {filename}, "
                                    "standing where drawn" +
                                    (f"; taught {locs}" if locs else "") + ".")
         fut.add_done_callback(lambda f: self.app.pump.post(lambda: shown(f)))
 
-    def _import(self, filename: str, data: bytes, units: str | None, *, name: str | None
-                ) -> None:
+    def _import(self, filename: str, data: bytes, units: str | None, *, name: str | None,
+                decide: bool = False) -> None:
         """Start the import on the session's worker (progress bar and Cancel in the toolbar,
-        the page stays responsive); the report is shown when it is done."""
+        the page stays responsive); the report is shown when it is done. `decide`: an
+        upload, which the session imports as a cell layout or as one part."""
         height = self.extrude.value / 1000.0 if self.extrude.value > 0 else None
-        fut = self.session.start_import_cad(data, filename, name=name, units=units,
-                                            dxf_extrude_height=height, role=self.role.value,
-                                            T_world_object=self._waiting_spot())
+        if decide:
+            job = self.session.start_import_file(data, filename, units=units,
+                                                 dxf_extrude_height=height,
+                                                 role=self.role.value,
+                                                 T_world_object=self._waiting_spot())
+            if job.layout is not None:
+                self._layout_started(filename, job)
+                return
+            fut = job.future
+        else:
+            fut = self.session.start_import_cad(data, filename, name=name, units=units,
+                                                dxf_extrude_height=height,
+                                                role=self.role.value,
+                                                T_world_object=self._waiting_spot())
         self.report.content = f"*Importing {filename}...*"
         fut.add_done_callback(lambda f: self.app.pump.post(
             lambda: self._imported(f, filename, data)))

@@ -1,0 +1,111 @@
+"""The seams between the page, the session and the links carry types, not sentences: a toolbar
+command is a `PageCommand`, a halt is `LinkEvent.halt`, a collision is recorded in one place,
+and an upload is decided (layout or part) by the session."""
+
+from __future__ import annotations
+
+import threading
+from concurrent.futures import wait
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from assistant.session.commands import PageCommand
+from assistant.session.events import CollisionRecorded, Event, RobotHalted
+from assistant.session.session import Session
+from assistant.session.types import HiddenObstacle
+
+ROOT = Path(__file__).resolve().parents[2]
+
+#: Events arrive on the link's thread: waited for with a generous deadline (a busy machine).
+DEADLINE_S = 60.0
+
+
+def _collect(s: Session) -> list[Event]:
+    seen: list[Event] = []
+    s.bus.subscribe(seen.append)
+    return seen
+
+
+@pytest.mark.parametrize("command", [PageCommand.COLLISION, "collision"])
+def test_collision_on_a_standing_robot_is_recorded_once(command):
+    """The enum and the old name do the same; the one record, the count and the event agree."""
+    s = Session()
+    seen = _collect(s)
+    q = s.current_joints()
+    s.fire(command)
+    recorded = [e for e in seen if isinstance(e, CollisionRecorded)]
+    assert len(recorded) == 1 and recorded[0].count == 1 and recorded[0].source == "operator"
+    assert len(s.recorded_collisions) == 1 and s.counters.collision_indications == 1
+    assert np.array_equal(s.recorded_collisions[0], q)  # where the robot stands
+    assert s.recorded_collisions is s.planning.recorded_collisions  # one list, in one part
+
+
+def test_page_commands_are_the_machines_event_names():
+    from workflow.machine import MODE_EVENTS
+
+    modes = {ev for events in MODE_EVENTS.values() for ev, _label in events}
+    assert modes <= {c.value for c in PageCommand}
+    assert {"next", "previous", "exit"} <= {c.value for c in PageCommand}
+
+
+def test_a_halt_is_announced_once_from_the_links_typed_field_and_collision_ends_it():
+    """The page's simulated robot halts against a hidden box on its way and waits; the
+    session learns it from `LinkEvent.halt` (once per halt, however long it stands), and
+    Collision! records that posture once, as the operator's."""
+    s = Session()  # the RV-2AJ
+    s.set_simulation_speed(20.0)
+    q0, q1 = np.radians([-45.0, 45.0, 45.0, 30.0, 0.0]), np.radians([60.0, 45.0, 45.0, 30.0, 0.0])
+    s.jog_joints(q0)  # nothing hidden yet: it gets there
+    mid = s.tcp_world(0.5 * (q0 + q1))  # the box stands on the TCP's way, half-way
+    s.set_hidden_obstacles([HiddenObstacle("crate", "box", (0.08, 0.08, 0.08), mid)])
+    s.set_operator_confirms_contacts(True)
+    halted = threading.Event()
+    seen = _collect(s)
+    s.bus.subscribe(lambda e: isinstance(e, RobotHalted) and halted.set())
+    link_halts = []
+    s.link().subscribe(lambda e: e.halt is not None and link_halts.append(e.halt))
+    fut = s.jog_joints(q1, wait=False)
+    assert halted.wait(DEADLINE_S)
+    wait([fut], timeout=1.5)  # it waits there (longer than its 0.5 s look at the buttons)
+    assert not fut.done() and s.setup.halted
+    s.fire(PageCommand.COLLISION)
+    fut.exception(timeout=DEADLINE_S)
+    halts = [e for e in seen if isinstance(e, RobotHalted)]
+    assert len(halts) == 1 and len(link_halts) == 1
+    assert halts[0].what == link_halts[0].touching and "crate" in halts[0].what
+    recorded = [e for e in seen if isinstance(e, CollisionRecorded)]
+    assert len(recorded) == 1 and recorded[0].source == "operator"
+    assert len(s.recorded_collisions) == 1 and not s.setup.halted
+    s.close()
+
+
+def test_an_upload_is_decided_by_the_session_reading_the_layout_once(monkeypatch):
+    """The thesis' layout DXF is imported as a layout (its parts where drawn, its start and
+    goal taught), a one-part DXF as a part; the session reads each for a layout once."""
+    from assistant.cell.cad import layout as layout_module
+    from assistant.session import layout_part
+
+    reads: list[str] = []
+    real = layout_module.read_layout
+
+    def counted(data: bytes, filename: str):  # noqa: ANN202
+        reads.append(filename)
+        return real(data, filename)
+
+    monkeypatch.setattr(layout_part, "read_layout", counted)
+    s = Session.from_sample("thesis_rv2aj", with_objects=False, with_mission=False)
+    s.goto("cad")
+    dxf = ROOT / "sample_cells" / "thesis_rv2aj" / "dxf"
+    job = s.start_import_file((dxf / "cell_layout.dxf").read_bytes(), "cell_layout.dxf")
+    assert job.layout is not None and set(job.layout.parts) == {"O1", "O2"}
+    objs = job.future.result(timeout=DEADLINE_S)
+    assert sorted(o.name for o in objs) == ["O1", "O2"]
+    assert s.mission.start is not None and s.mission.start.name == "P1"
+    assert s.mission.goal is not None and s.mission.goal.name == "P10"
+    part = s.start_import_file((dxf / "O1.dxf").read_bytes(), "O1.dxf")
+    assert part.layout is None
+    obj, cad = part.future.result(timeout=DEADLINE_S)
+    assert obj.name in s.cell.objects and cad.units == "mm"
+    assert reads == ["cell_layout.dxf", "O1.dxf"]
