@@ -135,6 +135,7 @@ class SetupPart:
         return check_link(self._core.link_settings, self._core.robot, log_dir=self.link_log_dir())
 
     def drop_link(self) -> None:
+        """Close the link (it is made again on next use), keeping where the robot stands."""
         if self.robot_link is not None:
             with contextlib.suppress(Exception):
                 self.q_sim = np.asarray(self.robot_link.current_joints(), dtype=float)
