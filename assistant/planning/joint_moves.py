@@ -29,6 +29,8 @@ Array = np.ndarray
 
 #: Arm travel (m) between the samples of the coarse screen of many candidate moves.
 SCREEN_STEP = 0.04
+#: Moves screened in one call when the first of them is asked for (`_Moves.prefetch`).
+SCREEN_BATCH = 8
 
 
 @dataclass(frozen=True)
@@ -88,23 +90,36 @@ class _Moves:
         #: measured on the real shapes (at most `exact_budget` times): one that keeps the
         #: target scores it (`FastChecker.keeps_clearance`).
         self.target, self.exact_left = target, exact_budget
+        #: Moves handed to `prefetch` and not screened yet, in the order handed.
+        self._pending: dict[bytes, tuple[Array, Array]] = {}
 
     def prefetch(self, pairs: list[tuple[Array, Array]]) -> None:
-        """Screen many moves in one batched call at a coarse step (`motions_free`): those
-        it finds colliding score -1 from now on without their own check."""
-        todo = [(a, b) for a, b in pairs
-                if np.concatenate([a, b]).tobytes() not in self._seen]
-        if not todo:
-            return
+        """Moves to screen at a coarse step (`motions_free`) before their own check: those
+        it finds colliding score -1 without it. The screen runs when a move is first
+        asked for, in one batched call with the next `SCREEN_BATCH` - 1 moves handed here
+        after it: a search that stops at its first good via screens only the moves up
+        to it (a move's screen does not depend on the moves it is screened with)."""
+        for a, b in pairs:
+            key = np.concatenate([a, b]).tobytes()
+            if key not in self._seen:
+                self._pending.setdefault(key, (a, b))
+
+    def _screen(self, key: bytes) -> None:
+        """The coarse screen of the pending move `key` and the pending moves after it."""
+        keys = list(self._pending)
+        batch = keys[keys.index(key):][:SCREEN_BATCH]
+        todo = [self._pending.pop(k) for k in batch]
         free = motions_free(self.verifier, np.array([a for a, _ in todo]),
                             np.array([b for _, b in todo]), self.exempt,
                             max_step=SCREEN_STEP)
-        for (a, b), f in zip(todo, free.tolist(), strict=True):
+        for k, f in zip(batch, free.tolist(), strict=True):
             if not f:  # a coarse sample collides: invalid (the others get the fine check)
-                self._seen[np.concatenate([a, b]).tobytes()] = -1.0
+                self._seen[k] = -1.0
 
     def clearance(self, a: Array, b: Array) -> float:
         key = np.concatenate([a, b]).tobytes()
+        if key in self._pending:
+            self._screen(key)
         if key in self._seen:
             return self._seen[key]
         if self.checks >= self.budget:
@@ -228,12 +243,12 @@ def fewest_joint_moves(robot: Robot, traj: Trajectory, verifier: KnownVerifier, 
                               lambda i: min(moves.clearance(a, vias[i]),
                                             moves.clearance(vias[i], b)), target)
 
-        moves.prefetch([(a, v) for v in vias] + [(v, b) for v in vias])
+        moves.prefetch(_via_moves(a, b, vias, vmax))
         k, c = pick(vias) if vias else (0, -1.0)
         if c < target:
             lifted = _lifted(robot, cand[1:-1:2], p.lifts)
             if lifted:
-                moves.prefetch([(a, v) for v in lifted] + [(v, b) for v in lifted])
+                moves.prefetch(_via_moves(a, b, lifted, vmax))
                 k2, c2 = pick(lifted)
                 if c2 > c:
                     vias, k, c = lifted, k2, c2
@@ -350,6 +365,14 @@ def _push_vias(robot: Robot, chain: list[Array], moves: _Moves, rng: np.random.G
             chain[k] = v
         c = moves.chain(chain)
     return chain, c
+
+
+def _via_moves(a: Array, b: Array, vias: list[Array], vmax: Array,
+               ) -> list[tuple[Array, Array]]:
+    """Each via's two moves, the quickest via first (the order `choose_via` asks them)."""
+    order = sorted(range(len(vias)),
+                   key=lambda i: _seconds(a, vias[i], vmax) + _seconds(vias[i], b, vmax))
+    return [m for i in order for m in ((a, vias[i]), (vias[i], b))]
 
 
 def _seconds(a: Array, b: Array, vmax: Array) -> float:
