@@ -90,3 +90,114 @@ def test_move_checks_are_cached_and_bounded():
     assert moves.checks == 3 and len(calls) == 3
     assert moves.clearance(q[2], q[8]) == -1.0 and len(calls) == 3  # over budget: unchecked
     assert moves.chain([q[0], q[5]]) == pytest.approx(0.005)  # checked ones keep scores
+
+
+def test_move_screens_run_when_first_asked(monkeypatch):
+    """`_Moves.prefetch` screens a move when it is first asked for, with the moves handed
+    after it (`SCREEN_BATCH` at a time): a move the screen calls colliding scores -1
+    without its own check, and moves never asked for are never screened."""
+    from types import SimpleNamespace
+
+    from assistant.planning import joint_moves as jm
+
+    screened: list[list[float]] = []
+
+    def screen(verifier, Q0, Q1, exempt, max_step=None):
+        screened.append([float(b[0]) for b in Q1])
+        return np.array([b[0] % 2 == 0 for b in Q1])  # odd targets collide
+
+    monkeypatch.setattr(jm, "motions_free", screen)
+    checks = []
+
+    class Verifier:
+        def check_motion(self, a, b, exempt):
+            checks.append(float(b[0]))
+            return SimpleNamespace(valid=True)
+
+        def min_clearance_along(self, qs, max_step):
+            return 0.02
+
+    moves = jm._Moves(Verifier(), frozenset(), 0.02, budget=100)
+    a = np.zeros(2)
+    q = [np.array([float(i), 0.0]) for i in range(20)]
+    moves.prefetch([(a, v) for v in q])
+    assert not screened  # nothing asked yet
+    assert moves.clearance(a, q[2]) == pytest.approx(0.02)
+    assert screened == [[float(i) for i in range(2, 2 + jm.SCREEN_BATCH)]]
+    assert moves.clearance(a, q[3]) == -1.0 and checks == [2.0]  # screened out: no check
+    assert moves.clearance(a, q[0]) == pytest.approx(0.02)  # before the batch: its own
+    assert screened[-1] == [0.0, 1.0] + [float(i) for i in
+                                         range(2 + jm.SCREEN_BATCH, 8 + jm.SCREEN_BATCH)]
+    assert len(screened) == 2 and sum(map(len, screened)) == 2 * jm.SCREEN_BATCH
+
+
+def _every_via_move(robot, world, q_s, q_g, *, verifier, screen, exempt, clearance,
+                    assembly, label, params, vias=96, exact_vias=3):
+    """`via_move` as it was before its batches: every via's moves screened at once, the
+    durations by numpy's row-wise max, the fine check before the clearance."""
+    from assistant.planning.joint_moves import SCREEN_STEP, motions_free, step_verify
+    from assistant.planning.transfer_forms import _certified, clearance_kept
+
+    _, offsets, Q = world.cell_positions_shared()
+    vmax = np.maximum(robot.limits.velocity, 1e-6)
+    dur = (np.abs(Q - q_s) / vmax).max(axis=1) + (np.abs(q_g - Q) / vmax).max(axis=1)
+    starts = offsets[:-1][np.diff(offsets) > 0]
+    ends = np.r_[starts[1:], len(dur)]
+    best = np.minimum.reduceat(dur, starts)
+    n = min(len(best), vias)
+    top = np.argpartition(best, n - 1)[:n] if n < len(best) else np.arange(len(best))
+    top = top[np.argsort(best[top], kind="stable")]
+    V = Q[[starts[i] + int(np.argmin(dur[starts[i]:ends[i]])) for i in top.tolist()]]
+    A, B = np.repeat(q_s[None], len(V), 0), np.repeat(q_g[None], len(V), 0)
+    free = motions_free(screen, np.concatenate([A, V]), np.concatenate([V, B]), exempt,
+                        max_step=SCREEN_STEP)
+    step, near = step_verify(params), []
+    for v in V[free[:len(V)] & free[len(V):]]:
+        if not motions_free(screen, np.stack([q_s, v]), np.stack([v, q_g]), exempt).all():
+            continue
+        if screen.min_clearance_along([q_s, v, q_g], max_step=step) < clearance:
+            near.append(v)
+            continue
+        got = _certified(robot, [q_s, v, q_g], verifier, assembly, label)
+        if got is not None:
+            return got
+    for v in near[:exact_vias]:
+        if clearance_kept(screen, [q_s, v, q_g], clearance, step)[0]:
+            got = _certified(robot, [q_s, v, q_g], verifier, assembly, label)
+            if got is not None:
+                return got
+    return None
+
+
+def test_batched_via_search_chooses_the_via_of_screening_every_via(scenario, robot):
+    """`transfer_forms.via_move` screens its vias in doubling batches and stops at the first
+    that keeps the clearance: on the thesis cell it returns the same two moves as the
+    search that screened all of them first, for transfers whose straight move is blocked."""
+    from planning_fixtures import make_planner
+
+    from assistant.planning.transfer_forms import via_move
+
+    mp = make_planner(robot, scenario.known_obstacles())
+    rng = np.random.default_rng(57)
+    lim = robot.limits
+    found = tried = 0
+    for _ in range(400):
+        if tried == 8:
+            break
+        q_s, q_g = rng.uniform(lim.lower, lim.upper, (2, robot.dof))
+        if not (mp.checker.is_valid(q_s) and mp.checker.is_valid(q_g)
+                and mp._terminals_ok(q_s, q_g)) or \
+                mp.checker.first_invalid_fraction(q_s, q_g) is None:
+            continue
+        tried += 1
+        args = mp._form_args(q_s, "T")
+        got = via_move(robot, mp.world, q_s, q_g, **args)
+        want = _every_via_move(robot, mp.world, q_s, q_g, **args)
+        assert (got is None) == (want is None)
+        if got is None:
+            continue
+        found += 1
+        # same process, same code on the same via: the same numbers
+        assert np.array_equal(got.trajectory.motions[0].target.q,
+                              want.trajectory.motions[0].target.q)
+    assert tried == 8 and found >= 2  # blocked transfers, some of them with a via
