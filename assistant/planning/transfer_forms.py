@@ -12,8 +12,9 @@ scan per candidate (seconds on a URDF arm, 35-40 ms on the RV-2AJ). Here:
    form search.
 2. `via_move` (6- and 7-axis arms): two joint moves through one of the world's valid
    joint positions - the quickest whose two moves the fast model finds free and clear, the
-   candidates' moves checked in one batched call per round. A wall between start and goal
-   is passed over or round in two moves, without a search.
+   candidates' moves screened in batched calls, quickest first, until one keeps the
+   clearance. A wall between start and goal is passed over or round in two moves, without
+   a search.
 3. `moves_along`: the searched path's fewest joint moves that keep the clearance
    (`joint_moves.fewest_joint_moves`, every candidate scored on the fast model), certified
    by the exact check of the chosen moves.
@@ -109,11 +110,12 @@ def via_move(robot: Robot, world: WorldModel, q_s: Array, q_g: Array, *,
 
     The vias are screened in batches that double from `batch` (one coarse call each), and
     the first via that keeps the clearance ends the search: on the planning benchmark the
-    answer is most often among the first ten, and a screen of all 96 cost a third of a
-    query. Each survivor's clearance (one capsule pass) comes before its fine check: most
-    survivors the fine check passes are nearer than the clearance, and those only matter
-    for the `exact_vias` quickest, checked finely at the end. The order of the checks and
-    their answers are those of a screen of every via: the same via is chosen."""
+    answer is most often among the first ten, and the screen of all 96 with the
+    durations' row-wise max took a third of the queries' time (py-spy). Each survivor's
+    clearance (one capsule pass) comes before its fine check: most survivors the fine
+    check passes are nearer than the clearance, and those only matter for the
+    `exact_vias` quickest, checked finely at the end. Every via gets the answers a screen
+    of all of them gave it, in the same order: the same via is chosen."""
     _, offsets, Q = world.cell_positions_shared()
     if not len(Q):
         return None
