@@ -204,20 +204,8 @@ class SessionCore(PartContract):
             else:
                 self.machine.begin_busy(task)
         self.emit_state()
-
-        def done(fut: Future) -> None:
-            with self.lock:
-                self.machine.end_mode()
-                exc = fut.exception()
-                if exc is not None and not isinstance(exc, Cancelled):
-                    self.error(f"{task}: {exc}", hint_for(exc))
-                elif isinstance(exc, Cancelled):
-                    self.bus.emit(Notice(f"{task} cancelled; nothing was lost"))
-                self.saving.autosave()
-            self.emit_state()
-
         try:
-            return self.worker.submit(task, fn, done)
+            return self.worker.submit(task, fn, self._ended(task, say_cancelled=True))
         except RuntimeError:
             with self.lock:
                 self.machine.end_mode()
@@ -231,6 +219,12 @@ class SessionCore(PartContract):
         with self.lock:
             self.machine.begin_moving()
         self.emit_state()
+        return self.worker.submit(task, fn, self._ended(task, say_cancelled=False))
+
+    def _ended(self, task: str, *, say_cancelled: bool) -> Callable[[Future], None]:
+        """The worker's callback when `task` ends: the mode ends, an error is shown (a
+        cancel is not an error; long work says it was cancelled, a stopped motion needs no
+        word), and the session is saved."""
 
         def done(fut: Future) -> None:
             with self.lock:
@@ -238,10 +232,12 @@ class SessionCore(PartContract):
                 exc = fut.exception()
                 if exc is not None and not isinstance(exc, Cancelled):
                     self.error(f"{task}: {exc}", hint_for(exc))
+                elif isinstance(exc, Cancelled) and say_cancelled:
+                    self.bus.emit(Notice(f"{task} cancelled; nothing was lost"))
                 self.saving.autosave()
             self.emit_state()
 
-        return self.worker.submit(task, fn, done)
+        return done
 
     def error(self, message: str, hint: str = "") -> None:
         """Say an error (`ErrorRaised`), keeping the last one."""

@@ -15,7 +15,9 @@ from assistant.links.timing import VirtualClock
 from assistant.planning.config import MissionPlannerConfig
 from assistant.planning.mission_planner import MissionPlanner
 from assistant.roadmap.planner import RoadmapConfig, RoadmapPlanner
-from assistant.robots.model import CollisionShape, Robot, ShapeKind
+from assistant.robots.catalog import installed_robot_urdf
+from assistant.robots.model import CollisionShape, Robot, ShapeKind, Tool
+from assistant.robots.urdf_robot import URDFRobot
 from assistant.trajectory.elastic_net import ElasticNetParams
 from assistant.transforms import make_T
 from assistant.world.model import WorldConfig, WorldModel
@@ -33,6 +35,16 @@ FAST = MissionPlannerConfig(
 def box(name: str, centre: Sequence[float], size: Sequence[float]) -> Obstacle:
     return Obstacle(name, make_T(p=np.asarray(centre, dtype=float)),
                     (CollisionShape(ShapeKind.BOX, tuple(float(v) for v in size)),))
+
+
+UR5 = "example-robot-data/robots/ur_description/urdf/ur5_robot.urdf"
+
+
+def ur5_with_tool() -> URDFRobot:
+    """The UR5 of example-robot-data with a 100 mm straight tool, no visual meshes."""
+    path, share = installed_robot_urdf(UR5)
+    return URDFRobot.from_file(path, package_dirs=[share], tool_link="tool0",
+                               load_visual=False).with_tool(Tool.straight(0.1))
 
 
 def make_planner(robot: Robot, obstacles: Sequence, *, world: WorldConfig = COARSE,

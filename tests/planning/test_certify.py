@@ -5,31 +5,19 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from planning_fixtures import box as _box
+from planning_fixtures import ur5_with_tool
 
 from assistant.collision.checker import CollisionChecker
-from assistant.collision.reports import Obstacle
 from assistant.planning import MissionPlanner
 from assistant.roadmap.planner import RoadmapPlanner
-from assistant.robots.catalog import installed_robot_urdf
-from assistant.robots.model import CollisionShape, ShapeKind, Tool
-from assistant.robots.urdf_robot import URDFRobot
 from assistant.world.model import WorldConfig, WorldModel
 from assistant.world.reachability import ReachabilityConfig
-
-UR5 = "example-robot-data/robots/ur_description/urdf/ur5_robot.urdf"
-
-
-def _box(name: str, centre, size) -> Obstacle:
-    T = np.eye(4)
-    T[:3, 3] = centre
-    return Obstacle(name, T, (CollisionShape(ShapeKind.BOX, tuple(size)),))
 
 
 @pytest.fixture(scope="module")
 def cell():
-    path, share = installed_robot_urdf(UR5)
-    ur5 = URDFRobot.from_file(path, package_dirs=[share], tool_link="tool0",
-                              load_visual=False).with_tool(Tool.straight(0.1))
+    ur5 = ur5_with_tool()
     obstacles = [_box("table", (0.2, 0.0, -0.011), (1.2, 1.2, 0.02)),
                  _box("post", (0.45, 0.0, 0.3), (0.08, 0.08, 0.6))]
     cfg = WorldConfig.for_robot(ur5, reach=ReachabilityConfig(samples=1 << 15,
