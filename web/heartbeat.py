@@ -68,6 +68,7 @@ class Heartbeat:
         while True:
             await asyncio.sleep(PING_S)
             now = time.monotonic()
+            late = now - last_tick - PING_S
             stalled = now - last_tick > STALL_S
             last_tick = now
             holder = self._hold.state.holder
@@ -84,7 +85,11 @@ class Heartbeat:
                 with contextlib.suppress(Exception):  # a closing socket: `left` comes next
                     waiter = await conn.ping()
                     waiter.add_done_callback(lambda f, h=holder: self._pong(h, f))
-            silent = now - self._last_pong.get(holder, now) > SILENT_S
+            age = now - self._last_pong.get(holder, now)
+            silent = age > SILENT_S
+            if silent and self._hold.state.present:
+                log.warning("holder %s silent: no answer for %.2f s (loop tick %.2f s late)",
+                            holder, age, late)
             self._hold.heard(holder, not silent)
 
     async def _watch_close(self, holder: int, conn: Any) -> None:
