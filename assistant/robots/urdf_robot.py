@@ -14,7 +14,6 @@ primitives, not as pinocchio geometry objects.
 from __future__ import annotations
 
 import hashlib
-import io
 import json
 import threading
 from collections.abc import Mapping, Sequence
@@ -24,9 +23,8 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import trimesh
-from lxml import etree
 
-from assistant.file_guard import FileRefused, check_archive, read_file, xml_parser
+from assistant.file_guard import FileRefused, read_file
 from assistant.robots.batch_chain import BatchChain, ChainJoint
 from assistant.robots.errors import RobotModelError
 from assistant.robots.model import (
@@ -35,23 +33,18 @@ from assistant.robots.model import (
     JointLimits,
     LinkGeometry,
     Robot,
-    ShapeKind,
     Tool,
 )
 from assistant.robots.urdf_ik import DLSInverseKinematics
+from assistant.robots.urdf_meshes import collision_shape, visual_mesh
 from assistant.robots.urdf_parse import (
     _ACTUATED,
     COLLISION_FACE_LIMIT,
-    CONTINUOUS_RANGE,
-    MAX_MESH_BYTES,
     MAX_URDF_BYTES,
     TCP_FRAME,
     URDFDocument,
-    URDFGeometry,
     URDFJoint,
-    URDFLink,
     parse_urdf,
-    read_mesh_bytes,
     resolve_mesh_path,
 )
 from assistant.transforms import inv_T
@@ -344,10 +337,10 @@ class URDFRobot(DLSInverseKinematics, Robot):
                 T_owner_link = T_owner_root @ self._T_root_body[name]
                 link = doc.links[name]
                 for g in link.collisions:
-                    shapes.append(self._shape(g, link, T_owner_link))
+                    shapes.append(collision_shape(doc, g, link, T_owner_link))
                 if self._load_visual:
                     for g in link.visuals:
-                        visuals.append(self._visual_mesh(g, link, T_owner_link))
+                        visuals.append(visual_mesh(doc, g, link, T_owner_link))
                         if color is None and g.rgba is not None:
                             color = tuple(int(round(255 * float(np.clip(c, 0, 1))))
                                           for c in g.rgba[:3])
@@ -361,51 +354,6 @@ class URDFRobot(DLSInverseKinematics, Robot):
             out.append(LinkGeometry(chain_link_names[idx], tuple(shapes), visual,
                                     color or (220, 220, 220)))
         return out
-
-    def _mesh(self, g: URDFGeometry, link: URDFLink, collision: bool) -> trimesh.Trimesh:
-        doc = self._doc
-        key = (g.path, collision)
-        with doc.lock:
-            cached = doc.meshes.get(key)
-        if cached is not None:
-            return cached
-        where = f"{doc.where(g.line)}: link {link.name!r}"
-        data = read_mesh_bytes(g.path, where)
-        suffix = g.path.suffix.lower().lstrip(".")
-        try:
-            if suffix == "dae":
-                _check_collada(data)
-            mesh = trimesh.load(io.BytesIO(data), file_type=suffix, force="mesh",
-                                resolver=trimesh.resolvers.FilePathResolver(g.path))
-        except Exception as e:  # trimesh raises many types for broken files
-            raise RobotModelError(f"{where}: cannot load mesh {str(g.path)!r}: {e}") from None
-        if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
-            raise RobotModelError(f"{where}: mesh {str(g.path)!r} has no triangles")
-        if not np.all(np.isfinite(mesh.vertices)):
-            raise RobotModelError(f"{where}: mesh {str(g.path)!r} has NaN/inf vertices")
-        if collision and len(mesh.faces) > COLLISION_FACE_LIMIT:
-            mesh = mesh.convex_hull
-        with doc.lock:
-            doc.meshes[key] = mesh
-        return mesh
-
-    def _shape(self, g: URDFGeometry, link: URDFLink, T_owner_link: Array) -> CollisionShape:
-        T = T_owner_link @ g.T_link_geom
-        if g.kind != ShapeKind.MESH:
-            return CollisionShape(g.kind, g.size, T)
-        mesh = self._mesh(g, link, collision=True)
-        if g.scale != (1.0, 1.0, 1.0):
-            mesh = mesh.copy()
-            mesh.apply_transform(np.diag([*g.scale, 1.0]))
-        return CollisionShape(ShapeKind.MESH, (), T, mesh)
-
-    def _visual_mesh(self, g: URDFGeometry, link: URDFLink, T_owner_link: Array) -> trimesh.Trimesh:
-        if g.kind == ShapeKind.MESH:
-            m = self._mesh(g, link, collision=False).copy()
-            m.apply_transform(np.diag([*g.scale, 1.0]))
-            m.apply_transform(T_owner_link @ g.T_link_geom)
-            return m
-        return CollisionShape(g.kind, g.size, T_owner_link @ g.T_link_geom).to_trimesh()
 
     # ------------------------------------------------------------------ kinematics
     @property
@@ -504,50 +452,12 @@ class URDFRobot(DLSInverseKinematics, Robot):
 
     # ------------------------------------------------------------------ description
     def urdf(self) -> str:
-        """The URDF with absolute mesh paths, the current limits and a fixed `tool` frame.
+        """The URDF with absolute mesh paths, the current limits and a fixed `tool` frame
+        (`urdf_export.robot_urdf`)."""
+        from assistant.robots.urdf_export import robot_urdf
 
-        The tool frame is a link named "tool" (or "cellteach_tool" if "tool" is taken) fixed
-        to `tool_link` at `T_flange_tool`, so a viewer or pinocchio sees the TCP.
-        """
-        root = etree.fromstring(etree.tostring(self._doc.tree))
-        for mesh in root.iter("mesh"):
-            fn = mesh.get("filename")
-            if fn:
-                mesh.set("filename", str(self._resolved(fn)))
-        by_name = {j.get("name"): j for j in root.findall("joint")}
-        for k, name in enumerate(self.joint_names):
-            el = by_name[name]
-            lo, hi = float(self.limits.lower[k]), float(self.limits.upper[k])
-            if el.get("type") == "continuous":
-                if lo == -CONTINUOUS_RANGE and hi == CONTINUOUS_RANGE:
-                    continue
-                el.set("type", "revolute")
-            lim = el.find("limit")
-            if lim is None:
-                lim = etree.SubElement(el, "limit", effort="0",
-                                       velocity=repr(float(self.limits.velocity[k])))
-            lim.set("lower", repr(lo))
-            lim.set("upper", repr(hi))
-        tool_name = "tool" if "tool" not in self._doc.links else "cellteach_tool"
-        joint_name = f"{tool_name}_fixed"
-        while joint_name in self._doc.joints:
-            joint_name = "_" + joint_name
-        etree.SubElement(root, "link", name=tool_name)
-        j = etree.SubElement(root, "joint", name=joint_name, type="fixed")
-        T = self.T_flange_tool
-        rpy = pin.rpy.matrixToRpy(T[:3, :3])
-        etree.SubElement(j, "origin", xyz=" ".join(repr(float(v)) for v in T[:3, 3]),
-                         rpy=" ".join(repr(float(v)) for v in rpy))
-        etree.SubElement(j, "parent", link=self.tool_link)
-        etree.SubElement(j, "child", link=tool_name)
-        return '<?xml version="1.0"?>\n' + etree.tostring(root, encoding="unicode")
-
-    def _resolved(self, filename: str) -> Path:
-        for link in self._doc.links.values():
-            for g in link.visuals + link.collisions:
-                if g.filename == filename and g.path is not None:
-                    return g.path
-        raise KeyError(filename)
+        return robot_urdf(self._doc, self.joint_names, self.limits, self.T_flange_tool,
+                          self.tool_link)
 
     @property
     def model_limits(self) -> JointLimits:
@@ -607,18 +517,3 @@ def _default_tool_link(doc: URDFDocument, base: str) -> str:
 
 
 __all__ = ["COLLISION_FACE_LIMIT", "IKSettings", "TCP_FRAME", "URDFRobot", "resolve_mesh_path"]
-
-
-def _check_collada(data: bytes) -> None:
-    """A COLLADA mesh through `file_guard`'s rules before pycollada reads it (which parses
-    in libxml2's huge-tree mode and inflates zipped .dae files whole): a zip's directory
-    within limits, the XML nested at most 256 deep, without entities or DTDs."""
-    import zipfile
-
-    if data[:2] == b"PK":
-        with zipfile.ZipFile(io.BytesIO(data)) as zf:
-            members = check_archive(zf.infolist(), what="zipped COLLADA file",
-                                    max_total=MAX_MESH_BYTES)
-            dae = [m for m in members if m.filename.lower().endswith(".dae")]
-            data = zf.read(dae[0]) if dae else b""
-    etree.fromstring(data, xml_parser())
