@@ -443,3 +443,17 @@ class PlanningPart:
         grid = b.world.grid
         T = self._core.T_world_base()
         return grid.centres_of_ijk(ijk) @ T[:3, :3].T + T[:3, 3], float(grid.leaf)
+
+    def learnt_indications(self) -> list[str]:
+        """The collision indications the world model holds, numbered as `forget_indication`
+        takes them, in the operator's words: where the tool stood (world frame, mm) and
+        what was learnt there."""
+        b = self.backend if self.world_ready else None
+        if b is None:
+            return []
+        out = []
+        for i, rc in enumerate(b.world.collisions):
+            x, y, z = (round(float(v)) for v in self._core.tcp_world(rc.q)[:3, 3] * 1000.0)
+            out.append(f"{i + 1}: tool at ({x}, {y}, {z}) mm - "
+                       f"{b.world.describe_region(i)}")
+        return out

@@ -181,6 +181,7 @@ class Session(SessionCore):
     drive_final = hand_over("planning", PlanningPart.drive_final)
     final_driven = hand_over("planning", PlanningPart.final_driven)
     forget_indication = hand_over("planning", PlanningPart.forget_indication)
+    learnt_indications = hand_over("planning", PlanningPart.learnt_indications)
     start_explore = hand_over("planning", PlanningPart.start_explore)
     explore = hand_over("planning", PlanningPart.explore)
     order_mission = hand_over("planning", PlanningPart.order_mission)

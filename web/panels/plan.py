@@ -62,6 +62,9 @@ SPEEDS = {"0.5x real time": 0.5, "1x real time": 1.0, "2x real time": 2.0,
           "5x real time": 5.0, "20x real time": 20.0}
 
 
+FORGET_HINT = ("Forget what this collision indication taught: plans may pass there again. "
+               "Only when you know nothing is there (a false alarm, an object removed)")
+
 DRIVE_FINAL_HINT = ("Drives the robot from where it stands to the start, then through the "
                     "final program once (drawn in the scene) - to check it on the robot")
 
@@ -96,6 +99,11 @@ class PlanPanel(Panel):
         self.summary = g.add_markdown("")
         with g.add_folder("Planner report", expand_by_default=False):
             self.report = g.add_markdown("")
+        with g.add_folder("Learnt collisions", expand_by_default=False) as self.learnt_folder:
+            self.learnt = g.add_markdown("")
+            self.forget_choice = g.add_dropdown("Indication", ("-",), hint=FORGET_HINT)
+            self.forget = g.add_button("Forget this indication", icon=viser.Icon.ERASER,
+                                       hint=FORGET_HINT)
         self.bind(self.plan, lambda e: self.session.start_plan())
         self.bind(self.execute, lambda e: self.session.start_execute(),
                   motion=True)
@@ -103,6 +111,7 @@ class PlanPanel(Panel):
         self.bind(self.resume, lambda e: self.session.resume_execution(),
                   motion=True)
         self.bind(self.drive_final, lambda e: self.session.start_drive_final(), motion=True)
+        self.bind(self.forget, lambda e: self._forget())
 
     def on_enter(self) -> None:
         """Entering the step plans the mission when there is no plan yet (progress and Cancel
@@ -118,6 +127,23 @@ class PlanPanel(Panel):
         scale = SPEEDS.get(label)
         if scale is not None and scale != self.session.link_settings.time_scale:
             self.session.set_simulation_speed(scale)
+
+    def _forget(self) -> None:
+        number = self.forget_choice.value.split(":", 1)[0]
+        if number.isdigit():
+            self.session.forget_indication(int(number))
+
+    def _refresh_learnt(self, wait: str) -> None:
+        """The learnt indications, numbered as a blocked re-plan names them, and the control
+        that forgets one (the offer a re-plan makes when an inference blocks the goal)."""
+        learnt = self.session.learnt_indications()
+        self.learnt_folder.visible = bool(learnt)
+        _content(self.learnt, "\n\n".join(f"<small>{t}</small>" for t in learnt))
+        options = tuple(learnt) or ("-",)
+        if tuple(self.forget_choice.options) != options:
+            self.forget_choice.options = options
+        gate(self.forget, wait or ("" if learnt else "nothing learnt"), FORGET_HINT)
+        gate(self.forget_choice, wait, FORGET_HINT)
 
     def refresh(self) -> None:
         s = self.session
@@ -172,6 +198,7 @@ class PlanPanel(Panel):
                                   if x) + "\n\n"
         self.summary.content = outcome + plan_text + learnt
         self.report.content = report_markdown(s.plan_report)
+        self._refresh_learnt(wait)
 
     def on_event(self, ev: Event) -> None:
         if isinstance(ev, (StateChanged, PlanReady, CollisionRecorded, ErrorRaised,
