@@ -8,7 +8,7 @@ import time
 
 import numpy as np
 
-from assistant.session.events import CollisionRecorded, RobotMoved
+from assistant.session.events import CollisionRecorded, Notice, RobotMoved
 
 #: A taught location is reached within this (m): the arm stops on it to well under 1 mm.
 AT_M = 0.001
@@ -18,13 +18,15 @@ REVISIT_M = 0.005
 
 
 class Watch:
-    """Every pose the session publishes (wall time, TCP in the world) and every Collision!."""
+    """Every pose the session publishes (wall time, TCP in the world), every Collision! and
+    every notice (a failed run's message then says why the robot stopped)."""
 
     def __init__(self, session) -> None:
         self.robot = session.robot
         self.T_wb = session.T_world_base()
         self.poses: list[tuple[float, np.ndarray]] = []
         self.collisions: list[float] = []
+        self.notices: list[str] = []
         session.bus.subscribe(self._on)
 
     def _on(self, ev: object) -> None:
@@ -33,6 +35,8 @@ class Watch:
             self.poses.append((time.monotonic(), p[:3]))
         elif isinstance(ev, CollisionRecorded):
             self.collisions.append(time.monotonic())
+        elif isinstance(ev, Notice):
+            self.notices.append(ev.message)
 
 
 def taught_points(session) -> dict[str, np.ndarray]:

@@ -57,7 +57,7 @@ def test_after_the_last_collision_nothing_is_repeated_and_1x_is_the_programs_pac
     while len(watch.poses) == n_before or session.machine.mode != Mode.IDLE:
         assert time.monotonic() < deadline, "the final program was not driven to its end"
         time.sleep(0.1)
-    assert session.final_driven() is True, session.last_run
+    assert session.final_driven() is True, (session.last_run, watch.notices[-5:])
     ui.click("Next")
     ui.wait_enabled("Download", timeout=LONG_MS)
     predicted = session.program.cycle_time.total_s
