@@ -9,8 +9,10 @@ end of its websocket is the `left` event, told from here the moment the socket c
 viser tears the client down and calls its disconnect callbacks, a few steps later).
 
 Behind the gate the front passes pings and pongs through (`web.gate.front`), so the ping
-reaches the browser, not the front. If the page server itself was stalled (a busy machine:
-the pinging loop ran late), the silence is the server's, not the page's: the clock restarts.
+reaches the browser, not the front. Silence is counted in the time the server could have
+heard an answer (`SilenceClock`): whenever the pinging loop runs late (a busy machine), that
+lateness is the server's, not the page's, and is not counted - one stall or many small ones.
+A page that is gone is still known silent `SILENT_S` after its last answer on an idle server.
 
 This reads viser's live connections (a viser internal, like `web.uploads`): if they move, the
 pings fail and the holder counts as silent - it fails safe (the robot does not move).
@@ -22,6 +24,7 @@ import asyncio
 import contextlib
 import logging
 import time
+from dataclasses import dataclass
 from typing import Any
 
 from assistant.session.motion_hold import MotionHold
@@ -32,8 +35,26 @@ log = logging.getLogger(__name__)
 PING_S = 0.1
 #: No answer for this long: the holder's page is silent and the robot stops (s).
 SILENT_S = 0.5
-#: The pinging loop itself ran this late: the server was stalled, not the page (s).
-STALL_S = 0.25
+
+
+@dataclass
+class SilenceClock:
+    """How long the holder's page has not answered, less the time the server itself was
+    late (its loop could not have handled an answer then)."""
+
+    #: When the page last answered (or became the holder), monotonic s.
+    last: float
+    #: The server loop's lateness since then (s).
+    owed: float = 0.0
+
+    def answered(self, now: float) -> None:
+        self.last, self.owed = now, 0.0
+
+    def server_late(self, by: float) -> None:
+        self.owed += max(0.0, by)
+
+    def silent_for(self, now: float) -> float:
+        return now - self.last - self.owed
 
 
 class Heartbeat:
@@ -42,7 +63,7 @@ class Heartbeat:
     def __init__(self, server: Any, hold: MotionHold):
         self._ws = server._websock_server  # noqa: SLF001 - see the module docstring
         self._hold = hold
-        self._last_pong: dict[int, float] = {}
+        self._clock: dict[int, SilenceClock] = {}
         self._task: Any = None
         self._watched: int | None = None
 
@@ -69,14 +90,15 @@ class Heartbeat:
             await asyncio.sleep(PING_S)
             now = time.monotonic()
             late = now - last_tick - PING_S
-            stalled = now - last_tick > STALL_S
             last_tick = now
             holder = self._hold.state.holder
             if holder is None:
-                self._last_pong.clear()
+                self._clock.clear()
                 continue
-            if stalled or holder not in self._last_pong:
-                self._last_pong = {holder: now}  # a new holder, or our own late tick
+            if holder not in self._clock:
+                self._clock = {holder: SilenceClock(now)}  # a new holder
+            else:
+                self._clock[holder].server_late(late)
             conn = self._connection(holder)
             if conn is not None and self._watched != holder:
                 self._watched = holder
@@ -85,11 +107,11 @@ class Heartbeat:
                 with contextlib.suppress(Exception):  # a closing socket: `left` comes next
                     waiter = await conn.ping()
                     waiter.add_done_callback(lambda f, h=holder: self._pong(h, f))
-            age = now - self._last_pong.get(holder, now)
-            silent = age > SILENT_S
+            clock = self._clock[holder]
+            silent = clock.silent_for(now) > SILENT_S
             if silent and self._hold.state.present:
-                log.warning("holder %s silent: no answer for %.2f s (loop tick %.2f s late)",
-                            holder, age, late)
+                log.warning("holder %s silent: no answer for %.2f s, %.2f s of it the server's",
+                            holder, now - clock.last, clock.owed)
             self._hold.heard(holder, not silent)
 
     async def _watch_close(self, holder: int, conn: Any) -> None:
@@ -101,5 +123,6 @@ class Heartbeat:
                 asyncio.get_running_loop().run_in_executor(None, self._hold.left, holder)
 
     def _pong(self, holder: int, answered: Any) -> None:
-        if not answered.cancelled() and answered.exception() is None:  # not a closed socket
-            self._last_pong[holder] = time.monotonic()
+        clock = self._clock.get(holder)
+        if clock is not None and not answered.cancelled() and answered.exception() is None:
+            clock.answered(time.monotonic())  # (not a closed socket)
