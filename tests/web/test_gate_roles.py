@@ -147,6 +147,10 @@ def test_only_the_holder_of_motion_authority_moves_the_robot(gated):
             assert await wait_for(lambda: session.counters.collision_indications == 1)
             assert await wait_for(lambda: session.machine.mode.value == "idle")
             # Back the other way, and A presses Stop in the toolbar: it stops short of -120.
+            # A fiftieth of real speed (the jog takes ~40 s): Stop lands mid-move even when
+            # the toolbar enables it seconds late (seen at load 10 with a tenth: the 8 s jog
+            # had ended before Stop arrived).
+            session.set_simulation_speed(0.02)
             await set_j1(b, -120.0)
             await b.send(click(uuid_of(jog.move)))
             assert await wait_for(lambda: session.machine.mode.value == "moving")
