@@ -174,6 +174,16 @@ class MelfaStreaming:
         finally:
             poller.close()
 
+    def _data_link_failed(self, poller: StatusPoller, exc: Exception) -> LinkLost:
+        """The data link failed under the stream: when the status poll lost the link first
+        (it closes both sockets, so the stream's next read fails on a closed one), its
+        reason is the operator's ("no reply to 'STATE' within 0.30 s"), not the closed
+        socket's."""
+        poller.close()  # the poll thread ends right after it records its failure
+        if isinstance(poller.failure, LinkLost):
+            return poller.failure
+        return self._lost(f"data link failed: {exc}")
+
     def _stream_loop(self, dl: socket.socket, targets: Array, index: Array, path: Array,
                      poller: StatusPoller, t0: float) -> LinkEvent:
         n = len(targets)
@@ -213,7 +223,7 @@ class MelfaStreaming:
             try:
                 ready, _, _ = select.select([dl], [], [], wait)
             except (OSError, ValueError) as exc:
-                raise self._lost(f"data link failed: {exc}") from None
+                raise self._data_link_failed(poller, exc) from None
             if not ready:
                 continue
             try:
@@ -221,7 +231,7 @@ class MelfaStreaming:
             except TimeoutError:
                 continue
             except OSError as exc:
-                raise self._lost(f"data link failed: {exc}") from None
+                raise self._data_link_failed(poller, exc) from None
             if not chunk:
                 raise self._lost("controller closed the data link")
             self._dl_buf += chunk

@@ -231,3 +231,25 @@ def test_operator_button_while_streaming_and_when_idle(start):
     assert events[-1].kind == LinkEventKind.COLLISION_INDICATED
     assert np.allclose(events[-1].q, ev.q)
     assert link.move_path(np.array([HOME])).kind == LinkEventKind.REACHED
+
+
+def test_a_stream_lost_by_its_status_poll_says_the_polls_reason(fast_robot):
+    """The status poll runs in its own thread; when it loses the link it closes both sockets,
+    and the stream's next read fails on a closed one ("file descriptor cannot be a negative
+    integer", seen under load in `test_late_replies_past_the_timeout`). The operator is told
+    the poll's reason, not the closed socket's."""
+
+    class LostPoll:
+        failure = LinkLost("MELFA link to 127.0.0.1:1 lost: no reply to 'DSTATE' within 0.30 s")
+        closed = False
+
+        def close(self) -> None:
+            self.closed = True
+
+    link = MelfaLink(fast_robot, port=1, datalink_port=2)
+    poll = LostPoll()
+    lost = link._data_link_failed(poll, ValueError("file descriptor cannot be a negative"))
+    assert poll.closed and lost is LostPoll.failure
+    poll.failure = None
+    lost = link._data_link_failed(poll, OSError("reset by peer"))
+    assert isinstance(lost, LinkLost) and "data link failed: reset by peer" in str(lost)
