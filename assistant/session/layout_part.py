@@ -121,14 +121,11 @@ class LayoutPart:
                         loc.name, pose_from_mm_deg(pose), LocationSource.CAD_FILE, None, 0.0)
                 except UnreachableError as exc:
                     raise SessionError(f"location {loc.name}: {exc}") from exc
-                self._core.teaching.relink_mission(loc.name)
                 if loc.role == "start":
-                    self._core.mission = replace(self._core.mission,
-                                                 start=self._core.locations[loc.name],
+                    self._core.mission = replace(self._core.mission, start=loc.name,
                                                  order=None)
                 elif loc.role == "goal":
-                    self._core.mission = replace(self._core.mission,
-                                                 goal=self._core.locations[loc.name],
+                    self._core.mission = replace(self._core.mission, goal=loc.name,
                                                  order=None)
         for note in layout.notes:
             self._core.bus.emit(Notice(f"{filename}: {note}"))

@@ -188,7 +188,8 @@ class PlanningPart:
         self.last_run = None  # planned again: the last run's outcome is history
         backend = self._backend(progress.sub(0.0, 0.3, "world model"))
         planner = self._mission_planner(backend)
-        plan = planner.plan_mission(self._core.mission, self._core.T_world_base(),
+        plan = planner.plan_mission(self._core.teaching.resolved_mission(),
+                                    self._core.T_world_base(),
                                     self._core.current_joints(),
                                     progress.sub(0.3, 1.0, "plan"))
         with self._core.lock:
@@ -313,7 +314,7 @@ class PlanningPart:
         link = self._core.setup.link()
         ex = self._executor(backend, link)
         t0 = time.perf_counter()
-        report = ex.run(self._core.mission, self._core.T_world_base(),
+        report = ex.run(self._core.teaching.resolved_mission(), self._core.T_world_base(),
                         progress.sub(0.1, 1.0, "execute"))
         return self._after_execution(report, time.perf_counter() - t0)
 
@@ -390,7 +391,7 @@ class PlanningPart:
         with self._core.action("order the mission", EDIT_MISSION, scene="mission"):
             if self._core.mission.start is None or self._core.mission.goal is None:
                 raise SessionError("The mission needs a start and a goal")
-            ordering = order_mission(self._core.mission)
+            ordering = order_mission(self._core.teaching.resolved_mission())
             self._core.mission = replace(self._core.mission, order=list(ordering.order))
         return [self._core.mission.paths[i].name for i in ordering.order]
 

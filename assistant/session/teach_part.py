@@ -15,6 +15,7 @@ from assistant.mission.model import (
     ApplicationPath,
     Location,
     LocationSource,
+    ResolvedMission,
     SegmentKind,
 )
 from assistant.mission.motion import ToolAction
@@ -69,8 +70,7 @@ class TeachPart:
                                      uncertainty_m)
             if name in self._core.locations and not replace_existing:
                 raise SessionError(f"a location named {name!r} exists already")
-            self._core.locations[name] = loc
-            self.relink_mission(name)
+            self._core.locations[name] = loc  # the mission names it: nothing else to update
         return self._core.locations[name]
 
     def make_location(self, name: str, T_world_tool: Array, source: LocationSource,
@@ -265,33 +265,33 @@ class TeachPart:
     def _location_uses(self, name: str) -> list[str]:
         uses = []
         m = self._core.mission
-        if m.start is not None and m.start.name == name:
+        if m.start == name:
             uses.append("the mission start")
-        if m.goal is not None and m.goal.name == name:
+        if m.goal == name:
             uses.append("the mission goal")
         return uses
-
-    def relink_mission(self, name: str) -> None:
-        """A re-taught location updates the mission's start/goal that refer to it."""
-        from dataclasses import replace
-
-        loc = self._core.locations[name]
-        if self._core.mission.start is not None and self._core.mission.start.name == name:
-            self._core.mission = replace(self._core.mission, start=loc)
-        if self._core.mission.goal is not None and self._core.mission.goal.name == name:
-            self._core.mission = replace(self._core.mission, goal=loc)
 
     def set_start(self, name: str) -> None:
         from dataclasses import replace
 
         with self._core.action("set the mission start", EDIT_MISSION, scene="mission"):
-            self._core.mission = replace(self._core.mission, start=self.location(name), order=None)
+            self._core.mission = replace(self._core.mission, start=self.location(name).name,
+                                         order=None)
 
     def set_goal(self, name: str) -> None:
         from dataclasses import replace
 
         with self._core.action("set the mission goal", EDIT_MISSION, scene="mission"):
-            self._core.mission = replace(self._core.mission, goal=self.location(name), order=None)
+            self._core.mission = replace(self._core.mission, goal=self.location(name).name,
+                                         order=None)
+
+    def resolved_mission(self) -> ResolvedMission:
+        """The mission with its start and goal looked up in the session's locations, as they
+        are now: what planning, the ordering and a study take (`Mission.resolve`)."""
+        try:
+            return self._core.mission.resolve(self._core.locations)
+        except ValueError as exc:
+            raise SessionError(str(exc)) from None
 
     def location(self, name: str) -> Location:
         if name not in self._core.locations:

@@ -95,7 +95,7 @@ def test_the_session_imports_a_layout_in_one_undoable_action(tmp_path):
     objs = s.import_layout_path(LAYOUT)
     assert [o.name for o in objs] == ["O1", "O2"]
     np.testing.assert_allclose(s.cell.objects["O1"].T_world_object, np.eye(4))  # as drawn
-    assert s.mission.start.name == "P1" and s.mission.goal.name == "P10"
+    assert s.mission.start == "P1" and s.mission.goal == "P10"
     np.testing.assert_allclose(s.locations["P10"].T_world_tool[:3, 3], [0.08, 0.34, 0.2],
                                atol=1e-12)  # exact mm -> m conversions
     assert s.locations["P1"].source.value == "cad_file"
