@@ -47,9 +47,10 @@ class PlanningPart:
         self.backend_key: tuple | None = None
         #: How the last run ended (`ExecutionFinished.summary`); None when planned since.
         self.last_run: dict | None = None
-        #: Every posture where a collision was indicated, in order: the one record (saved
-        #: with the session; a rebuilt world model learns them again; `forget_indication`
-        #: takes one out). Added to only by `record_collision`.
+        #: Every posture where a collision was indicated, in order: the one record of
+        #: indications (saved with the session; numbers them for `forget_indication`; a
+        #: world model learns them, a rebuilt one again, and keeps only what each taught).
+        #: Added to only by `record_collision`, taken from only by `forget_indication`.
         self.recorded_collisions: list[Array] = []
 
     def record_collision(self, q: Array, source: str, *, learnt_by_run: bool) -> None:
@@ -290,24 +291,27 @@ class PlanningPart:
         return ex
 
     def forget_indication(self, number: int) -> dict:
-        """Forget collision indication `number` (as a run names it, from 1): what it taught
-        leaves the world model, so a plan may pass there again (the operator knows nothing
-        is there)."""
-        b = self.backend if self.world_ready else None
-        count = 0 if b is None else len(b.world.collisions)
-        if b is None or not 1 <= int(number) <= count:
+        """Forget collision indication `number` (from 1, in the order recorded): it leaves
+        the record, so no world model learns it again, and what it taught leaves the world
+        model, so a plan may pass there again (the operator knows nothing is there)."""
+        n = int(number)
+        count = len(self.recorded_collisions)
+        if not 1 <= n <= count:
             raise SessionError(f"no indication {number} to forget: {count} learnt")
         if self._core.machine.busy_task:
             raise SessionError(f"wait for '{self._core.machine.busy_task}' to finish first")
         with self._core.lock:
-            q = b.world.collisions[int(number) - 1].q
-            b.roadmap.forget_collision(int(number) - 1)
-            # and from the session's own record, so a rebuilt world does not learn it again
-            self.recorded_collisions = [r for r in self.recorded_collisions
-                                              if not np.allclose(r, q, atol=1e-9)]
+            q = self.recorded_collisions[n - 1]
+            b = self.backend
+            if b is not None:  # the entry this indication made there (the same posture)
+                again = sum(np.array_equal(r, q) for r in self.recorded_collisions[:n - 1])
+                i = b.world.learnt_from(q, again)
+                if i is not None:
+                    b.roadmap.forget_collision(i)
+            del self.recorded_collisions[n - 1]
             self._core.saving.autosave()
         self._core.bus.emit(SceneChanged("world"))
-        return {"forgotten": int(number), "learnt": len(b.world.collisions)}
+        return {"forgotten": n, "learnt": len(self.recorded_collisions)}
 
     def _execute(self, progress: Progress) -> dict:
         backend = self._backend(progress.sub(0.0, 0.1, "world model"))

@@ -142,7 +142,9 @@ class WorldChange:
 
 @dataclass(frozen=True)
 class RecordedCollision:
-    """A posture the operator flagged (kept for edge checks and for saving the session).
+    """What one collision indication at posture `q` taught this world (for edge checks).
+    The list of indications itself is its user's (the session's record, which a rebuilt
+    world learns again); `learnt_from` finds the entry one of them made.
 
     With a `region` (6- and 7-axis arms, the approach known: `contact_region`) the evidence
     is that region; without, the posture box and the arm's leaves (`indications`)."""
@@ -464,6 +466,13 @@ class WorldModel:
         size = (hi - lo) * 1000.0
         return (f"a region of {size[0]:.0f} x {size[1]:.0f} x {size[2]:.0f} mm around "
                 f"({c[0]:.0f}, {c[1]:.0f}, {c[2]:.0f}) mm (robot base)")
+
+    def learnt_from(self, q: Array, nth: int = 0) -> int | None:
+        """Index of the recorded collision learnt from posture `q` (bit for bit: the same
+        reading), the `nth` such from 0 when that posture was indicated again; None when
+        it made none (it grew an earlier one's region)."""
+        hits = [i for i, rc in enumerate(self.collisions) if np.array_equal(rc.q, q)]
+        return hits[nth] if nth < len(hits) else None
 
     def forget_collision(self, i: int) -> WorldChange:
         """Drop recorded collision i (0-based) and everything it taught."""

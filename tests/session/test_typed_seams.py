@@ -109,3 +109,36 @@ def test_an_upload_is_decided_by_the_session_reading_the_layout_once(monkeypatch
     obj, cad = part.future.result(timeout=DEADLINE_S)
     assert obj.name in s.cell.objects and cad.units == "mm"
     assert reads == ["cell_layout.dxf", "O1.dxf"]
+
+
+def test_the_record_is_the_one_list_of_indications_and_forgetting_follows_it(tmp_path):
+    """`recorded_collisions` numbers, saves and forgets the indications; a world model keeps
+    only what each taught and is asked for the entry one made (the same posture again is a
+    second entry: forgetting the second leaves the first). Forgetting needs no world."""
+    s = Session.from_sample("thesis_rv2aj", tmp_path / "s", with_objects=False,
+                            with_mission=False)
+    s.next()
+    s.add_primitive("box", (0.05, 0.05, 0.05), name="keep",
+                    T_world_object=np.array([[1, 0, 0, 0.5], [0, 1, 0, 0.5],
+                                             [0, 0, 1, 0.025], [0, 0, 0, 1.0]]))
+    s.goto("place")
+    s.build_world()
+    world = s.planning.backend.world
+    a = np.radians([10.0, 20.0, 60.0, 10.0, 0.0])
+    b = np.radians([-30.0, 30.0, 50.0, 20.0, 0.0])
+    for q in (a, b, a):  # a standing robot's Collision!, the one way both paths record
+        s.planning.record_collision(q, "operator", learnt_by_run=False)
+    assert [len(s.recorded_collisions), len(world.collisions)] == [3, 3]
+    first = world.collisions[0]
+    assert s.forget_indication(3) == {"forgotten": 3, "learnt": 2}
+    assert [r.tolist() for r in s.recorded_collisions] == [a.tolist(), b.tolist()]
+    assert len(world.collisions) == 2 and world.collisions[0] is first
+    assert np.array_equal(world.collisions[1].q, b)
+    s.forget_indication(1)
+    assert [r.tolist() for r in s.recorded_collisions] == [b.tolist()]
+    assert [rc.q.tolist() for rc in world.collisions] == [b.tolist()]
+    back = Session.load(s.folder, autosave=False)  # no world model built yet
+    assert [r.tolist() for r in back.recorded_collisions] == [b.tolist()]
+    assert back.forget_indication(1) == {"forgotten": 1, "learnt": 0}
+    with pytest.raises(Exception, match="no indication 1 to forget: 0 learnt"):
+        back.forget_indication(1)
