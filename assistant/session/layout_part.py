@@ -86,7 +86,8 @@ class LayoutPart:
             for i, (name, layer) in enumerate(layout.parts.items()):
                 cads[name] = load_cad(data, filename, units=units, dxf_layer=layer,
                                       progress=progress.sub(i / n, (i + 1) / n,
-                                                            f"part {name}"))
+                                                            f"part {name}"),
+                                      dxf_document=layout.document)  # parsed once
             return cads
 
         return self._core.objects.start_cell_job(

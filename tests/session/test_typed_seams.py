@@ -83,7 +83,10 @@ def test_a_halt_is_announced_once_from_the_links_typed_field_and_collision_ends_
 
 def test_an_upload_is_decided_by_the_session_reading_the_layout_once(monkeypatch):
     """The thesis' layout DXF is imported as a layout (its parts where drawn, its start and
-    goal taught), a one-part DXF as a part; the session reads each for a layout once."""
+    goal taught), a one-part DXF as a part; the session reads each for a layout once, and
+    ezdxf parses the layout once for its layout and both its parts."""
+    from ezdxf import recover
+
     from assistant.cell.cad import layout as layout_module
     from assistant.session import layout_part
 
@@ -94,14 +97,24 @@ def test_an_upload_is_decided_by_the_session_reading_the_layout_once(monkeypatch
         reads.append(filename)
         return real(data, filename)
 
+    parses: list[int] = []
+    real_parse = recover.read
+
+    def parse(stream, *args, **kwargs):  # noqa: ANN001, ANN002, ANN003, ANN202
+        parses.append(len(stream.getvalue()))
+        return real_parse(stream, *args, **kwargs)
+
     monkeypatch.setattr(layout_part, "read_layout", counted)
+    monkeypatch.setattr(recover, "read", parse)
     s = Session.from_sample("thesis_rv2aj", with_objects=False, with_mission=False)
     s.goto("cad")
+    parses.clear()  # the sample's saved cell was read
     dxf = ROOT / "sample_cells" / "thesis_rv2aj" / "dxf"
     job = s.start_import_file((dxf / "cell_layout.dxf").read_bytes(), "cell_layout.dxf")
     assert job.layout is not None and set(job.layout.parts) == {"O1", "O2"}
     objs = job.future.result(timeout=DEADLINE_S)
     assert sorted(o.name for o in objs) == ["O1", "O2"]
+    assert parses == [len((dxf / "cell_layout.dxf").read_bytes())]  # once, not 1 + 2 parts
     assert s.mission.start == "P1"
     assert s.mission.goal == "P10"
     part = s.start_import_file((dxf / "O1.dxf").read_bytes(), "O1.dxf")
@@ -109,6 +122,7 @@ def test_an_upload_is_decided_by_the_session_reading_the_layout_once(monkeypatch
     obj, cad = part.future.result(timeout=DEADLINE_S)
     assert obj.name in s.cell.objects and cad.units == "mm"
     assert reads == ["cell_layout.dxf", "O1.dxf"]
+    assert len(parses) == 2  # the part: parsed once by its import (no LOCATIONS layer)
 
 
 def test_the_record_is_the_one_list_of_indications_and_forgetting_follows_it(tmp_path):
