@@ -152,6 +152,8 @@ class RecordedCollision:
     q: Array
     cells: Array
     region: ContactRegion | None = None
+    #: Later indications at the same place whose region grew this one's (`learnt_from`).
+    grown_by: tuple[Array, ...] = ()
 
 
 class WorldModel:
@@ -417,7 +419,8 @@ class WorldModel:
             region = carve(arm, region, rcfg, start, withhold=False)
             if not promote:
                 region = carve(arm, region, rcfg, protected)
-            self.collisions[i] = RecordedCollision(old.q, old.cells, region)
+            self.collisions[i] = RecordedCollision(old.q, old.cells, region,
+                                                   (*old.grown_by, q.copy()))
             what = (f"{indication_name(i)} indicated again at the same place: its region "
                     f"grows (spheres of {region.radius * 1000:.0f} mm)")
             if promote:
@@ -469,9 +472,10 @@ class WorldModel:
 
     def learnt_from(self, q: Array, nth: int = 0) -> int | None:
         """Index of the recorded collision learnt from posture `q` (bit for bit: the same
-        reading), the `nth` such from 0 when that posture was indicated again; None when
-        it made none (it grew an earlier one's region)."""
-        hits = [i for i, rc in enumerate(self.collisions) if np.array_equal(rc.q, q)]
+        reading) or whose region it grew, the `nth` such from 0 when that posture was
+        indicated again; None when this world never learnt it."""
+        hits = [i for i, rc in enumerate(self.collisions)
+                for p in (rc.q, *rc.grown_by) if np.array_equal(p, q)]
         return hits[nth] if nth < len(hits) else None
 
     def forget_collision(self, i: int) -> WorldChange:
