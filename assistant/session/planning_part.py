@@ -15,6 +15,7 @@ import numpy as np
 
 from assistant.collision.checker import CollisionChecker
 from assistant.links.link import RobotLink
+from assistant.mission.motion import Trajectory
 from assistant.progress import Progress
 from assistant.session.contract import PartContract
 from assistant.session.events import (
@@ -32,6 +33,7 @@ from assistant.session.types import (
     _Backend,
     _report_json,
 )
+from assistant.session.world_settings import WorldSettings
 
 Array = np.ndarray
 
@@ -47,6 +49,12 @@ class PlanningPart:
         self.backend_key: tuple | None = None
         #: How the last run ended (`ExecutionFinished.summary`); None when planned since.
         self.last_run: dict | None = None
+        #: The world model's and the run's settings (saved with the session).
+        self.world_settings = WorldSettings()
+        #: The plan and its report (saved with the session; an edit clears them: the
+        #: core's `action`).
+        self.trajectory: Trajectory | None = None
+        self.plan_report: dict[str, Any] | None = None
         #: Every posture where a collision was indicated, in order: the one record of
         #: indications (saved with the session; numbers them for `forget_indication`; a
         #: world model learns them, a rebuilt one again, and keeps only what each taught).
@@ -84,11 +92,11 @@ class PlanningPart:
         store, clearance_mm; the run's bound max_indications, planning_budget_s); the world
         model is rebuilt on the next build or plan (not for the run's bound)."""
         try:
-            settings = self._core.world_settings.changed(**changes)
+            settings = self.world_settings.changed(**changes)
         except (TypeError, ValueError) as exc:
             raise SessionError(str(exc)) from None
         with self._core.lock:
-            self._core.world_settings = settings
+            self.world_settings = settings
             self._core.saving.autosave()
         self._core.emit_state()
         return settings.to_json()
@@ -104,7 +112,7 @@ class PlanningPart:
         robot = self._core.robot
         obstacles = self._core.cell.collision_objects_in_base()
         key = self._core.obstacles_key()
-        world = WorldModel(robot, obstacles, self._core.world_settings.world_config(robot))
+        world = WorldModel(robot, obstacles, self.world_settings.world_config(robot))
         world.anchors = self._world_anchors()
         checker = CollisionChecker(robot, obstacles)
         roadmap = RoadmapPlanner(robot, checker, world)
@@ -196,22 +204,22 @@ class PlanningPart:
         with self._core.lock:
             self._core.counters.planning_time_s += time.perf_counter() - t0
             if not plan.ok:
-                self._core.trajectory, self._core.plan_report, self._core.program = None, None, None
+                self.trajectory, self.plan_report, self._core.program = None, None, None
                 raise SessionError(f"no plan: {plan.reason}")
         short = self._clearance_notes(plan, backend)
         with self._core.lock:
-            self._core.trajectory = plan.trajectory
-            self._core.plan_report = _report_json(plan.report)
-            self._core.plan_report["clearance_required_mm"] = self._core.world_settings.clearance_mm
-            self._core.plan_report["clearance_shortfalls"] = short
+            self.trajectory = plan.trajectory
+            self.plan_report = _report_json(plan.report)
+            self.plan_report["clearance_required_mm"] = self.world_settings.clearance_mm
+            self.plan_report["clearance_shortfalls"] = short
             if short:
-                self._core.plan_report["description"] += "\n  clearance: " + "; ".join(short)
+                self.plan_report["description"] += "\n  clearance: " + "; ".join(short)
             self._core.program = None
             self._core.saving.autosave()  # saved before PlanReady shows it
         for line in short:
             self._core.bus.emit(Notice(f"Closer than the required clearance: {line}"))
-        self._core.bus.emit(PlanReady(dict(self._core.plan_report)))
-        return dict(self._core.plan_report)
+        self._core.bus.emit(PlanReady(dict(self.plan_report)))
+        return dict(self.plan_report)
 
     def _clearance_notes(self, plan: Any, backend: _Backend) -> list[str]:
         """Each transfer closer to a known obstacle than `WorldSettings.clearance_mm`: where
@@ -219,7 +227,7 @@ class PlanningPart:
         from assistant.planning.clearance import clearance_shortfalls
 
         found = clearance_shortfalls(plan.pieces, backend.checker,
-                                     self._core.world_settings.clearance_mm / 1000.0,
+                                     self.world_settings.clearance_mm / 1000.0,
                                      self._core.T_world_base())
         return [f.describe() for f in found]
 
@@ -240,7 +248,7 @@ class PlanningPart:
         m = self._core.machine
         setup = self._core.setup
         halts = setup.halts_this_run if setup.halted and m.mode.value == "moving" else 0
-        return run_state(m.mode.value, m.busy_task, halts, self._core.trajectory is not None,
+        return run_state(m.mode.value, m.busy_task, halts, self.trajectory is not None,
                          self.last_run, self.final_driven())
 
     def start_drive_final(self) -> Future:
@@ -285,7 +293,7 @@ class PlanningPart:
                 ex.detach()
             ex = MissionExecutor(self._mission_planner(backend), link)
             backend.executor = ex
-        ws = self._core.world_settings
+        ws = self.world_settings
         ex.config = replace(ex.config, max_indications=int(ws.max_indications),
                             max_planning_seconds=float(ws.planning_budget_s))
         return ex
@@ -336,8 +344,8 @@ class PlanningPart:
             self._core.counters.planning_time_s += sum(report.replan_seconds)
             final = report.final_plan
             if report.ok and final is not None and final.ok:
-                self._core.trajectory = final.trajectory
-                self._core.plan_report = _report_json(final.report)
+                self.trajectory = final.trajectory
+                self.plan_report = _report_json(final.report)
                 self._core.program = None
             self._core.saving.autosave()  # saved before ExecutionFinished / PlanReady show it
         self.last_run = summary = {
@@ -348,8 +356,8 @@ class PlanningPart:
             "median_replan_s": report.median_replan_seconds, "seconds": seconds,
             "resumable": report.resumable}
         self._core.bus.emit(ExecutionFinished(report.ok, dict(summary), report.resumable))
-        if report.ok and self._core.plan_report is not None:
-            self._core.bus.emit(PlanReady(dict(self._core.plan_report)))
+        if report.ok and self.plan_report is not None:
+            self._core.bus.emit(PlanReady(dict(self.plan_report)))
         elif not report.ok:
             raise SessionError(f"execution ended: {report.reason}" + (
                 " - press Resume to continue" if report.resumable else ""))
@@ -382,9 +390,9 @@ class PlanningPart:
         elif mode == "roads":
             rep = ex.follow_roads(max_targets=moves, progress=sub)
         else:
-            if self._core.trajectory is None:
+            if self.trajectory is None:
                 raise SessionError("nothing to replay: plan the mission first")
-            rep = ex.replay(self._core.trajectory, progress=sub)
+            rep = ex.replay(self.trajectory, progress=sub)
         return {"ok": rep.ok, "description": rep.describe()}
 
     def order_mission(self) -> list[str]:

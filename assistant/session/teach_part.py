@@ -56,6 +56,8 @@ class TeachPart:
         self.pointer: LivePointer | None = None
         #: The last point a pointer dwell measured (`TaughtPoint`), waiting for a name.
         self.pending_point: Any = None
+        #: The cameras and the pointer's colour (saved with the session).
+        self.pointer_config: dict[str, Any] = {}
 
     # ================================================================== 4. teach
     def teach(self, name: str, T_world_tool: Array, *,
@@ -176,8 +178,8 @@ class TeachPart:
             if self.pointer is not None and self.pointer.running:
                 return
             self.pointer = LivePointer(self.camera_models(), on_state=self._on_pointer,
-                                       seed=int(self._core.pointer_config.get("seed", 0)))
-            prof = self._core.pointer_config.get("profile")
+                                       seed=int(self.pointer_config.get("seed", 0)))
+            prof = self.pointer_config.get("profile")
             if prof:
                 self.pointer.system.profile = ColorProfile.from_dict(prof)
             self.pointer.start()
@@ -241,14 +243,14 @@ class TeachPart:
                 raise SessionError(f"no live frame from camera {camera_index}")
             prof = calibrate_from_ellipse(frame.image, center_px, axes_px, angle_deg)
             self.pointer.system.profile = prof
-            self._core.pointer_config["profile"] = prof.to_dict()
+            self.pointer_config["profile"] = prof.to_dict()
         return prof
 
     def camera_models(self) -> list:
         from vision.camera_model import CameraModel
         from vision.rigs import default_stereo_rig
 
-        cams = self._core.pointer_config.get("cameras")
+        cams = self.pointer_config.get("cameras")
         if cams:
             return [CameraModel.from_dict(c) for c in cams]
         return default_stereo_rig()
