@@ -56,9 +56,9 @@ class PlanningPart:
         self.trajectory: Trajectory | None = None
         self.plan_report: dict[str, Any] | None = None
         #: Every posture where a collision was indicated, in order: the one record of
-        #: indications (saved with the session; numbers them for `forget_indication`; a
-        #: world model learns them, a rebuilt one again, and keeps only what each taught).
-        #: Added to only by `record_collision`, taken from only by `forget_indication`.
+        #: indications (saved with the session; a world model learns them, a rebuilt one
+        #: again, and keeps only what they taught). Added to only by `record_collision`,
+        #: taken from only by `forget_indication`.
         self.recorded_collisions: list[Array] = []
 
     def record_collision(self, q: Array, source: str, *, learnt_by_run: bool) -> None:
@@ -299,27 +299,42 @@ class PlanningPart:
         return ex
 
     def forget_indication(self, number: int) -> dict:
-        """Forget collision indication `number` (from 1, in the order recorded): it leaves
-        the record, so no world model learns it again, and what it taught leaves the world
-        model, so a plan may pass there again (the operator knows nothing is there)."""
+        """Forget collision indication `number` (from 1): what it taught leaves the world
+        model, so a plan may pass there again (the operator knows nothing is there), and the
+        indications that taught it leave the record, so no world model learns them again.
+        Numbered as a re-plan and `learnt_indications` name what the world model learnt;
+        with no world model built for the cell, as the record holds them (a world built
+        from it numbers them so)."""
         n = int(number)
-        count = len(self.recorded_collisions)
+        b = self.backend if self.world_ready else None
+        count = len(self.recorded_collisions) if b is None else len(b.world.collisions)
         if not 1 <= n <= count:
             raise SessionError(f"no indication {number} to forget: {count} learnt")
         if self._core.machine.busy_task:
             raise SessionError(f"wait for '{self._core.machine.busy_task}' to finish first")
         with self._core.lock:
-            q = self.recorded_collisions[n - 1]
-            b = self.backend
-            if b is not None:  # the entry this indication made there (the same posture)
-                again = sum(np.array_equal(r, q) for r in self.recorded_collisions[:n - 1])
-                i = b.world.learnt_from(q, again)
-                if i is not None:
-                    b.roadmap.forget_collision(i)
-            del self.recorded_collisions[n - 1]
+            if b is None:
+                del self.recorded_collisions[n - 1]
+            else:
+                made = self._recorded_behind(b.world, n - 1)
+                b.roadmap.forget_collision(n - 1)
+                self.recorded_collisions[:] = [q for r, q in enumerate(self.recorded_collisions)
+                                               if r not in made]
+            left = len(self.recorded_collisions) if b is None else len(b.world.collisions)
             self._core.saving.autosave()
         self._core.bus.emit(SceneChanged("world"))
-        return {"forgotten": n, "learnt": len(self.recorded_collisions)}
+        return {"forgotten": n, "learnt": left}
+
+    def _recorded_behind(self, world: Any, i: int) -> set[int]:
+        """Indices into the record of the indications that made world entry `i` (its own
+        and those that grew its region): each found by its posture, bit for bit, the k-th
+        recorded at a posture matched to that posture's k-th entry (`learnt_from`)."""
+        made = set()
+        for r, q in enumerate(self.recorded_collisions):
+            again = sum(np.array_equal(p, q) for p in self.recorded_collisions[:r])
+            if world.learnt_from(q, again) == i:
+                made.add(r)
+        return made
 
     def _execute(self, progress: Progress) -> dict:
         backend = self._backend(progress.sub(0.0, 0.1, "world model"))

@@ -126,9 +126,11 @@ def test_an_upload_is_decided_by_the_session_reading_the_layout_once(monkeypatch
 
 
 def test_the_record_is_the_one_list_of_indications_and_forgetting_follows_it(tmp_path):
-    """`recorded_collisions` numbers, saves and forgets the indications; a world model keeps
-    only what each taught and is asked for the entry one made (the same posture again is a
-    second entry: forgetting the second leaves the first). Forgetting needs no world."""
+    """`recorded_collisions` is the one list of indications (saved, learnt by every world
+    model); a world model keeps what they taught. Forgetting learnt entry n (numbered as a
+    re-plan and the page name them) takes from the record the indication behind it, found
+    by its posture (the same posture again is the next entry), not every one near it; an
+    indication no world learnt yet stays. With no world built, n counts the record."""
     s = Session.from_sample("thesis_rv2aj", tmp_path / "s", with_objects=False,
                             with_mission=False)
     s.next()
@@ -140,19 +142,25 @@ def test_the_record_is_the_one_list_of_indications_and_forgetting_follows_it(tmp
     world = s.planning.backend.world
     a = np.radians([10.0, 20.0, 60.0, 10.0, 0.0])
     b = np.radians([-30.0, 30.0, 50.0, 20.0, 0.0])
-    for q in (a, b, a):  # a standing robot's Collision!, the one way both paths record
+    c = np.radians([40.0, 10.0, 70.0, 0.0, 0.0])
+    for q in (a, b, a):  # a standing robot's Collision!, learnt at once
         s.planning.record_collision(q, "operator", learnt_by_run=False)
-    assert [len(s.recorded_collisions), len(world.collisions)] == [3, 3]
+    # a link's report that no run fed to this world (e.g. Collision! while jogging)
+    s.planning.record_collision(c, "operator", learnt_by_run=True)
+    assert [len(s.recorded_collisions), len(world.collisions)] == [4, 3]
+    assert len(s.learnt_indications()) == 3
     first = world.collisions[0]
     assert s.forget_indication(3) == {"forgotten": 3, "learnt": 2}
-    assert [r.tolist() for r in s.recorded_collisions] == [a.tolist(), b.tolist()]
+    assert [r.tolist() for r in s.recorded_collisions] == [a.tolist(), b.tolist(), c.tolist()]
     assert len(world.collisions) == 2 and world.collisions[0] is first
     assert np.array_equal(world.collisions[1].q, b)
     s.forget_indication(1)
-    assert [r.tolist() for r in s.recorded_collisions] == [b.tolist()]
+    assert [r.tolist() for r in s.recorded_collisions] == [b.tolist(), c.tolist()]
     assert [rc.q.tolist() for rc in world.collisions] == [b.tolist()]
     back = Session.load(s.folder, autosave=False)  # no world model built yet
+    assert [r.tolist() for r in back.recorded_collisions] == [b.tolist(), c.tolist()]
+    assert back.forget_indication(2) == {"forgotten": 2, "learnt": 1}
     assert [r.tolist() for r in back.recorded_collisions] == [b.tolist()]
-    assert back.forget_indication(1) == {"forgotten": 1, "learnt": 0}
+    back.forget_indication(1)
     with pytest.raises(Exception, match="no indication 1 to forget: 0 learnt"):
         back.forget_indication(1)
