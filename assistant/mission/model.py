@@ -232,11 +232,6 @@ class ResolvedMission:
     paths: list[ApplicationPath] = field(default_factory=list)
     order: list[int] | None = None
 
-    def named(self) -> Mission:
-        """The mission as the document keeps it: its start and goal by name."""
-        return Mission(self.start.name if self.start else None,
-                       self.goal.name if self.goal else None, list(self.paths), self.order)
-
     def to_json(self) -> dict:
         return {"start": self.start.to_json() if self.start else None,
                 "goal": self.goal.to_json() if self.goal else None,
