@@ -110,7 +110,7 @@ def bench_program(name, prog, robot, *, curve=None, max_step=0.002):
 def taught_names(session) -> set[str]:
     """Names of the taught locations the mission uses (start, goal, path points)."""
     m = session.mission
-    names = {loc.name for loc in (m.start, m.goal) if loc is not None}
+    names = {n for n in (m.start, m.goal) if n is not None}  # location names
     for path in m.paths:
         names |= {n for seg in path.segments for n in seg.names if n}
     return names

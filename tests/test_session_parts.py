@@ -54,3 +54,23 @@ def test_every_hand_over_lands_on_its_parts_method():
         part = getattr(s, verb.part)
         assert callable(getattr(part, verb.name)), name
         assert getattr(s, name).__func__ is getattr(type(part), verb.name), name
+
+
+def test_the_saved_document_beyond_cell_locations_and_mission_lives_in_its_parts():
+    """The core keeps the cell, the locations and the mission; the rest of the document is
+    kept by the part that owns it, and the core's name reads and writes that part's."""
+    from assistant.session.handover import Forward
+    from assistant.session.session import Session
+
+    owners = {"link_settings": "setup", "hidden": "setup", "pointer_config": "teaching",
+              "world_settings": "planning", "trajectory": "planning",
+              "plan_report": "planning", "export_dialect": "exporter"}
+    s = Session()
+    for name, part in owners.items():
+        assert name not in vars(s), f"{name} is kept on the core"
+        assert name in vars(getattr(s, part)), f"{name} is not kept by {part}"
+        assert getattr(s, name) is getattr(getattr(s, part), name)
+        forward = next(vars(c)[name] for c in type(s).__mro__ if name in vars(c))
+        assert isinstance(forward, Forward) and forward.part == part
+    s.export_dialect = "krl"  # as loading a session writes it
+    assert s.exporter.export_dialect == "krl"

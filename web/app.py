@@ -199,8 +199,7 @@ class App:
         elif isinstance(ev, ExecutionFinished):
             self._executed = ev.ok
             if ev.ok:
-                goal = self._session.mission.goal
-                self.notifier.success(goal_reached(goal.name if goal is not None else None,
+                self.notifier.success(goal_reached(self._session.mission.goal,
                                                    ev.summary))
         elif isinstance(ev, PlanReady):
             if self._executed:  # the verified final plan of a run: announced as the goal

@@ -26,6 +26,7 @@ import numpy as np
 
 from assistant.cell.cad import CadImportError, ImportOptions, import_with_options
 from assistant.cell.cad.importer import MAX_FILE_BYTES
+from assistant.cell.cad.layout import parse_drawing
 from assistant.cell.model import Cell, CellError, CellObject, PrimitiveSpec, check_transform
 from assistant.file_guard import FileRefused, check_archive, load_json, read_file
 from assistant.robots.catalog import RobotModelError, RobotSpec
@@ -185,6 +186,8 @@ class _Reader:
         self.path = path
         self.zip: zipfile.ZipFile | None = None
         self.folder: Path | None = None
+        #: Layout drawings parsed this load, by checksum: a layout's parts share one.
+        self.drawings: dict[str, Any] = {}
         if path.is_dir():
             self.folder = path
         elif path.is_file() and path.name == CELL_JSON:
@@ -386,7 +389,9 @@ def _cad_object(name: str, role: str, color: list, T: np.ndarray, cad: Any, wher
     # Re-import with the units decided at the first import, so a changed size heuristic in a
     # later version cannot rescale a saved part.
     try:
-        imp = import_with_options(data, filename, replace(options, units=units))
+        imp = import_with_options(data, filename, replace(options, units=units),
+                                  dxf_document=_layout_drawing(reader, data, actual, filename,
+                                                               options))
     except CadImportError as exc:
         raise CellFileError(path, f"{where}: re-importing {member!r} failed: {exc}") from exc
     if not math.isclose(imp.scale_to_m, scale, rel_tol=1e-12):
@@ -395,3 +400,14 @@ def _cad_object(name: str, role: str, color: list, T: np.ndarray, cad: Any, wher
     obj = CellObject.from_cad(name, imp, T, role=role, color=tuple(color))
     source = replace(imp.source, units_source=units_source, options=options.to_json())
     return replace(obj, source=source)
+
+
+def _layout_drawing(reader: _Reader, data: bytes, sha: str, filename: str,
+                    options: ImportOptions) -> Any:
+    """The parsed drawing of a cell layout's part (one layer of a DXF), parsed once for all
+    the parts this load reads from it; None for any other part."""
+    if options.dxf_layer is None or Path(filename).suffix.lower() != ".dxf":
+        return None
+    if sha not in reader.drawings:
+        reader.drawings[sha] = parse_drawing(data, filename)
+    return reader.drawings[sha]

@@ -7,6 +7,7 @@ planner plans the transfers between paths and may order them (SPEC §6 mission o
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from enum import Enum
 
@@ -179,12 +180,56 @@ class ApplicationPath:
 
 @dataclass
 class Mission:
-    """Start, goal and the application paths between them (in the order the operator gave)."""
+    """Start, goal and the application paths between them (in the order the operator gave).
+
+    The start and goal are the *names* of taught locations: the session's `locations` is
+    their one store, so a location taught again moves the mission with it. The planner takes
+    the mission with them looked up (`resolve`)."""
+
+    start: str | None = None
+    goal: str | None = None
+    paths: list[ApplicationPath] = field(default_factory=list)
+    #: Order chosen by the mission planner (indices into `paths`), None until planned.
+    order: list[int] | None = None
+
+    def resolve(self, locations: Mapping[str, Location]) -> ResolvedMission:
+        """The mission with its start and goal looked up in `locations` (raises
+        `ValueError` naming a start or goal that is not there)."""
+        def look_up(role: str, name: str | None) -> Location | None:
+            if name is None:
+                return None
+            if name not in locations:
+                raise ValueError(f"the mission {role} {name!r} is not a taught location")
+            return locations[name]
+
+        return ResolvedMission(look_up("start", self.start), look_up("goal", self.goal),
+                               list(self.paths), self.order)
+
+    def to_json(self) -> dict:
+        return {"start": self.start, "goal": self.goal,
+                "paths": [p.to_json() for p in self.paths], "order": self.order}
+
+    @staticmethod
+    def from_json(d: dict) -> Mission:
+        """Either form: start and goal as names, or (the samples' `mission.json`, sessions
+        saved before missions named their locations) as whole locations, whose names are
+        taken (`inline_locations` gives the locations themselves)."""
+        return Mission(_location_name(d.get("start"), "start"),
+                       _location_name(d.get("goal"), "goal"),
+                       [ApplicationPath.from_json(p) for p in d.get("paths", [])],
+                       list(d["order"]) if d.get("order") is not None else None)
+
+
+@dataclass
+class ResolvedMission:
+    """A mission with its start and goal locations looked up (`Mission.resolve`): what the
+    planner, the ordering and a placement study take. Made where the mission is handed to
+    planning and never kept as the document, so it cannot fall behind a re-taught location.
+    Its JSON holds the locations whole: the samples' `mission.json`."""
 
     start: Location | None = None
     goal: Location | None = None
     paths: list[ApplicationPath] = field(default_factory=list)
-    #: Order chosen by the mission planner (indices into `paths`), None until planned.
     order: list[int] | None = None
 
     def to_json(self) -> dict:
@@ -193,8 +238,25 @@ class Mission:
                 "paths": [p.to_json() for p in self.paths], "order": self.order}
 
     @staticmethod
-    def from_json(d: dict) -> Mission:
-        return Mission(Location.from_json(d["start"]) if d.get("start") else None,
-                       Location.from_json(d["goal"]) if d.get("goal") else None,
-                       [ApplicationPath.from_json(p) for p in d.get("paths", [])],
-                       list(d["order"]) if d.get("order") is not None else None)
+    def from_json(d: dict) -> ResolvedMission:
+        return ResolvedMission(Location.from_json(d["start"]) if d.get("start") else None,
+                               Location.from_json(d["goal"]) if d.get("goal") else None,
+                               [ApplicationPath.from_json(p) for p in d.get("paths", [])],
+                               list(d["order"]) if d.get("order") is not None else None)
+
+
+def inline_locations(d: dict) -> list[Location]:
+    """The start and goal a mission's JSON holds whole (the older form `Mission.from_json`
+    reads too); none when it names them."""
+    return [Location.from_json(d[role]) for role in ("start", "goal")
+            if isinstance(d.get(role), dict)]
+
+
+def _location_name(v: object, role: str) -> str | None:
+    if v is None or v in ("", {}):
+        return None
+    if isinstance(v, dict):
+        v = v.get("name")
+    if not isinstance(v, str) or not v:
+        raise ValueError(f"the mission {role} must name a location")
+    return v

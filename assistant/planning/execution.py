@@ -46,7 +46,7 @@ from enum import Enum
 import numpy as np
 
 from assistant.links.link import LinkError, LinkEvent, LinkEventKind, LinkLost, RobotLink
-from assistant.mission.model import Mission
+from assistant.mission.model import ResolvedMission
 from assistant.planning.backoff import leads_on, retreat_candidates, retreat_index, splice
 from assistant.planning.config import ExecutionConfig
 from assistant.planning.mission_planner import MissionPlan, MissionPlanner, TransferResult
@@ -178,7 +178,7 @@ class MissionExecutor:
         self._paces = PaceCache(planner.robot)
         self.radii = self.robot.arm_radii()
         self.report = ExecutionReport()
-        self._mission: Mission | None = None
+        self._mission: ResolvedMission | None = None
         self._T_wb: Array | None = None
         self._phase = _Phase.DONE
         self._queue: list[_Item] | None = None
@@ -196,7 +196,7 @@ class MissionExecutor:
         return RunBounds(self.config.max_indications, self.config.max_planning_seconds)
 
     # ------------------------------------------------------------------ public
-    def run(self, mission: Mission, T_world_base: Array, progress: Progress | None = None,
+    def run(self, mission: ResolvedMission, T_world_base: Array, progress: Progress | None = None,
             *, plan: MissionPlan | None = None) -> ExecutionReport:
         """Plan (exploring), drive with re-planning, then plan and validate the final plan.
 

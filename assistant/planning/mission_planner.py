@@ -40,7 +40,7 @@ import numpy as np
 
 from assistant.collision.checker import CollisionChecker
 from assistant.collision.reports import ObstacleView
-from assistant.mission.model import Location, Mission
+from assistant.mission.model import Location, ResolvedMission
 from assistant.mission.motion import Trajectory
 from assistant.planning.certify import all_exact, certificate_refusal, needs_certificate
 from assistant.planning.config import MissionPlannerConfig
@@ -408,7 +408,7 @@ class MissionPlanner:
         return asm, notes
 
     # ------------------------------------------------------------------ missions
-    def plan_mission(self, mission: Mission, T_world_base: Array, q_current: Array,
+    def plan_mission(self, mission: ResolvedMission, T_world_base: Array, q_current: Array,
                      progress: Progress | None = None, *, exploring: bool = False,
                      ) -> MissionPlan:
         """Plan the mission from its start location (or `q_current` if it has none).
@@ -580,7 +580,7 @@ class MissionPlanner:
         return solve_location(self.robot, self.checker, loc.name, loc.T_world_tool, T_wb,
                               seed=seed, q_hint=branch_hint(loc), taught=loc.q_hint)
 
-    def _order(self, mission: Mission, s: SolvedLocation, goal: SolvedLocation | None,
+    def _order(self, mission: ResolvedMission, s: SolvedLocation, goal: SolvedLocation | None,
                apps: dict[tuple[int, bool], ApplicationMotions],
                cache: dict[tuple[bytes, bytes], RoadmapPlan], progress: Progress) -> Ordering:
         ends = []
@@ -616,7 +616,7 @@ class MissionPlanner:
 
     @staticmethod
     def _entry_q(e: Endpoint, apps: dict[tuple[int, bool], ApplicationMotions],
-                 mission: Mission) -> Array:
+                 mission: ResolvedMission) -> Array:
         """Joints at an endpoint, taken from the motions that actually start/end there."""
         for i, path in enumerate(mission.paths):
             if e.label == f"{path.name} end" and (i, True) in apps:

@@ -1,9 +1,10 @@
 """A sample cell as the planner and a simulated robot see it: cell, mission, hidden obstacles.
 
 A sample folder (e.g. ``sample_cells/thesis_rv2aj``) holds ``cell/`` (saved with
-`save_cell`), ``mission.json`` (`Mission.to_json`) and optionally ``hidden.json``: obstacles
-only the simulated robot knows, so planning meets them through collision indications. The
-hidden file is plain JSON (boxes, cylinders, spheres; metres, world frame), never code.
+`save_cell`), ``mission.json`` (`ResolvedMission.to_json`: start and goal whole) and
+optionally ``hidden.json``: obstacles only the simulated robot knows, so planning meets them
+through collision indications. The hidden file is plain JSON (boxes, cylinders, spheres;
+metres, world frame), never code.
 """
 
 from __future__ import annotations
@@ -17,7 +18,7 @@ import numpy as np
 from assistant.cell.model import Cell, PrimitiveSpec, check_transform
 from assistant.cell.storage import load_cell
 from assistant.collision.reports import Obstacle
-from assistant.mission.model import Mission
+from assistant.mission.model import ResolvedMission
 from assistant.transforms import inv_T
 
 #: The product's default cell (the thesis experiment).
@@ -27,7 +28,7 @@ DEFAULT_SAMPLE = Path(__file__).resolve().parents[2] / "sample_cells" / "thesis_
 @dataclass
 class Scenario:
     cell: Cell
-    mission: Mission
+    mission: ResolvedMission
     #: Obstacles the planner does not know, in the robot base frame (for `SimulatedRobot`).
     hidden: list[Obstacle] = field(default_factory=list)
     folder: Path | None = None
@@ -66,7 +67,8 @@ def load_scenario(folder: str | Path = DEFAULT_SAMPLE) -> Scenario:
     folder = Path(folder)
     cell = load_cell(folder / "cell")
     try:
-        mission = Mission.from_json(json.loads((folder / "mission.json").read_text("utf-8")))
+        doc = json.loads((folder / "mission.json").read_text("utf-8"))
+        mission = ResolvedMission.from_json(doc)
     except (OSError, ValueError, KeyError, TypeError) as exc:
         raise ValueError(f"{folder / 'mission.json'}: cannot read the mission ({exc})") from exc
     hidden_path = folder / "hidden.json"

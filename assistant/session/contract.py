@@ -67,16 +67,16 @@ class PartContract:
     cell: Cell
     locations: dict[str, Location]
     mission: Mission
-    hidden: list[HiddenObstacle]
-    link_settings: LinkSettings
-    pointer_config: dict[str, Any]
-    export_dialect: str
-    world_settings: WorldSettings
     sample: str | None
     load_notes: list[str]
-    # ------------------------------------------------------------- results
-    trajectory: Trajectory | None
-    plan_report: dict[str, Any] | None
+    # ----------------------- the document the parts keep, by the core's names (`Forward`)
+    hidden: list[HiddenObstacle]  # setup
+    link_settings: LinkSettings  # setup
+    pointer_config: dict[str, Any]  # teaching
+    export_dialect: str  # exporter
+    world_settings: WorldSettings  # planning
+    trajectory: Trajectory | None  # planning
+    plan_report: dict[str, Any] | None  # planning
     # ------------------------------------------------------------- where it is saved
     folder: Path | None
     autosave_enabled: bool

@@ -1,5 +1,8 @@
 """The session's core: the state every part shares, the lock, the action wrapper, the long-task
-runners and the event bus - what the composed parts reach through `PartContract`.
+runners and the event bus - what the composed parts reach through `PartContract`. The rest of
+the document (link settings, hidden obstacles, pointer set-up, world settings, the plan, the
+dialect) is kept by the part that owns it and named here only (`Forward`), so the page, the
+scripts and the other parts read and write it as before.
 
 Each action is checked by the workflow machine (a refused action raises `TransitionRefused`
 with the sentence to show and changes nothing), applied under the session lock, recorded for
@@ -33,6 +36,7 @@ from assistant.session.commands import PageCommand
 from assistant.session.contract import PartContract
 from assistant.session.document import Document
 from assistant.session.events import ErrorRaised, EventBus, Notice, SceneChanged, StateChanged
+from assistant.session.handover import Forward
 from assistant.session.history import History
 from assistant.session.motion_hold import MotionHold
 from assistant.session.types import Counters, HiddenObstacle, hint_for
@@ -60,20 +64,26 @@ class SessionCore(PartContract):
         self.cell = Cell()
         self.locations: dict[str, Location] = {}
         self.mission = Mission()
-        self.link_settings = LinkSettings()
-        self.hidden: list[HiddenObstacle] = []
-        self.pointer_config: dict[str, Any] = {}
-        self.export_dialect = "melfa"
-        self.world_settings = WorldSettings()
-        # results
-        self.trajectory: Trajectory | None = None
-        self.plan_report: dict[str, Any] | None = None
+        # (the rest of the document is kept by the parts that own it: see below)
         # where it is saved, where it came from
         self.folder = Path(folder) if folder is not None else None
         self.autosave_enabled = autosave and self.folder is not None
         self.sample: str | None = None  # the sample cell this session started from
         self.load_notes: list[str] = []  # what loading ignored (unknown keys), to report
         self._last_error: str = ""
+
+    # ============================================= the document the parts keep, by its names
+    #: How to reach the robot; what only the simulated robot knows (`setup` keeps them).
+    link_settings = Forward[LinkSettings]("setup", "link_settings")
+    hidden = Forward[list[HiddenObstacle]]("setup", "hidden")
+    #: The cameras and the pointer's colour (`teaching`).
+    pointer_config = Forward[dict[str, Any]]("teaching", "pointer_config")
+    #: The world model's and the run's settings, and the plan (`planning`).
+    world_settings = Forward[WorldSettings]("planning", "world_settings")
+    trajectory = Forward[Trajectory | None]("planning", "trajectory")
+    plan_report = Forward[dict[str, Any] | None]("planning", "plan_report")
+    #: The dialect last written (`exporter`).
+    export_dialect = Forward[str]("exporter", "export_dialect")
 
     # ================================================================== queries
     @property

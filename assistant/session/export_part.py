@@ -21,6 +21,8 @@ class ExportPart:
         #: The last exported program (`export.ExportResult`); None until the first export,
         #: and again when a new plan or an edit makes it stale.
         self.program: Any = None
+        #: The dialect last written (saved with the session; the default of `export`).
+        self.export_dialect = "melfa"
 
     def export(self, dialect: str | None = None, *, name: str | None = None,
                frame: str | None = None, count: bool = True) -> Any:
@@ -36,7 +38,7 @@ class ExportPart:
                       scene="program", count=count):
             if s.trajectory is None:
                 raise SessionError("Plan the mission first: there is no verified trajectory yet")
-            d = get_dialect(dialect or s.export_dialect)
+            d = get_dialect(dialect or self.export_dialect)
             work = None
             if frame is not None:
                 s.objects.frame(frame)
@@ -44,7 +46,7 @@ class ExportPart:
             program = program_from_trajectory(s.trajectory, s.robot,
                                               name=name or "MISSION", work=work)
             result = export_files(program, d, s.robot)
-            s.export_dialect = d.name
+            self.export_dialect = d.name
             self.program = result
         for line in result.renames:  # said once, where the operator looks for the name
             s.bus.emit(Notice(f"Renamed for the controller: {line}"))

@@ -86,7 +86,8 @@ class LayoutPart:
             for i, (name, layer) in enumerate(layout.parts.items()):
                 cads[name] = load_cad(data, filename, units=units, dxf_layer=layer,
                                       progress=progress.sub(i / n, (i + 1) / n,
-                                                            f"part {name}"))
+                                                            f"part {name}"),
+                                      dxf_document=layout.document)  # parsed once
             return cads
 
         return self._core.objects.start_cell_job(
@@ -121,14 +122,11 @@ class LayoutPart:
                         loc.name, pose_from_mm_deg(pose), LocationSource.CAD_FILE, None, 0.0)
                 except UnreachableError as exc:
                     raise SessionError(f"location {loc.name}: {exc}") from exc
-                self._core.teaching.relink_mission(loc.name)
                 if loc.role == "start":
-                    self._core.mission = replace(self._core.mission,
-                                                 start=self._core.locations[loc.name],
+                    self._core.mission = replace(self._core.mission, start=loc.name,
                                                  order=None)
                 elif loc.role == "goal":
-                    self._core.mission = replace(self._core.mission,
-                                                 goal=self._core.locations[loc.name],
+                    self._core.mission = replace(self._core.mission, goal=loc.name,
                                                  order=None)
         for note in layout.notes:
             self._core.bus.emit(Notice(f"{filename}: {note}"))

@@ -165,9 +165,11 @@ class _Checker:
 
     def mission(self) -> None:
         m = self.s.mission
-        for role, loc in (("start", m.start), ("goal", m.goal)):
-            if loc is not None:
-                self.location(loc, f"mission {role}")
+        for role, name in (("start", m.start), ("goal", m.goal)):
+            if name is not None:
+                self.name(name, f"mission {role}")
+                if name not in self.s.locations:
+                    raise self.fail(f"mission {role}", f"{name!r} is not a taught location")
         self.count(m.paths, "mission paths")
         for p in m.paths:
             self.name(p.name, "mission path")

@@ -23,6 +23,7 @@ from assistant.links.settings import LinkSettings
 from assistant.mission.model import (
     Location,
     Mission,
+    inline_locations,
 )
 from assistant.mission.motion import trajectory_from_json, trajectory_to_json
 from assistant.session import link_secrets
@@ -135,9 +136,8 @@ def session_from_sample(cls: type[S], name_or_path: str | Path = "thesis_rv2aj",
         if with_mission and mission_path.exists():
             doc = json.loads(mission_path.read_text("utf-8"))
             s.mission = Mission.from_json(doc)
-            for loc in (s.mission.start, s.mission.goal):
-                if loc is not None:
-                    s.locations[loc.name] = loc
+            for loc in inline_locations(doc):  # the file holds its start and goal whole
+                s.locations[loc.name] = loc
             for d in doc.get("locations", ()):  # taught locations besides start and goal
                 loc = Location.from_json(d)
                 s.locations[loc.name] = loc
@@ -167,7 +167,9 @@ def load_session(cls: type[S], folder: str | Path, *, autosave: bool = True) -> 
         for d in doc.get("locations", []):
             loc = Location.from_json(d)
             s.locations[loc.name] = loc
-        s.mission = Mission.from_json(doc.get("mission", {}))
+        mission = doc.get("mission", {})
+        s.mission = Mission.from_json(mission)
+        notes += _adopt_inline_locations(s, mission, path)
         link = dict(doc.get("link", {}))
         in_clear = sorted(k for k in link if link_secrets.is_secret(k))
         if in_clear:
@@ -201,3 +203,18 @@ def load_session(cls: type[S], folder: str | Path, *, autosave: bool = True) -> 
         with s.lock:
             s.saving.autosave()  # the password leaves session.json now, not at the next edit
     return s
+
+
+def _adopt_inline_locations(s: PartContract, mission: dict, path: Path) -> list[str]:
+    """A session saved before the mission named its locations holds its start and goal
+    whole inside the mission too: one missing from the locations joins them; where both
+    hold one, the locations' (the page showed it) is kept, with a note if they differ."""
+    notes = []
+    for loc in inline_locations(mission):
+        known = s.locations.get(loc.name)
+        if known is None:
+            s.locations[loc.name] = loc
+        elif known != loc:
+            notes.append(f"{path}: the mission's copy of {loc.name} differed from the taught "
+                         f"location {loc.name}; the taught location is kept")
+    return notes

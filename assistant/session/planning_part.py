@@ -15,6 +15,7 @@ import numpy as np
 
 from assistant.collision.checker import CollisionChecker
 from assistant.links.link import RobotLink
+from assistant.mission.motion import Trajectory
 from assistant.progress import Progress
 from assistant.session.contract import PartContract
 from assistant.session.events import (
@@ -32,6 +33,7 @@ from assistant.session.types import (
     _Backend,
     _report_json,
 )
+from assistant.session.world_settings import WorldSettings
 
 Array = np.ndarray
 
@@ -47,9 +49,16 @@ class PlanningPart:
         self.backend_key: tuple | None = None
         #: How the last run ended (`ExecutionFinished.summary`); None when planned since.
         self.last_run: dict | None = None
-        #: Every posture where a collision was indicated, in order: the one record (saved
-        #: with the session; a rebuilt world model learns them again; `forget_indication`
-        #: takes one out). Added to only by `record_collision`.
+        #: The world model's and the run's settings (saved with the session).
+        self.world_settings = WorldSettings()
+        #: The plan and its report (saved with the session; an edit clears them: the
+        #: core's `action`).
+        self.trajectory: Trajectory | None = None
+        self.plan_report: dict[str, Any] | None = None
+        #: Every posture where a collision was indicated, in order: the one record of
+        #: indications (saved with the session; a world model learns them, a rebuilt one
+        #: again, and keeps only what they taught). Added to only by `record_collision`,
+        #: taken from only by `forget_indication`.
         self.recorded_collisions: list[Array] = []
 
     def record_collision(self, q: Array, source: str, *, learnt_by_run: bool) -> None:
@@ -83,11 +92,11 @@ class PlanningPart:
         store, clearance_mm; the run's bound max_indications, planning_budget_s); the world
         model is rebuilt on the next build or plan (not for the run's bound)."""
         try:
-            settings = self._core.world_settings.changed(**changes)
+            settings = self.world_settings.changed(**changes)
         except (TypeError, ValueError) as exc:
             raise SessionError(str(exc)) from None
         with self._core.lock:
-            self._core.world_settings = settings
+            self.world_settings = settings
             self._core.saving.autosave()
         self._core.emit_state()
         return settings.to_json()
@@ -103,7 +112,7 @@ class PlanningPart:
         robot = self._core.robot
         obstacles = self._core.cell.collision_objects_in_base()
         key = self._core.obstacles_key()
-        world = WorldModel(robot, obstacles, self._core.world_settings.world_config(robot))
+        world = WorldModel(robot, obstacles, self.world_settings.world_config(robot))
         world.anchors = self._world_anchors()
         checker = CollisionChecker(robot, obstacles)
         roadmap = RoadmapPlanner(robot, checker, world)
@@ -188,28 +197,29 @@ class PlanningPart:
         self.last_run = None  # planned again: the last run's outcome is history
         backend = self._backend(progress.sub(0.0, 0.3, "world model"))
         planner = self._mission_planner(backend)
-        plan = planner.plan_mission(self._core.mission, self._core.T_world_base(),
+        plan = planner.plan_mission(self._core.teaching.resolved_mission(),
+                                    self._core.T_world_base(),
                                     self._core.current_joints(),
                                     progress.sub(0.3, 1.0, "plan"))
         with self._core.lock:
             self._core.counters.planning_time_s += time.perf_counter() - t0
             if not plan.ok:
-                self._core.trajectory, self._core.plan_report, self._core.program = None, None, None
+                self.trajectory, self.plan_report, self._core.program = None, None, None
                 raise SessionError(f"no plan: {plan.reason}")
         short = self._clearance_notes(plan, backend)
         with self._core.lock:
-            self._core.trajectory = plan.trajectory
-            self._core.plan_report = _report_json(plan.report)
-            self._core.plan_report["clearance_required_mm"] = self._core.world_settings.clearance_mm
-            self._core.plan_report["clearance_shortfalls"] = short
+            self.trajectory = plan.trajectory
+            self.plan_report = _report_json(plan.report)
+            self.plan_report["clearance_required_mm"] = self.world_settings.clearance_mm
+            self.plan_report["clearance_shortfalls"] = short
             if short:
-                self._core.plan_report["description"] += "\n  clearance: " + "; ".join(short)
+                self.plan_report["description"] += "\n  clearance: " + "; ".join(short)
             self._core.program = None
             self._core.saving.autosave()  # saved before PlanReady shows it
         for line in short:
             self._core.bus.emit(Notice(f"Closer than the required clearance: {line}"))
-        self._core.bus.emit(PlanReady(dict(self._core.plan_report)))
-        return dict(self._core.plan_report)
+        self._core.bus.emit(PlanReady(dict(self.plan_report)))
+        return dict(self.plan_report)
 
     def _clearance_notes(self, plan: Any, backend: _Backend) -> list[str]:
         """Each transfer closer to a known obstacle than `WorldSettings.clearance_mm`: where
@@ -217,7 +227,7 @@ class PlanningPart:
         from assistant.planning.clearance import clearance_shortfalls
 
         found = clearance_shortfalls(plan.pieces, backend.checker,
-                                     self._core.world_settings.clearance_mm / 1000.0,
+                                     self.world_settings.clearance_mm / 1000.0,
                                      self._core.T_world_base())
         return [f.describe() for f in found]
 
@@ -238,7 +248,7 @@ class PlanningPart:
         m = self._core.machine
         setup = self._core.setup
         halts = setup.halts_this_run if setup.halted and m.mode.value == "moving" else 0
-        return run_state(m.mode.value, m.busy_task, halts, self._core.trajectory is not None,
+        return run_state(m.mode.value, m.busy_task, halts, self.trajectory is not None,
                          self.last_run, self.final_driven())
 
     def start_drive_final(self) -> Future:
@@ -283,37 +293,55 @@ class PlanningPart:
                 ex.detach()
             ex = MissionExecutor(self._mission_planner(backend), link)
             backend.executor = ex
-        ws = self._core.world_settings
+        ws = self.world_settings
         ex.config = replace(ex.config, max_indications=int(ws.max_indications),
                             max_planning_seconds=float(ws.planning_budget_s))
         return ex
 
     def forget_indication(self, number: int) -> dict:
-        """Forget collision indication `number` (as a run names it, from 1): what it taught
-        leaves the world model, so a plan may pass there again (the operator knows nothing
-        is there)."""
+        """Forget collision indication `number` (from 1): what it taught leaves the world
+        model, so a plan may pass there again (the operator knows nothing is there), and the
+        indications that taught it leave the record, so no world model learns them again.
+        Numbered as a re-plan and `learnt_indications` name what the world model learnt;
+        with no world model built for the cell, as the record holds them (a world built
+        from it numbers them so)."""
+        n = int(number)
         b = self.backend if self.world_ready else None
-        count = 0 if b is None else len(b.world.collisions)
-        if b is None or not 1 <= int(number) <= count:
+        count = len(self.recorded_collisions) if b is None else len(b.world.collisions)
+        if not 1 <= n <= count:
             raise SessionError(f"no indication {number} to forget: {count} learnt")
         if self._core.machine.busy_task:
             raise SessionError(f"wait for '{self._core.machine.busy_task}' to finish first")
         with self._core.lock:
-            q = b.world.collisions[int(number) - 1].q
-            b.roadmap.forget_collision(int(number) - 1)
-            # and from the session's own record, so a rebuilt world does not learn it again
-            self.recorded_collisions = [r for r in self.recorded_collisions
-                                              if not np.allclose(r, q, atol=1e-9)]
+            if b is None:
+                del self.recorded_collisions[n - 1]
+            else:
+                made = self._recorded_behind(b.world, n - 1)
+                b.roadmap.forget_collision(n - 1)
+                self.recorded_collisions[:] = [q for r, q in enumerate(self.recorded_collisions)
+                                               if r not in made]
+            left = len(self.recorded_collisions) if b is None else len(b.world.collisions)
             self._core.saving.autosave()
         self._core.bus.emit(SceneChanged("world"))
-        return {"forgotten": int(number), "learnt": len(b.world.collisions)}
+        return {"forgotten": n, "learnt": left}
+
+    def _recorded_behind(self, world: Any, i: int) -> set[int]:
+        """Indices into the record of the indications that made world entry `i` (its own
+        and those that grew its region): each found by its posture, bit for bit, the k-th
+        recorded at a posture matched to that posture's k-th entry (`learnt_from`)."""
+        made = set()
+        for r, q in enumerate(self.recorded_collisions):
+            again = sum(np.array_equal(p, q) for p in self.recorded_collisions[:r])
+            if world.learnt_from(q, again) == i:
+                made.add(r)
+        return made
 
     def _execute(self, progress: Progress) -> dict:
         backend = self._backend(progress.sub(0.0, 0.1, "world model"))
         link = self._core.setup.link()
         ex = self._executor(backend, link)
         t0 = time.perf_counter()
-        report = ex.run(self._core.mission, self._core.T_world_base(),
+        report = ex.run(self._core.teaching.resolved_mission(), self._core.T_world_base(),
                         progress.sub(0.1, 1.0, "execute"))
         return self._after_execution(report, time.perf_counter() - t0)
 
@@ -331,8 +359,8 @@ class PlanningPart:
             self._core.counters.planning_time_s += sum(report.replan_seconds)
             final = report.final_plan
             if report.ok and final is not None and final.ok:
-                self._core.trajectory = final.trajectory
-                self._core.plan_report = _report_json(final.report)
+                self.trajectory = final.trajectory
+                self.plan_report = _report_json(final.report)
                 self._core.program = None
             self._core.saving.autosave()  # saved before ExecutionFinished / PlanReady show it
         self.last_run = summary = {
@@ -343,8 +371,8 @@ class PlanningPart:
             "median_replan_s": report.median_replan_seconds, "seconds": seconds,
             "resumable": report.resumable}
         self._core.bus.emit(ExecutionFinished(report.ok, dict(summary), report.resumable))
-        if report.ok and self._core.plan_report is not None:
-            self._core.bus.emit(PlanReady(dict(self._core.plan_report)))
+        if report.ok and self.plan_report is not None:
+            self._core.bus.emit(PlanReady(dict(self.plan_report)))
         elif not report.ok:
             raise SessionError(f"execution ended: {report.reason}" + (
                 " - press Resume to continue" if report.resumable else ""))
@@ -377,9 +405,9 @@ class PlanningPart:
         elif mode == "roads":
             rep = ex.follow_roads(max_targets=moves, progress=sub)
         else:
-            if self._core.trajectory is None:
+            if self.trajectory is None:
                 raise SessionError("nothing to replay: plan the mission first")
-            rep = ex.replay(self._core.trajectory, progress=sub)
+            rep = ex.replay(self.trajectory, progress=sub)
         return {"ok": rep.ok, "description": rep.describe()}
 
     def order_mission(self) -> list[str]:
@@ -390,7 +418,7 @@ class PlanningPart:
         with self._core.action("order the mission", EDIT_MISSION, scene="mission"):
             if self._core.mission.start is None or self._core.mission.goal is None:
                 raise SessionError("The mission needs a start and a goal")
-            ordering = order_mission(self._core.mission)
+            ordering = order_mission(self._core.teaching.resolved_mission())
             self._core.mission = replace(self._core.mission, order=list(ordering.order))
         return [self._core.mission.paths[i].name for i in ordering.order]
 

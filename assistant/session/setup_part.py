@@ -42,6 +42,10 @@ class SetupPart:
         self.halted = False
         #: Halts in the run under way (the run's sentence counts them).
         self.halts_this_run = 0
+        #: How to reach the robot (saved with the session; passwords in secrets.json).
+        self.link_settings = LinkSettings()
+        #: What only the simulated robot knows (saved with the session).
+        self.hidden: list[HiddenObstacle] = []
 
     def begin_run(self) -> None:
         """A run starts: no halt yet."""
@@ -69,7 +73,7 @@ class SetupPart:
         """Choose how the assistant talks to the robot (simulated, MELFA, KUKA REST)."""
         with self._core.action("choose the robot link", ("setup",), undoable=False, scene="link"):
             self.drop_link()
-            self._core.link_settings = settings
+            self.link_settings = settings
 
     def set_simulation_speed(self, time_scale: float, *, count: bool = True) -> None:
         """How fast the simulated robot runs (robot seconds per wall second, 1 = real time);
@@ -82,16 +86,16 @@ class SetupPart:
                                "real time")
         with self._core.action("change the simulation speed", None, undoable=False, scene="link",
                                count=count):
-            if self._core.link_settings.time_scale != float(time_scale):
-                self._core.link_settings = replace(self._core.link_settings,
+            if self.link_settings.time_scale != float(time_scale):
+                self.link_settings = replace(self.link_settings,
                                                    time_scale=float(time_scale))
-                if self._core.link_settings.kind == "simulated":
+                if self.link_settings.kind == "simulated":
                     self.drop_link()  # made again with the new clock where it stands
 
     def set_hidden_obstacles(self, hidden: list[HiddenObstacle]) -> None:
         """Obstacles only the simulated robot knows (they stand in for reality)."""
         with self._core.action("set the simulated world", None, undoable=False, scene="hidden"):
-            self._core.hidden = list(hidden)
+            self.hidden = list(hidden)
             self.drop_link()
 
     def link(self) -> RobotLink:
@@ -99,8 +103,8 @@ class SetupPart:
         with self._core.lock:
             if self.robot_link is None:
                 hidden = [Obstacle(h.name, inv_T(self._core.T_world_base()) @ h.T_world_object,
-                                   (h.primitive().collision_shape(),)) for h in self._core.hidden]
-                link = make_link(self._core.link_settings, self._core.robot, hidden,
+                                   (h.primitive().collision_shape(),)) for h in self.hidden]
+                link = make_link(self.link_settings, self._core.robot, hidden,
                                  log_dir=self.link_log_dir())
                 if self.q_sim is not None and hasattr(link, "set_joints"):
                     link.set_joints(self.q_sim)
@@ -132,7 +136,7 @@ class SetupPart:
         settings and robot; moves nothing, changes nothing in the session."""
         from assistant.links.checklist import check_link
 
-        return check_link(self._core.link_settings, self._core.robot, log_dir=self.link_log_dir())
+        return check_link(self.link_settings, self._core.robot, log_dir=self.link_log_dir())
 
     def drop_link(self) -> None:
         """Close the link (it is made again on next use), keeping where the robot stands."""

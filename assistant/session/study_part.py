@@ -40,15 +40,13 @@ class StudyPart:
                       joint_margin_deg: float = 5.0,
                       clearance_mm: float | None = None) -> StudyProblem:
         """The study of this session's cell and mission (a copy: later edits do not leak in)."""
-        from dataclasses import replace
-
         from assistant.cell.model import Cell
         from assistant.study import StudyCriteria, StudyProblem, Subject
 
         with self._core.lock:
             cell = Cell(self._core.cell.robot_spec, self._core.T_world_base().copy(),
                         dict(self._core.cell.objects), dict(self._core.cell.frames))
-            mission = replace(self._core.mission, paths=list(self._core.mission.paths))
+            mission = self._core.teaching.resolved_mission()
             clearance = self._core.world_settings.clearance_mm if clearance_mm is None \
                 else clearance_mm
             try:

@@ -15,6 +15,7 @@ from assistant.mission.model import (
     ApplicationPath,
     Location,
     LocationSource,
+    ResolvedMission,
     SegmentKind,
 )
 from assistant.mission.motion import ToolAction
@@ -55,6 +56,8 @@ class TeachPart:
         self.pointer: LivePointer | None = None
         #: The last point a pointer dwell measured (`TaughtPoint`), waiting for a name.
         self.pending_point: Any = None
+        #: The cameras and the pointer's colour (saved with the session).
+        self.pointer_config: dict[str, Any] = {}
 
     # ================================================================== 4. teach
     def teach(self, name: str, T_world_tool: Array, *,
@@ -69,8 +72,7 @@ class TeachPart:
                                      uncertainty_m)
             if name in self._core.locations and not replace_existing:
                 raise SessionError(f"a location named {name!r} exists already")
-            self._core.locations[name] = loc
-            self.relink_mission(name)
+            self._core.locations[name] = loc  # the mission names it: nothing else to update
         return self._core.locations[name]
 
     def make_location(self, name: str, T_world_tool: Array, source: LocationSource,
@@ -176,8 +178,8 @@ class TeachPart:
             if self.pointer is not None and self.pointer.running:
                 return
             self.pointer = LivePointer(self.camera_models(), on_state=self._on_pointer,
-                                       seed=int(self._core.pointer_config.get("seed", 0)))
-            prof = self._core.pointer_config.get("profile")
+                                       seed=int(self.pointer_config.get("seed", 0)))
+            prof = self.pointer_config.get("profile")
             if prof:
                 self.pointer.system.profile = ColorProfile.from_dict(prof)
             self.pointer.start()
@@ -241,14 +243,14 @@ class TeachPart:
                 raise SessionError(f"no live frame from camera {camera_index}")
             prof = calibrate_from_ellipse(frame.image, center_px, axes_px, angle_deg)
             self.pointer.system.profile = prof
-            self._core.pointer_config["profile"] = prof.to_dict()
+            self.pointer_config["profile"] = prof.to_dict()
         return prof
 
     def camera_models(self) -> list:
         from vision.camera_model import CameraModel
         from vision.rigs import default_stereo_rig
 
-        cams = self._core.pointer_config.get("cameras")
+        cams = self.pointer_config.get("cameras")
         if cams:
             return [CameraModel.from_dict(c) for c in cams]
         return default_stereo_rig()
@@ -265,33 +267,33 @@ class TeachPart:
     def _location_uses(self, name: str) -> list[str]:
         uses = []
         m = self._core.mission
-        if m.start is not None and m.start.name == name:
+        if m.start == name:
             uses.append("the mission start")
-        if m.goal is not None and m.goal.name == name:
+        if m.goal == name:
             uses.append("the mission goal")
         return uses
-
-    def relink_mission(self, name: str) -> None:
-        """A re-taught location updates the mission's start/goal that refer to it."""
-        from dataclasses import replace
-
-        loc = self._core.locations[name]
-        if self._core.mission.start is not None and self._core.mission.start.name == name:
-            self._core.mission = replace(self._core.mission, start=loc)
-        if self._core.mission.goal is not None and self._core.mission.goal.name == name:
-            self._core.mission = replace(self._core.mission, goal=loc)
 
     def set_start(self, name: str) -> None:
         from dataclasses import replace
 
         with self._core.action("set the mission start", EDIT_MISSION, scene="mission"):
-            self._core.mission = replace(self._core.mission, start=self.location(name), order=None)
+            self._core.mission = replace(self._core.mission, start=self.location(name).name,
+                                         order=None)
 
     def set_goal(self, name: str) -> None:
         from dataclasses import replace
 
         with self._core.action("set the mission goal", EDIT_MISSION, scene="mission"):
-            self._core.mission = replace(self._core.mission, goal=self.location(name), order=None)
+            self._core.mission = replace(self._core.mission, goal=self.location(name).name,
+                                         order=None)
+
+    def resolved_mission(self) -> ResolvedMission:
+        """The mission with its start and goal looked up in the session's locations, as they
+        are now: what planning, the ordering and a study take (`Mission.resolve`)."""
+        try:
+            return self._core.mission.resolve(self._core.locations)
+        except ValueError as exc:
+            raise SessionError(str(exc)) from None
 
     def location(self, name: str) -> Location:
         if name not in self._core.locations:

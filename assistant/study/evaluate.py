@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from assistant.collision.checker import CollisionChecker
-from assistant.mission.model import Mission
+from assistant.mission.model import ResolvedMission
 from assistant.progress import Progress
 from assistant.robots.model import Robot
 from assistant.study.scoring import Scoring
@@ -62,7 +62,7 @@ class PlanOutcome:
     plan_seconds: float = 0.0
 
 
-def plan_candidate(shared: Shared, obstacles: list, mission: Mission, T_world_base: Array,
+def plan_candidate(shared: Shared, obstacles: list, mission: ResolvedMission, T_world_base: Array,
                    q_seed: Array, anchors: list[Array], planner_config: Any, scoring: Scoring,
                    progress: Progress | None = None) -> PlanOutcome:
     """World model + roadmap + mission plan at one candidate (obstacles in its base frame)."""

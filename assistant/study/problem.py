@@ -15,7 +15,13 @@ from typing import Any
 import numpy as np
 
 from assistant.cell.model import Cell
-from assistant.mission.model import ApplicationPath, Location, Mission, PathSegment, SegmentKind
+from assistant.mission.model import (
+    ApplicationPath,
+    Location,
+    PathSegment,
+    ResolvedMission,
+    SegmentKind,
+)
 from assistant.study.region import Candidate
 from assistant.transforms import inv_T
 
@@ -77,7 +83,7 @@ class StudyProblem:
     """The cell, its mission and the settings every candidate is evaluated with."""
 
     cell: Cell
-    mission: Mission
+    mission: ResolvedMission
     subject: Subject = field(default_factory=Subject)
     criteria: StudyCriteria = field(default_factory=StudyCriteria)
     #: The robot's posture now (IK seed and anchor of the world's joint positions).
@@ -118,7 +124,7 @@ class StudyProblem:
         T[0, 3], T[1, 3] = c.x, c.y
         return T
 
-    def variant(self, c: Candidate) -> tuple[Cell, Mission]:
+    def variant(self, c: Candidate) -> tuple[Cell, ResolvedMission]:
         """The cell and mission with the subject at candidate `c` (copies; shares meshes)."""
         T_new = self.pose_at(c)
         if self.subject.is_base:
@@ -139,7 +145,7 @@ class StudyProblem:
         return cell, _moved_mission(self.mission, delta, lo, hi)
 
 
-def targets_and_legs(mission: Mission, names: dict[str, Array] | None = None,
+def targets_and_legs(mission: ResolvedMission, names: dict[str, Array] | None = None,
                      ) -> tuple[list[Target], list[Leg]]:
     """The poses the robot must take, in the mission's order (start, each path's points,
     goal), and the transfers between them (start -> path, path -> path, path -> goal)."""
@@ -206,7 +212,7 @@ def _object_box(obj: Any) -> tuple[Array, Array]:
     return b.min(axis=0) - CARRY_MARGIN, b.max(axis=0) + CARRY_MARGIN
 
 
-def _moved_mission(mission: Mission, delta: Array, lo: Array, hi: Array) -> Mission:
+def _moved_mission(mission: ResolvedMission, delta: Array, lo: Array, hi: Array) -> ResolvedMission:
     """The mission with every location and path point inside [lo, hi] (on the moved
     object) moved by `delta`; a path wholly on it also turns its tool orientation."""
     def inside(p: Array) -> bool:
@@ -231,4 +237,4 @@ def _moved_mission(mission: Mission, delta: Array, lo: Array, hi: Array) -> Miss
                 else path.R_world_tool
             path = replace(path, segments=segs, R_world_tool=R)
         paths.append(path)
-    return Mission(loc(mission.start), loc(mission.goal), paths, mission.order)
+    return ResolvedMission(loc(mission.start), loc(mission.goal), paths, mission.order)

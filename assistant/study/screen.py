@@ -14,7 +14,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from assistant.collision.checker import CollisionChecker
-from assistant.mission.model import Mission
+from assistant.mission.model import ResolvedMission
 from assistant.planning.locations import branch_seed
 from assistant.robots.model import IKFailure, Robot
 from assistant.study.problem import Leg, Target, targets_and_legs
@@ -40,7 +40,7 @@ class ScreenResult:
     seconds: float = 0.0
 
 
-def screen(robot: Robot, checker: CollisionChecker, T_world_base: Array, mission: Mission,
+def screen(robot: Robot, checker: CollisionChecker, T_world_base: Array, mission: ResolvedMission,
            names: dict[str, Array], margin: float, q_seed: Array) -> ScreenResult:
     """Screen the mission with the robot at `T_world_base`; `checker` holds the candidate's
     obstacles in its base frame."""

@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from assistant.mission.model import Mission
+from assistant.mission.model import ResolvedMission
 
 Array = np.ndarray
 
@@ -135,7 +135,7 @@ def order_paths(
                     transfer)
 
 
-def order_mission(mission: Mission, *, estimate: CostFn = tcp_distance,
+def order_mission(mission: ResolvedMission, *, estimate: CostFn = tcp_distance,
                   measure: CostFn | None = None, params: OrderingParams | None = None,
                   ) -> Ordering:
     """Order a mission's paths between its start and goal locations (world frame)."""

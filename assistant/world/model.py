@@ -142,7 +142,9 @@ class WorldChange:
 
 @dataclass(frozen=True)
 class RecordedCollision:
-    """A posture the operator flagged (kept for edge checks and for saving the session).
+    """What one collision indication at posture `q` taught this world (for edge checks).
+    The list of indications itself is its user's (the session's record, which a rebuilt
+    world learns again); `learnt_from` finds the entry one of them made.
 
     With a `region` (6- and 7-axis arms, the approach known: `contact_region`) the evidence
     is that region; without, the posture box and the arm's leaves (`indications`)."""
@@ -150,6 +152,8 @@ class RecordedCollision:
     q: Array
     cells: Array
     region: ContactRegion | None = None
+    #: Later indications at the same place whose region grew this one's (`learnt_from`).
+    grown_by: tuple[Array, ...] = ()
 
 
 class WorldModel:
@@ -415,7 +419,8 @@ class WorldModel:
             region = carve(arm, region, rcfg, start, withhold=False)
             if not promote:
                 region = carve(arm, region, rcfg, protected)
-            self.collisions[i] = RecordedCollision(old.q, old.cells, region)
+            self.collisions[i] = RecordedCollision(old.q, old.cells, region,
+                                                   (*old.grown_by, q.copy()))
             what = (f"{indication_name(i)} indicated again at the same place: its region "
                     f"grows (spheres of {region.radius * 1000:.0f} mm)")
             if promote:
@@ -464,6 +469,14 @@ class WorldModel:
         size = (hi - lo) * 1000.0
         return (f"a region of {size[0]:.0f} x {size[1]:.0f} x {size[2]:.0f} mm around "
                 f"({c[0]:.0f}, {c[1]:.0f}, {c[2]:.0f}) mm (robot base)")
+
+    def learnt_from(self, q: Array, nth: int = 0) -> int | None:
+        """Index of the recorded collision learnt from posture `q` (bit for bit: the same
+        reading) or whose region it grew, the `nth` such from 0 when that posture was
+        indicated again; None when this world never learnt it."""
+        hits = [i for i, rc in enumerate(self.collisions)
+                for p in (rc.q, *rc.grown_by) if np.array_equal(p, q)]
+        return hits[nth] if nth < len(hits) else None
 
     def forget_collision(self, i: int) -> WorldChange:
         """Drop recorded collision i (0-based) and everything it taught."""

@@ -42,7 +42,7 @@ sys.path.insert(0, str(HERE.parents[1]))
 from assistant.cell.cad import load_cad  # noqa: E402
 from assistant.cell.model import Cell, CellObject, ObjectRole  # noqa: E402
 from assistant.cell.storage import save_cell  # noqa: E402
-from assistant.mission.model import Location, LocationSource, Mission  # noqa: E402
+from assistant.mission.model import Location, LocationSource, ResolvedMission  # noqa: E402
 from assistant.robots.catalog import RobotSpec, ToolSpec  # noqa: E402
 from assistant.session.frames import _drawing_control, drawing_path  # noqa: E402
 from assistant.transforms import make_T, pose_from_mm_deg, stored_pose  # noqa: E402
@@ -236,7 +236,7 @@ def make_cell(out: Path = HERE) -> Cell:
     return cell
 
 
-def make_mission() -> Mission:
+def make_mission() -> ResolvedMission:
     from assistant.session.types import sample_robot_spec
 
     q = np.radians(np.array(HOME_Q_DEG))
@@ -246,7 +246,7 @@ def make_mission() -> Mission:
                           at=(x / 1000, y / 1000), lift=PEN_LIFT, speed=DRAW_SPEED,
                           tool_angle=PEN_TURN)
              for name, number, (x, y) in DRAWINGS]
-    return Mission(home, home, paths)
+    return ResolvedMission(home, home, paths)
 
 
 def main(out: Path = HERE) -> None:

@@ -36,7 +36,13 @@ sys.path.insert(0, str(HERE.parents[1]))
 from assistant.cell.cad import load_cad  # noqa: E402
 from assistant.cell.model import Cell, CellObject, ObjectRole  # noqa: E402
 from assistant.cell.storage import save_cell  # noqa: E402
-from assistant.mission.model import ApplicationPath, Location, Mission, PathSegment, SegmentKind  # noqa: E402
+from assistant.mission.model import (  # noqa: E402
+    ApplicationPath,
+    Location,
+    PathSegment,
+    ResolvedMission,
+    SegmentKind,
+)
 from assistant.mission.motion import ToolAction, ToolActionKind  # noqa: E402
 from assistant.robots.catalog import RobotSpec, ToolSpec  # noqa: E402
 from assistant.transforms import make_T  # noqa: E402
@@ -137,9 +143,10 @@ def make_cell(out: Path = HERE) -> Cell:
     return cell
 
 
-def make_mission() -> Mission:
-    return Mission(Location("START", make_T(R_DOWN, START)), Location("GOAL", make_T(R_DOWN, GOAL)),
-                   [pair_path(k) for k in range(3)])
+def make_mission() -> ResolvedMission:
+    return ResolvedMission(Location("START", make_T(R_DOWN, START)),
+                           Location("GOAL", make_T(R_DOWN, GOAL)),
+                           [pair_path(k) for k in range(3)])
 
 
 def main(out: Path = HERE) -> None:

@@ -41,7 +41,13 @@ sys.path.insert(0, str(HERE.parents[1]))
 from assistant.cell.cad import load_cad  # noqa: E402
 from assistant.cell.model import Cell, CellObject, ObjectRole  # noqa: E402
 from assistant.cell.storage import save_cell  # noqa: E402
-from assistant.mission.model import ApplicationPath, Location, Mission, PathSegment, SegmentKind  # noqa: E402
+from assistant.mission.model import (  # noqa: E402
+    ApplicationPath,
+    Location,
+    PathSegment,
+    ResolvedMission,
+    SegmentKind,
+)
 from assistant.mission.motion import ToolAction, ToolActionKind  # noqa: E402
 from assistant.robots.catalog import RobotSpec, ToolSpec  # noqa: E402
 from assistant.transforms import make_T  # noqa: E402
@@ -145,14 +151,15 @@ def make_cell(out: Path = HERE) -> Cell:
     return cell
 
 
-def make_mission() -> Mission:
+def make_mission() -> ResolvedMission:
     line = ApplicationPath(
         "P7-P8", [PathSegment(SegmentKind.LINE, (np.array(P7), np.array(P8)))],
         R_world_tool=R_DOWN,
         actions_before=[ToolAction(ToolActionKind.GRIPPER_CLOSE, 1)],
         actions_after=[ToolAction(ToolActionKind.GRIPPER_OPEN, 1)],
         speed=0.05)
-    return Mission(Location("P1", make_T(R_DOWN, P1)), Location("P10", make_T(R_DOWN, P10)), [line])
+    return ResolvedMission(Location("P1", make_T(R_DOWN, P1)), Location("P10", make_T(R_DOWN, P10)),
+                           [line])
 
 
 def hidden_json() -> dict:
@@ -177,8 +184,8 @@ def mission_from_script() -> dict:
         if action.verb == "build_world":
             break
         run_action(s, action, script.path.parent, script.path)
-    doc = s.mission.to_json()
-    named = {loc.name for loc in (s.mission.start, s.mission.goal) if loc is not None}
+    doc = s.teaching.resolved_mission().to_json()  # the file holds start and goal whole
+    named = {n for n in (s.mission.start, s.mission.goal) if n is not None}
     doc["locations"] = [loc.to_json() for name, loc in s.locations.items() if name not in named]
     return _rounded(doc)
 

@@ -44,8 +44,8 @@ from assistant.mission.model import (  # noqa: E402
     ApplicationPath,
     Location,
     LocationSource,
-    Mission,
     PathSegment,
+    ResolvedMission,
     SegmentKind,
 )
 from assistant.mission.motion import ToolAction, ToolActionKind  # noqa: E402
@@ -111,13 +111,13 @@ def _taught(name: str, q_deg: tuple[float, ...]) -> Location:
     return Location(name, stored_pose(robot.fk(q)), LocationSource.ROBOT_POSE, q)
 
 
-def make_mission() -> Mission:
+def make_mission() -> ResolvedMission:
     a = _taught("SEAM_A", SEAM_A_Q_DEG)
     seam = ApplicationPath(
         "SEAM", [PathSegment(SegmentKind.LINE, (a.position.copy(), np.array(SEAM_B)))],
         a.T_world_tool[:3, :3].copy(), [ToolAction(ToolActionKind.OUTPUT, 1, True)],
         [ToolAction(ToolActionKind.OUTPUT, 1, False)], SEAM_SPEED)
-    return Mission(_taught("START", START_Q_DEG), _taught("GOAL", GOAL_Q_DEG), [seam])
+    return ResolvedMission(_taught("START", START_Q_DEG), _taught("GOAL", GOAL_Q_DEG), [seam])
 
 
 def main(out: Path = HERE) -> None:

@@ -95,7 +95,7 @@ def test_the_session_imports_a_layout_in_one_undoable_action(tmp_path):
     objs = s.import_layout_path(LAYOUT)
     assert [o.name for o in objs] == ["O1", "O2"]
     np.testing.assert_allclose(s.cell.objects["O1"].T_world_object, np.eye(4))  # as drawn
-    assert s.mission.start.name == "P1" and s.mission.goal.name == "P10"
+    assert s.mission.start == "P1" and s.mission.goal == "P10"
     np.testing.assert_allclose(s.locations["P10"].T_world_tool[:3, 3], [0.08, 0.34, 0.2],
                                atol=1e-12)  # exact mm -> m conversions
     assert s.locations["P1"].source.value == "cad_file"
@@ -128,13 +128,28 @@ def test_an_unreachable_location_refuses_the_whole_layout(tmp_path):
         s.import_layout(LAYOUT.with_name("O1.dxf").read_bytes(), "O1.dxf")
 
 
-def test_a_saved_cell_reimports_the_layout_parts(tmp_path):
+def test_a_saved_cell_reimports_the_layout_parts(tmp_path, monkeypatch):
+    """Each part from the layout file with its layer; the drawing parsed once, on import and
+    on load (ezdxf's parse counted), not once more per part."""
+    from ezdxf import recover
+
     s = Session.from_sample("thesis_rv2aj", tmp_path / "s", with_objects=False,
                             with_mission=False)
     s.fire("next")
+    parses: list[int] = []
+    real_parse = recover.read
+
+    def parse(stream, *args, **kwargs):  # noqa: ANN001, ANN002, ANN003, ANN202
+        parses.append(len(stream.getvalue()))
+        return real_parse(stream, *args, **kwargs)
+
+    monkeypatch.setattr(recover, "read", parse)
     s.import_layout_path(LAYOUT)
+    assert parses == [LAYOUT.stat().st_size]
     s.save(tmp_path / "saved")
+    parses.clear()
     again = Session.load(tmp_path / "saved", autosave=False)
+    assert parses == [LAYOUT.stat().st_size]
     for name in ("O1", "O2"):
         np.testing.assert_allclose(again.cell.objects[name].display_mesh.bounds,
                                    s.cell.objects[name].display_mesh.bounds, atol=1e-12)

@@ -11,7 +11,13 @@ import pytest
 from planning_fixtures import box, make_planner, tcp_points
 
 from assistant.collision.checker import CollisionChecker
-from assistant.mission.model import ApplicationPath, Location, Mission, PathSegment, SegmentKind
+from assistant.mission.model import (
+    ApplicationPath,
+    Location,
+    PathSegment,
+    ResolvedMission,
+    SegmentKind,
+)
 from assistant.mission.motion import MotionKind, ToolActionKind
 from assistant.planning.locations import LocationError, LocationProblem, solve_location
 from assistant.progress import Cancelled, Progress
@@ -83,7 +89,7 @@ def test_exploring_plan_is_verified_too(planner, scenario, robot):
     assert known.check_path(list(plan.trajectory.dense_joint_path())) is None
 
 
-def _with_goal(mission: Mission, T_world_tool) -> Mission:
+def _with_goal(mission: ResolvedMission, T_world_tool) -> ResolvedMission:
     return replace(mission, goal=Location("P10", T_world_tool))
 
 
@@ -171,7 +177,7 @@ def test_paths_are_ordered_by_measured_transfers(planner, robot):
              line("mid", [0.34, -0.04, 0.12], [0.34, 0.04, 0.12])]
     start = Location("S", make_T(down, np.array([0.05, -0.30, 0.25])))
     goal = Location("G", make_T(down, np.array([0.05, 0.30, 0.25])))
-    plan = planner.plan_mission(Mission(start, goal, paths), np.eye(4), np.zeros(5))
+    plan = planner.plan_mission(ResolvedMission(start, goal, paths), np.eye(4), np.zeros(5))
     assert plan.ok, plan.report.describe()
     assert [n.split(" ")[0] for n in plan.report.order] == ["near", "mid", "far"]
     assert plan.ordering is not None and plan.ordering.exact

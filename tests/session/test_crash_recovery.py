@@ -56,6 +56,6 @@ def test_kill_mid_plan_then_reload(tmp_path):
     assert {"table", "O1", "O2"} <= set(back.cell.objects)
     assert "PX" in back.locations
     assert np.allclose(back.locations["PX"].T_world_tool[:3, 3], [0.25, 0.0, 0.25], atol=1e-6)
-    assert back.mission.start.name == "P1" and back.mission.goal.name == "P10"
+    assert back.mission.start == "P1" and back.mission.goal == "P10"
     assert back.trajectory is None  # the plan in flight is what was lost
     assert back.counters.operator_actions == 3

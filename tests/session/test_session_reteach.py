@@ -19,10 +19,12 @@ def test_a_location_taught_again_replaces_it_and_undo_restores_it(tmp_path):
     s.teach("P1", pose_from_mm_deg([80, -340, 200, 0, 0, 180]))
     s.set_start("P1")
     s.teach("P1", pose_from_mm_deg([80, -330, 200, 0, 0, 180]))  # corrected
-    np.testing.assert_allclose(s.mission.start.position, [0.08, -0.33, 0.2], atol=1e-12)
+    np.testing.assert_allclose(s.teaching.resolved_mission().start.position, [0.08, -0.33, 0.2],
+                               atol=1e-12)
     s.undo()
     np.testing.assert_allclose(s.locations["P1"].position, [0.08, -0.34, 0.2], atol=1e-12)
-    np.testing.assert_allclose(s.mission.start.position, [0.08, -0.34, 0.2], atol=1e-12)
+    np.testing.assert_allclose(s.teaching.resolved_mission().start.position, [0.08, -0.34, 0.2],
+                               atol=1e-12)
 
 
 def test_location_equality_is_by_value():

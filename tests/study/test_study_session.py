@@ -33,11 +33,12 @@ def test_study_then_apply_and_undo(session):
     best = res.best()
     assert best is not None and abs(best.candidate.x - 0.1) < 1e-9
     T_before = session.T_world_base().copy()
-    P1 = session.mission.start.T_world_tool.copy()
+    P1 = session.locations[session.mission.start].T_world_tool.copy()
     T = session.apply_placement(best.candidate.index)
     assert np.allclose(session.T_world_base()[:3, 3], [0.1, 0.0, T_before[2, 3]])
     assert np.allclose(T, session.T_world_base())
-    assert np.allclose(session.mission.start.T_world_tool, P1)  # the world stays put
+    # the world stays put
+    assert np.allclose(session.locations[session.mission.start].T_world_tool, P1)
     assert session.undo().startswith("move the robot base")
     assert np.allclose(session.T_world_base(), T_before)
     with pytest.raises(SessionError, match="no candidate #99"):

@@ -7,7 +7,13 @@ import itertools
 import numpy as np
 import pytest
 
-from assistant.mission.model import ApplicationPath, Location, Mission, PathSegment, SegmentKind
+from assistant.mission.model import (
+    ApplicationPath,
+    Location,
+    PathSegment,
+    ResolvedMission,
+    SegmentKind,
+)
 from assistant.trajectory.ordering import (
     Endpoint,
     JointDistance,
@@ -143,7 +149,7 @@ def test_order_mission_from_taught_locations():
                                                   (np.array(a, float), np.array(b, float)))],
                                reversible=reversible)
 
-    mission = Mission(
+    mission = ResolvedMission(
         Location("home", make_T(p=[0.0, 0.0, 0.0])),
         Location("goal", make_T(p=[1.0, 0.0, 0.0])),
         [line("far", [0.8, 0, 0], [0.9, 0, 0]), line("near", [0.2, 0, 0], [0.1, 0, 0], True),

@@ -39,7 +39,7 @@ def application_points(locations: Iterable[str], mission: Mission) -> list[str]:
     """The taught locations a new path most likely runs through, in the order they were
     taught (`locations` in insertion order): all but the mission's start and goal and those a
     path of the mission already uses."""
-    taken = {p.name for p in (mission.start, mission.goal) if p is not None}
+    taken = {n for n in (mission.start, mission.goal) if n is not None}
     taken |= {n for path in mission.paths for seg in path.segments for n in seg.names if n}
     return [n for n in locations if n not in taken]
 
@@ -131,8 +131,8 @@ class PathsPanel(Panel):
     def refresh(self) -> None:
         s = self.session
         m = s.mission
-        lines = [f"**Start:** {m.start.name if m.start else '- (teach one in 4.1)'} &nbsp; "
-                 f"**Goal:** {m.goal.name if m.goal else '-'}"]
+        lines = [f"**Start:** {m.start or '- (teach one in 4.1)'} &nbsp; "
+                 f"**Goal:** {m.goal or '-'}"]
         if m.paths:
             lines += ["", "| # | path | kind | segments | before | after | mm/s |",
                       "|---|---|---|---|---|---|---|"]

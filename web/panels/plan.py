@@ -191,8 +191,7 @@ class PlanPanel(Panel):
             f" Collisions learnt: {c.collision_indications}, re-plans: {c.replans}."
         outcome = ""
         if run.phase in (RunPhase.DONE, RunPhase.STOPPED):
-            goal = s.mission.goal
-            head = goal_reached(goal.name if goal is not None else None, s.last_run or {}) \
+            head = goal_reached(s.mission.goal, s.last_run or {}) \
                 if run.phase == RunPhase.DONE else ""
             outcome = "\n\n".join(x for x in (f"**{head}**" if head else "", run.sentence)
                                   if x) + "\n\n"

@@ -222,9 +222,7 @@ class TeachPanel(Panel):
         self.five_axis.content = "" if r.dof >= 6 else \
             f"<small>The {r.name} has {r.dof} axes: an orientation outside the arm's plane " \
             "is turned into it (the page says by how much).</small>"
-        m = s.mission
-        start = m.start.name if m.start is not None else None
-        goal = m.goal.name if m.goal is not None else None
+        start, goal = s.mission.start, s.mission.goal  # location names
         if not s.locations:
             self.table.content = "*No locations yet.*"
         else:

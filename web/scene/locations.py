@@ -13,9 +13,7 @@ class LocationsLayer(Layer):
     def refresh(self) -> None:
         self.clear()
         s = self.session
-        m = s.mission
-        start = m.start.name if m.start is not None else None
-        goal = m.goal.name if m.goal is not None else None
+        start, goal = s.mission.start, s.mission.goal  # location names
         for name, loc in s.locations.items():
             key = f"{self.root}/{node_key(name)}"
             wxyz, pos = wxyz_position(loc.T_world_tool)

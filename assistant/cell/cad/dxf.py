@@ -14,6 +14,7 @@ from __future__ import annotations
 import io
 import tempfile
 from pathlib import Path
+from typing import Any
 
 import ezdxf
 import numpy as np
@@ -31,16 +32,11 @@ _ACIS = {"3DSOLID", "BODY", "REGION", "SURFACE"}
 _BINARY_SENTINEL = b"AutoCAD Binary DXF"
 
 
-def read_dxf(data: bytes, filename: str, options: ImportOptions) -> RawGeometry:
-    """Faces of a DXF's model space (or its closed outlines) in drawing units."""
-    if not (data.startswith(_BINARY_SENTINEL) or b"SECTION" in data[:65536]):
-        raise CadImportError(filename, "is not a DXF file (no DXF sections found)",
-                             "export the drawing again as DXF")
-    try:
-        doc = _read_document(data)
-    except Exception as exc:  # a parser of untrusted bytes: any failure means "unreadable"
-        raise CadImportError(filename, f"could not be read as DXF ({exc})",
-                             "the file may be truncated or damaged; export it again") from exc
+def read_dxf(data: bytes, filename: str, options: ImportOptions, *,
+             document: Any = None) -> RawGeometry:
+    """Faces of a DXF's model space (or its closed outlines) in drawing units.
+    `document`: these bytes already parsed (a cell layout's parts share one reading)."""
+    doc = document if document is not None else read_document(data, filename)
 
     raw = RawGeometry(mesh=None)
     try:
@@ -125,7 +121,19 @@ def _collect(doc, layer: str | None = None) -> tuple[list[np.ndarray], list, int
     return triangles, curves, acis, open_polylines
 
 
-def _read_document(data: bytes):
+def read_document(data: bytes, filename: str) -> Any:
+    """The parsed drawing (an ezdxf document), or `CadImportError` saying why not."""
+    if not (data.startswith(_BINARY_SENTINEL) or b"SECTION" in data[:65536]):
+        raise CadImportError(filename, "is not a DXF file (no DXF sections found)",
+                             "export the drawing again as DXF")
+    try:
+        return _read_document(data)
+    except Exception as exc:  # a parser of untrusted bytes: any failure means "unreadable"
+        raise CadImportError(filename, f"could not be read as DXF ({exc})",
+                             "the file may be truncated or damaged; export it again") from exc
+
+
+def _read_document(data: bytes) -> Any:
     """ASCII DXF from memory with the forgiving reader; binary DXF only through ezdxf's plain
     file reader (the recover module does not read binary), via a temporary file."""
     if not data.startswith(_BINARY_SENTINEL):

@@ -10,6 +10,7 @@ from __future__ import annotations
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import trimesh
 
@@ -130,6 +131,7 @@ def load_cad(
     step_tolerance_m: float = DEFAULT_STEP_TOLERANCE_M,
     dxf_layer: str | None = None,
     progress: Progress | None = None,
+    dxf_document: Any = None,
 ) -> CadImport:
     """Import a CAD file given as bytes (an upload); the format comes from the file name.
 
@@ -144,6 +146,8 @@ def load_cad(
         step_tolerance_m: chordal tolerance of STEP tessellation.
         dxf_layer: read only this layer of a DXF (a part of a cell-layout drawing).
         progress: reports the stages and raises `Cancelled` between them after `cancel()`.
+        dxf_document: `data` already parsed (`dxf.read_document`): the parts of a cell
+            layout are read from one parsed drawing, not the file parsed again per part.
 
     Returns:
         The imported part; see `CadImport`.
@@ -158,7 +162,7 @@ def load_cad(
                                 step_tolerance_m=step_tolerance_m, dxf_layer=dxf_layer)
     except ValueError as exc:
         raise CadImportError(filename, f"bad import option: {exc}") from exc
-    return import_with_options(data, filename, options, progress)
+    return import_with_options(data, filename, options, progress, dxf_document=dxf_document)
 
 
 def load_cad_path(path: str | Path, **kwargs) -> CadImport:
@@ -177,10 +181,11 @@ def read_cad_file(path: str | Path) -> bytes:
 
 
 def import_with_options(data: bytes, filename: str, options: ImportOptions,
-                        progress: Progress | None = None) -> CadImport:
+                        progress: Progress | None = None, *,
+                        dxf_document: Any = None) -> CadImport:
     """The pipeline behind `load_cad` (used directly when re-importing a saved cell)."""
     try:
-        return _import(data, filename, options, progress or Progress())
+        return _import(data, filename, options, progress or Progress(), dxf_document)
     except (CadImportError, Cancelled):
         raise
     except MemoryError as exc:
@@ -194,7 +199,7 @@ def import_with_options(data: bytes, filename: str, options: ImportOptions,
 
 
 def _import(data: bytes, filename: str, options: ImportOptions,
-            progress: Progress) -> CadImport:
+            progress: Progress, dxf_document: Any = None) -> CadImport:
     if not isinstance(data, (bytes, bytearray, memoryview)):
         raise CadImportError(filename, f"expected the file's bytes, got {type(data).__name__}")
     data = bytes(data)
@@ -207,7 +212,12 @@ def _import(data: bytes, filename: str, options: ImportOptions,
     progress.update(0.01, "sizing up the file")
     check_before_parsing(data, filename, fmt, MAX_FACES)
     progress.update(0.02, "reading the file")
-    raw = reader_for(fmt)(data, filename, options)
+    if dxf_document is not None and fmt == CadFormat.DXF:
+        from assistant.cell.cad.dxf import read_dxf
+
+        raw = read_dxf(data, filename, options, document=dxf_document)
+    else:
+        raw = reader_for(fmt)(data, filename, options)
 
     progress.update(0.12, "checking the geometry")
     if raw.mesh is None and raw.outline is not None:

@@ -10,20 +10,20 @@ cell layout when it has a layer named `LOCATIONS`:
 * every TEXT or MTEXT on `LOCATIONS` is a location at the text's insertion point, labelled
   `NAME [start|goal] [A B C]` (A, B, C in degrees, default 0 0 180: the tool pointing down).
 
-Each part is the whole file read with `ImportOptions.dxf_layer` set to its layer, so it takes
-the ordinary import path (units, repair, collision proxy) and a saved cell re-imports it the
-same way; the locations are in drawing units, scaled like the parts.
+Each part is the file read with `ImportOptions.dxf_layer` set to its layer, so it takes the
+ordinary import path (units, repair, collision proxy) and a saved cell re-imports it the same
+way; on import the parts share the one parsed drawing `read_layout` read (`document`). The
+locations are in drawing units, scaled like the parts.
 """
 
 from __future__ import annotations
 
-import io
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
-from ezdxf import recover
-
+from assistant.cell.cad.dxf import read_document
 from assistant.cell.cad.errors import CadImportError
 from assistant.cell.cad.formats import CadFormat
 from assistant.cell.cad.precheck import check_before_parsing
@@ -53,6 +53,9 @@ class CellLayout:
     parts: dict[str, str]
     locations: list[LayoutLocation]
     notes: list[str] = field(default_factory=list)
+    #: The parsed drawing (an ezdxf document) the parts are read from (`load_cad`'s
+    #: `dxf_document`): the file is parsed once for its layout and all its parts.
+    document: Any = field(default=None, repr=False, compare=False)
 
 
 def might_be_layout(data: bytes, filename: str) -> bool:
@@ -65,12 +68,7 @@ def read_layout(data: bytes, filename: str) -> CellLayout | None:
     """The layout of a DXF with a LOCATIONS layer; None for an ordinary one-part drawing."""
     if not might_be_layout(data, filename):
         return None
-    check_before_parsing(data, filename, CadFormat.DXF, MAX_FACES)  # before ezdxf reads it
-    try:
-        doc, _auditor = recover.read(io.BytesIO(data))
-    except Exception as exc:  # a parser of untrusted bytes: any failure means "unreadable"
-        raise CadImportError(filename, f"could not be read as DXF ({exc})",
-                             "the file may be truncated or damaged; export it again") from exc
+    doc = parse_drawing(data, filename)
     msp = doc.modelspace()
     by_layer: dict[str, list] = {}
     for e in msp:
@@ -78,7 +76,7 @@ def read_layout(data: bytes, filename: str) -> CellLayout | None:
     loc_layer = next((k for k in by_layer if k.upper() == LOCATION_LAYER), None)
     if loc_layer is None:
         return None
-    layout = CellLayout(parts={}, locations=[])
+    layout = CellLayout(parts={}, locations=[], document=doc)
     for e in by_layer.pop(loc_layer):
         if e.dxftype() not in ("TEXT", "MTEXT"):
             layout.notes.append(f"a {e.dxftype()} on {LOCATION_LAYER} was ignored "
@@ -104,6 +102,13 @@ def read_layout(data: bytes, filename: str) -> CellLayout | None:
         raise CadImportError(filename, "has locations but no part geometry",
                              "draw the parts on layers of their own beside LOCATIONS")
     return layout
+
+
+def parse_drawing(data: bytes, filename: str) -> Any:
+    """A layout's drawing parsed once for all its parts (`CellLayout.document`), sized up
+    before ezdxf reads it (`CadImportError` when too large or unreadable)."""
+    check_before_parsing(data, filename, CadFormat.DXF, MAX_FACES)
+    return read_document(data, filename)
 
 
 def _location(e, filename: str) -> LayoutLocation:
