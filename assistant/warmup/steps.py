@@ -4,7 +4,8 @@ The kernels (`broad_phase`, `segment_box`, `dh`, `rv2aj_fk_batch`, `rv2aj_positi
 `rv2aj_pose_batch`, `kernel_helpers`, `motion_rows`, `trajectory.fit_kernels`,
 `trajectory.net_forces`, `trajectory.net_kernel`, `trajectory.joint_steps`,
 `roadmap.brushfire`, `roadmap.voronoi_update`, `roadmap.graph_kernel`,
-`roadmap.astar_kernel`, `roadmap.search_masks`, `world.leaf_lookup`, `shape_poses`)
+`roadmap.astar_kernel`, `roadmap.search_masks`, `world.leaf_lookup`, `shape_poses`,
+`face_planes`)
 compile on their first call and cache the result on disk;
 only the first run after an install pays, ~2 minutes of one core for all of them. The CLI
 runs these steps in a background process (`lazy.start`, `compile`) while the kernels run
@@ -30,6 +31,7 @@ from assistant.collision.broad_phase import (
     sphere_broad_phase,
 )
 from assistant.collision.clearance_scan import pruned_clearance
+from assistant.collision.face_planes import vertices_beyond
 from assistant.collision.motion_rows import (
     motion_marks,
     path_samples,
@@ -80,7 +82,7 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            valid_before_first_bad, expand, weighted_distances, successor_costs,
            successors_into, neighbour_cells_into, search, select_nodes, shape_poses,
            terminal_round, base_nodes, path_samples, joint_steps, margin_rows,
-           search_masks, leaf_indices)
+           search_masks, leaf_indices, vertices_beyond)
 
 
 def warm_up(*, reverse: bool = False) -> float:
@@ -166,6 +168,9 @@ def _motion_checks(c: _Context) -> None:
     checker.check_motion(q[0], q[0] + 0.3)
     checker.check_path([q[0], q[0] + 0.3], trusted=np.zeros(1, dtype=bool))
     checker.check_path([q[0], q[0] + 0.3])
+    # the certificate's face-plane test (`certify_path`), with the types it is called with
+    vertices_beyond(np.eye(4)[None], np.eye(3)[None], np.zeros((1, 3)), np.ones(3),
+                    np.zeros((1, 3)), 1e-6, np.zeros(1, dtype=bool))
 
 
 def _roads(c: _Context) -> None:

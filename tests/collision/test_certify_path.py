@@ -80,3 +80,125 @@ def test_the_batch_quaternions_pose_as_the_matrices_do():
     ref = Rotation.from_matrix(R).as_quat()[:, [3, 0, 1, 2]]
     err = np.minimum(np.abs(q - ref).max(axis=1), np.abs(q + ref).max(axis=1))
     assert err.max() < 1e-12
+
+
+def test_a_face_plane_clears_a_row_only_where_fcl_finds_the_pair_apart(exact):
+    """`_outside_box` (every vertex beyond one face plane of a box) on uniform postures, for
+    every robot shape against each box obstacle without a margin and against the box that
+    holds every other robot shape: wherever it clears a row, FCL's distance is positive;
+    and it clears many rows (what saves the FCL tests). FCL's distance of the closest
+    cleared pair is above its own tolerance (the plane's gap is > 1 um by construction)."""
+    import fcl
+
+    from assistant.collision.certify_path import (
+        _beyond_a_face,
+        _corners,
+        _pair_apart,
+        _Poser,
+    )
+
+    robot = exact.robot
+    rng = np.random.default_rng(9)
+    Q = np.ascontiguousarray(rng.uniform(robot.limits.lower, robot.limits.upper,
+                                         size=(60, robot.dof)))
+    frames = np.ascontiguousarray(exact._link_frames(Q), dtype=float)
+    pose = _Poser(exact, frames)
+    rows = np.arange(len(Q))
+    cleared = checked = 0
+    for s in range(len(exact._rshapes)):
+        if _corners(exact)[s] is None or exact._rshapes[s].link == 0:
+            continue
+        for e, es in enumerate(exact._env):
+            free = _beyond_a_face(exact, frames, rows, s, e)
+            assert not free.any() or exact._env_exact[e]  # boxes without a margin only
+            for k in np.flatnonzero(free):
+                d = fcl.distance(pose(s, int(k)), es.obj, exact._dreq, fcl.DistanceResult())
+                assert d > 0.0, (s, e, int(k), d)
+            cleared += int(free.sum())
+            checked += len(rows)
+    for a, b in exact._self_pairs:
+        free = _pair_apart(exact, frames, rows, a, b)
+        for k in np.flatnonzero(free):
+            assert not pose.pair_touches(a, b, int(k)), (a, b, int(k))
+            d = fcl.distance(pose(a, int(k)), pose(b, int(k)), exact._dreq,
+                             fcl.DistanceResult())
+            assert d > 0.0, (a, b, int(k), d)
+        cleared += int(free.sum())
+        checked += len(rows)
+    assert cleared > checked // 4, (cleared, checked)
+
+
+def test_a_path_above_the_table_is_certified_without_fcl_tests_of_the_table(exact,
+                                                                          monkeypatch):
+    """A UR5 / Panda path whose links pass the table closely but above it: the table rows
+    are cleared by its top face plane, not by FCL (before: one FCL test or distance per
+    sample of each such link); a path into the table is still refused where brute-force
+    FCL first finds it touching."""
+    import assistant.collision.certify_path as cp
+
+    robot = exact.robot
+    exact = CollisionChecker(robot, _cell(robot)[:1]).exact_only()  # the table alone
+    table = exact.obstacle_names.index("table")
+    asked: list[int] = []
+    real_touch, real_dist = cp._env_touches, cp._env_distance
+
+    def touches(checker, pose, k, i, es):
+        asked.append(checker._env.index(es))
+        return real_touch(checker, pose, k, i, es)
+
+    def distance(checker, pose, k, i, es):
+        asked.append(checker._env.index(es))
+        return real_dist(checker, pose, k, i, es)
+
+    monkeypatch.setattr(cp, "_env_touches", touches)
+    monkeypatch.setattr(cp, "_env_distance", distance)
+    from assistant.session.home import raised_posture
+
+    q0 = raised_posture(robot)  # a UR's shoulder and upper arm 30 mm above the table
+    q1 = q0.copy()
+    q1[0] = 1.5
+    path = np.array([q0, q1])
+    S, F, _ = exact._path_samples(path, None)
+    Qs = path[S] + F[:, None] * (path[np.minimum(S + 1, 1)] - path[S])
+    truth = [exact.in_collision_naive(q) for q in Qs]
+    assert not any(truth)
+    assert first_contact(exact, path) is None
+    assert table not in asked, asked
+    # lowered into the table: refused at brute force's first touching sample
+    down = q1.copy()
+    down[1] = 1.0 if robot.dof == 6 else 1.7
+    path = np.array([q1, down])
+    S, F, _ = exact._path_samples(path, None)
+    Qs = path[S] + F[:, None] * (path[np.minimum(S + 1, 1)] - path[S])
+    truth = np.array([exact.in_collision_naive(q) for q in Qs])
+    assert truth.any()
+    assert first_contact(exact, path) == int(np.argmax(truth))
+
+
+def test_the_face_plane_fallback_agrees_with_the_kernel():
+    """`face_planes.vertices_beyond`'s numpy fallback (run while the kernel is compiled in
+    the background) clears the same rows: random boxes and point sets placed so that about
+    half the rows are cleared; rows within 1e-9 m of the slack are left out (the two sum
+    the same products in another order, rounding ~1e-16 m)."""
+    from scipy.spatial.transform import Rotation
+
+    from assistant.collision.face_planes import vertices_beyond, vertices_beyond_numpy
+
+    rng = np.random.default_rng(5)
+    n = 400
+    T = np.tile(np.eye(4), (n, 1, 1))
+    T[:, :3, :3] = Rotation.random(n, random_state=1).as_matrix()
+    T[:, :3, 3] = rng.uniform(-0.6, 0.6, size=(n, 3))
+    Rb = Rotation.random(n, random_state=2).as_matrix()
+    cb = rng.uniform(-0.1, 0.1, size=(n, 3))
+    h = np.array([0.2, 0.15, 0.1])
+    V = rng.normal(scale=0.08, size=(300, 3))
+    got, ref = np.zeros(n, dtype=bool), np.zeros(n, dtype=bool)
+    vertices_beyond(T, Rb, cb, h, V, 1e-6, got)
+    vertices_beyond_numpy(T, Rb, cb, h, V, 1e-6, ref)
+    assert 0.2 * n < int(ref.sum()) < 0.8 * n
+    Y = np.einsum("nij,kj->nik", np.swapaxes(Rb, 1, 2) @ T[:, :3, :3], V) + np.einsum(
+        "nji,nj->ni", Rb, T[:, :3, 3] - cb)[:, :, None]
+    gap = np.concatenate([Y.min(axis=2) - h, -Y.max(axis=2) - h], axis=1).max(axis=1)
+    clear = np.abs(gap - 1e-6) > 1e-9
+    assert np.array_equal(got[clear], ref[clear])
