@@ -71,6 +71,45 @@ def neighbour_cells_into(cell: int, nx: int, ny: int, nz: int, searchable: Array
 
 
 @kernel(cache=True)
+def predecessor_cells_into(cell: int, nx: int, ny: int, nz: int, searchable: Array,
+                           squeeze_blocked: Array, exempt: Array, out: Array) -> int:
+    """The cells whose `neighbour_cells_into` holds `cell` (itself included), written into
+    `out` (27 long); returns how many. A step's squeeze rule reads the face cells on the side
+    of the cell it leaves, and a three-axis step passes other face cells one way than the
+    other: so each candidate's own rule is applied, not `cell`'s. None if `cell` is not
+    searchable (no step enters it)."""
+    if not searchable[cell]:
+        return 0
+    i, j, k = cell // (ny * nz), (cell // nz) % ny, cell % nz
+    cell_exempt = _contains(exempt, cell)
+    n_out = 0
+    for di in range(-1, 2):
+        for dj in range(-1, 2):
+            for dk in range(-1, 2):
+                a, b, c = i - di, j - dj, k - dk  # the step (di, dj, dk) from here enters
+                if not (0 <= a < nx and 0 <= b < ny and 0 <= c < nz):
+                    continue
+                flat = (a * ny + b) * nz + c
+                if not searchable[flat]:
+                    continue
+                if (di != 0) + (dj != 0) + (dk != 0) >= 2:
+                    # the face neighbours of (a, b, c) along the step's axes (inside the
+                    # grid: each shares `cell`'s coordinate on its axis)
+                    n_blocked = 0
+                    if di != 0:
+                        n_blocked += squeeze_blocked[(i * ny + b) * nz + c]
+                    if dj != 0:
+                        n_blocked += squeeze_blocked[(a * ny + j) * nz + c]
+                    if dk != 0:
+                        n_blocked += squeeze_blocked[(a * ny + b) * nz + k]
+                    if n_blocked >= 2 and not (cell_exempt or _contains(exempt, flat)):
+                        continue
+                out[n_out] = flat
+                n_out += 1
+    return n_out
+
+
+@kernel(cache=True)
 def neighbour_nodes(u: int, cell: int, nx: int, ny: int, nz: int, searchable: Array,
                     squeeze_blocked: Array, exempt: Array, cell_start: Array,
                     extra_cell: Array) -> Array:

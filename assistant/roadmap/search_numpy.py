@@ -1,5 +1,5 @@
-"""`astar_kernel.search` (and `graph_kernel.expand`, `successor_costs`) as heapq and array
-expressions: their fallbacks until compiled.
+"""`astar_kernel.search` (with its goal's flood; and `graph_kernel.expand`,
+`successor_costs`) as heapq and array expressions: their fallbacks until compiled.
 
 Why: on a first run (empty kernel cache) the compiled search is pending for most of the
 run, and its own Python - one interpreted loop per neighbour node, ~2 ms an expansion -
@@ -14,6 +14,7 @@ lanes, in numpy's order).
 
 from __future__ import annotations
 
+import collections
 import heapq
 import itertools
 
@@ -22,6 +23,7 @@ import numpy as np
 Array = np.ndarray
 
 FOUND, NO_PATH, BUDGET = 0, 1, 2  # as `astar_kernel`
+FLOOD_ON, FLOOD_MET, FLOOD_DONE = 0, 1, 2
 
 #: The 27 cell offsets in `itertools.product((-1, 0, 1), repeat=3)` order.
 _OFFSETS = np.array(list(itertools.product((-1, 0, 1), repeat=3)), dtype=np.int64)
@@ -57,6 +59,30 @@ def neighbour_cells(cell: int, nx: int, ny: int, nz: int, searchable: Array,
     for axis in range(3):
         blocked += np.where(off[:, axis] > 0, faces[axis, 0],
                             np.where(off[:, axis] < 0, faces[axis, 1], False))
+    keep = searchable[flat]
+    squeeze = (_AXES[inside] >= 2) & (blocked >= 2)
+    if squeeze.any() and not _contains(exempt, cell):
+        keep &= ~(squeeze & ~np.isin(flat, exempt))
+    return flat[keep]
+
+
+def predecessor_cells(cell: int, nx: int, ny: int, nz: int, searchable: Array,
+                      squeeze_blocked: Array, exempt: Array) -> Array:
+    """`graph_kernel.predecessor_cells_into` as array expressions: the cells whose steps
+    enter `cell`, each candidate's squeeze rule read on its own side."""
+    if not searchable[cell]:
+        return np.zeros(0, dtype=np.int64)
+    here = np.array([cell // (ny * nz), (cell // nz) % ny, cell % nz])
+    src = here - _OFFSETS  # the step _OFFSETS[m] from src[m] enters the cell
+    inside = ((src >= 0) & (src < np.array([nx, ny, nz]))).all(axis=1)
+    off, src = _OFFSETS[inside], src[inside]
+    scale = np.array([ny * nz, nz, 1])
+    blocked = np.zeros(len(off), dtype=np.int64)
+    for axis in range(3):
+        face = src.copy()
+        face[:, axis] = here[axis]  # src's face neighbour along the step's axis
+        blocked += (off[:, axis] != 0) & squeeze_blocked[face @ scale]
+    flat = src @ scale
     keep = searchable[flat]
     squeeze = (_AXES[inside] >= 2) & (blocked >= 2)
     if squeeze.any() and not _contains(exempt, cell):
@@ -143,6 +169,19 @@ def search_numpy(start: int, goal: int, nx: int, ny: int, nz: int, searchable: A
     g[start] = 0.0
     heap: list[tuple[float, float, int, int]] = [(0.0, 0.0, int(start), -1)]
     expansions = 0
+    grid = (nx, ny, nz, searchable, squeeze_blocked, exempt, cell_start, node_q, node_cell,
+            weights, max_edge, dead, bad, g, extra_cell)
+    seen = np.zeros(n, dtype=bool)
+    seen[goal] = True
+    queue = collections.deque([int(goal)])  # the goal's flood (`astar_kernel`)
+    if dead[goal]:
+        flood = FLOOD_DONE
+    elif g[goal] < np.inf:
+        flood = FLOOD_MET
+    else:
+        flood = _flood_step(queue, seen, *grid)
+    if flood == FLOOD_DONE:
+        return NO_PATH, np.zeros(0, dtype=np.int64), np.inf, expansions
     while heap:
         _, gu, u, p = heapq.heappop(heap)
         if closed[u] or dead[u] or abs(gu - g[u]) > 1e-12 or p != parent[u]:
@@ -161,7 +200,31 @@ def search_numpy(start: int, goal: int, nx: int, ny: int, nz: int, searchable: A
                                  closed, dead, g, parent, h, q_goal, h_weight, bad, extra_cell)
         for fv, gg, v in zip(f.tolist(), gv.tolist(), vs.tolist(), strict=True):
             heapq.heappush(heap, (fv, gg, v, u))
+        if flood == FLOOD_ON:
+            flood = _flood_step(queue, seen, *grid)
+            if flood == FLOOD_DONE:
+                break
     return NO_PATH, np.zeros(0, dtype=np.int64), np.inf, expansions
+
+
+def _flood_step(queue: collections.deque, seen: Array, nx: int, ny: int, nz: int,
+                searchable: Array, squeeze_blocked: Array, exempt: Array, cell_start: Array,
+                node_q: Array, node_cell: Array, weights: Array, max_edge: float,
+                dead: Array, bad: Array, g: Array, extra_cell: Array) -> int:
+    """`astar_kernel._flood_step` (the queue a deque, consumed from the left)."""
+    v = queue.popleft()
+    cells = predecessor_cells(int(node_cell[v]), nx, ny, nz, searchable, squeeze_blocked,
+                              exempt)
+    us = neighbour_nodes(v, cells, cell_start, extra_cell)
+    us = us[~seen[us] & ~dead[us]]
+    us = us[weighted_distances(node_q[v], node_q[us], weights) <= max_edge]
+    if bad.shape[0]:
+        us = us[~np.isin(us * node_q.shape[0] + v, bad)]
+    if (g[us] < np.inf).any():
+        return FLOOD_MET
+    seen[us] = True
+    queue.extend(us.tolist())
+    return FLOOD_ON if queue else FLOOD_DONE
 
 
 def _contains(sorted_ids: Array, x: int) -> bool:

@@ -49,6 +49,7 @@ from assistant.roadmap.graph_kernel import (
     neighbour_cells,
     neighbour_cells_into,
     neighbour_nodes,
+    predecessor_cells_into,
     select_nodes,
     successor_costs,
     successors_into,
@@ -80,7 +81,8 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            neighbour_nodes, certify_samples, check_moves, apply_moves, _candidates,
            update_rounds, motion_marks, rows_inside, rows_before_first_bad,
            valid_before_first_bad, expand, weighted_distances, successor_costs,
-           successors_into, neighbour_cells_into, search, select_nodes, shape_poses,
+           successors_into, neighbour_cells_into, predecessor_cells_into, search,
+           select_nodes, shape_poses,
            terminal_round, base_nodes, path_samples, joint_steps, margin_rows,
            search_masks, leaf_indices, vertices_beyond)
 

@@ -203,3 +203,34 @@ def test_graph_over_a_base_searches_as_the_selected_graph():
                 assert np.array_equal(over.node_q[res[1]], ref)
         found += status == FOUND
     assert 3 <= found < 24 and 3 <= fast < 24  # found or not; base graphs and `build`'s
+
+
+def test_predecessor_cells_are_the_cells_whose_steps_enter():
+    """`predecessor_cells_into` (the goal's flood, `astar_kernel`) and its numpy fallback
+    give exactly the cells whose `neighbour_cells` hold the cell, on random grids with the
+    squeeze rule (a three-axis step reads other face cells one way than the other) and
+    exempt cells (cell ids: exact)."""
+    from assistant.roadmap.graph_kernel import predecessor_cells_into
+    from assistant.roadmap.search_numpy import predecessor_cells
+
+    rng = np.random.default_rng(23)
+    out = np.empty(27, dtype=np.int64)
+    one_way = 0
+    for shape in [(4, 5, 3), (1, 6, 6), (3, 3, 3)]:
+        for _ in range(4):
+            g = _random_graph(rng, shape)
+            n_cells = int(np.prod(shape))
+            into = {c: [] for c in range(n_cells)}
+            for a in range(n_cells):
+                if g.searchable[a]:
+                    for b in g.neighbour_cells(a).tolist():
+                        into[b].append(a)
+            for c in range(n_cells):
+                args = (c, *g.shape, g.searchable, g.squeeze_blocked, g.squeeze_exempt)
+                got = out[:predecessor_cells_into(*args, out)].tolist()
+                assert sorted(got) == sorted(into[c]), c
+                assert sorted(predecessor_cells(*args).tolist()) == sorted(into[c]), c
+                if g.searchable[c]:
+                    one_way += len(set(into[c]) ^ set(g.neighbour_cells(c).tolist()))
+    # the rule is not symmetric on these grids: the inverse was not the forward rule
+    assert one_way > 0

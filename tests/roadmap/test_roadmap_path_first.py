@@ -19,7 +19,7 @@ from assistant.roadmap.astar import (
     SearchBudget,
     lazy_astar,
 )
-from assistant.roadmap.astar_kernel import FOUND, search
+from assistant.roadmap.astar_kernel import FOUND, NO_PATH, search
 from assistant.roadmap.path_first import lazy_path_search
 
 
@@ -262,3 +262,71 @@ def test_the_expansion_fallbacks_give_the_kernels_successors():
             np.testing.assert_allclose(got[0], want[0], rtol=0, atol=1e-12)
         np.testing.assert_array_equal(state_np[3], state[3])  # parents: exact
     assert len(over.extra_cell) == 2  # the query's extra nodes, both in one cell
+
+
+def _cut_graph(rng, shape, max_edge):
+    """A random 3-D graph (3 joints) with unsearchable, squeeze-blocked and exempt cells and
+    edges only up to `max_edge`: many of its node pairs are not connected."""
+    from assistant.roadmap.graph import JointGraph
+
+    n_cells = int(np.prod(shape))
+    cells = np.sort(rng.choice(n_cells, size=n_cells * 3 // 4, replace=False))
+    offsets = np.r_[0, np.cumsum(rng.integers(1, 4, len(cells)))]
+    Q = rng.uniform(-1.0, 1.0, (offsets[-1], 3))
+    graph, _ = JointGraph.build(shape, cells, offsets, Q, rng.random(n_cells) < 0.8,
+                                rng.random(n_cells) < 0.35, rng.uniform(0, 0.05, n_cells),
+                                np.ones(3), max_edge=max_edge,
+                                squeeze_exempt=rng.choice(n_cells, 3, replace=False))
+    return graph
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_the_goals_flood_ends_only_searches_that_find_no_path(seed):
+    """Over random start-goal pairs of cut graphs, the compiled search (with the goal's
+    flood) finds a path exactly when the pop-checking A* (no flood) does, the same path at
+    the same cost after the same expansions; where there is none it says so after at most
+    as many expansions; and the fallback agrees with it (exact: ids and counts)."""
+    from assistant.roadmap.search_numpy import search_numpy
+
+    rng = np.random.default_rng(seed)
+    graph = _cut_graph(rng, (5, 5, 4), max_edge=0.7)
+    n = graph.n_nodes
+    found = shorter = 0
+    for _ in range(25):
+        s, g = (int(x) for x in rng.choice(n, 2, replace=False))
+        ref = lazy_astar(graph, s, g, AlwaysValid(), heuristic_weight=1.5)
+        status, path, cost, expansions = _search(graph, s, g, weight=1.5)
+        assert (status == FOUND) == ref.found, (s, g)
+        if ref.found:
+            found += 1
+            assert path.tolist() == ref.nodes and cost == ref.cost
+            assert expansions == ref.expansions
+        else:
+            assert status == NO_PATH and expansions <= ref.expansions
+            shorter += expansions < ref.expansions
+        got = search_numpy(*_args(graph, s, g, weight=1.5))
+        assert (got[0], got[1].tolist(), got[3]) == (status, path.tolist(), expansions)
+    # both kinds of pair came up, and the flood ended some searches early
+    assert found > 0 and shorter > 0
+
+
+def test_a_goal_cut_off_from_the_start_side_is_known_after_its_own_pocket():
+    """A wall of unsearchable cells fences the goal's corner off: the search says "no path"
+    after no more expansions than the pocket holds nodes, where the A* alone closes every
+    node the start reaches; a goal posture with no edge at all, after none."""
+    rng = np.random.default_rng(7)
+    shape = (8, 8, 1)
+    fence = [int(np.ravel_multi_index(ij + (0,), shape)) for ij in
+             [(5, 5), (5, 6), (5, 7), (6, 5), (7, 5)]]
+    graph, (s, g) = toy_graph(rng, shape=shape, per_cell=2, blocked=fence, penalty=False)
+    pocket = 4 * 2 + 1  # cells (6, 6), (6, 7), (7, 6), (7, 7): 2 positions each, the goal
+    ref = lazy_astar(graph, s, g, AlwaysValid())
+    status, _, _, expansions = _search(graph, s, g)
+    assert not ref.found and ref.expansions > 40
+    assert status == NO_PATH and expansions <= pocket
+    # the goal posture far from every position of its neighbourhood: no edge enters it
+    graph.node_q[g] = [5.0, 5.0]
+    graph.max_edge = 1.0
+    status, _, _, expansions = _search(graph, s, g)
+    assert status == NO_PATH and expansions == 0
+    assert lazy_astar(graph, s, g, AlwaysValid()).expansions > 40

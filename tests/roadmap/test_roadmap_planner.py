@@ -192,21 +192,42 @@ def test_budget_and_cancellation_end_the_search(rv2aj, planner):
         planner.plan(Q_START, Q_GOAL, prog)
 
 
-@pytest.mark.parametrize("fallback", [True, False])
-def test_goal_walled_in_by_observations_is_in_another_free_region(rv2aj, fallback):
-    """Said once the roads hold no path (with or without the free-cell searches after)."""
-    planner = make_planner(rv2aj, RoadmapConfig(fallback_to_free_cells=fallback))
+def _wall_in_goal(planner: RoadmapPlanner):
+    """Sensor evidence fills the 26 leaves round Q_GOAL's TCP leaf; returns the update."""
     w = planner.world
     gc = w.tcp_cell(Q_GOAL)
     ijk = w.grid.ijk_of_flat([gc])[0]
     shell = np.array([ijk + [a, b, c] for a in (-1, 0, 1) for b in (-1, 0, 1)
                       for c in (-1, 0, 1) if (a, b, c) != (0, 0, 0)])
-    upd = planner.observe(Source.SENSOR, w.grid.centres_of_ijk(shell), 1.0)
+    return planner.observe(Source.SENSOR, w.grid.centres_of_ijk(shell), 1.0)
+
+
+@pytest.mark.parametrize("fallback", [True, False])
+def test_goal_walled_in_by_observations_is_in_another_free_region(rv2aj, fallback):
+    """Said once the roads hold no path (with or without the free-cell searches after)."""
+    planner = make_planner(rv2aj, RoadmapConfig(fallback_to_free_cells=fallback))
+    upd = _wall_in_goal(planner)
     assert len(upd.world.occupancy_flipped) > 0
-    assert planner.voronoi.same_as(build_voronoi(planner.labels.source, w.reachable()))
+    assert planner.voronoi.same_as(build_voronoi(planner.labels.source,
+                                                 planner.world.reachable()))
     plan = planner.plan(Q_START, Q_GOAL)
     assert not plan.ok and plan.failure == PlanFailure.NO_PATH_REGIONS
     assert plan.reason == "no path: start and goal are in different free regions"
+
+
+def test_a_walled_in_goal_is_known_cut_off_without_searching_the_start_side(rv2aj):
+    """The goal's flood (`astar_kernel`) runs out within the goal's own leaf: the search
+    ends after at most one expansion per position there, where the A* alone closed every
+    node the start's roads reach (3391 on this cell)."""
+    planner = make_planner(rv2aj, RoadmapConfig(fallback_to_free_cells=False))
+    _wall_in_goal(planner)
+    cells, offsets, _ = planner.world.cell_positions_shared()
+    i = np.searchsorted(cells, planner.world.tcp_cell(Q_GOAL))
+    in_goal_leaf = int(offsets[i + 1] - offsets[i]) if cells[i] == \
+        planner.world.tcp_cell(Q_GOAL) else 0
+    plan = planner.plan(Q_START, Q_GOAL)
+    assert not plan.ok and plan.failure == PlanFailure.NO_PATH_REGIONS
+    assert plan.expansions <= in_goal_leaf + 1 < 100
 
 
 def test_search_grids_follow_every_change_of_the_world(rv2aj):

@@ -70,3 +70,28 @@ def test_blocked_is_exactly_the_overlap_with_the_mask(panda, grid):
     assert len(other)
     mask[other] = True
     assert hand.blocked(Q, mask).tolist() == [False, True]
+
+
+def test_blocked_poses_the_hand_only_where_the_tcp_comes_within_reach(panda, grid,
+                                                                      monkeypatch):
+    """On 300 random postures and a mask of one posture's hand leaves, `blocked` is the
+    overlap of each row's `cells` with the mask (exact: leaf ids), and the link poses are
+    asked only for rows whose TCP lies within reach (plus half a leaf's diagonal) of a
+    masked leaf."""
+    rng = np.random.default_rng(4)
+    R = rng.uniform(panda.limits.lower, panda.limits.upper, (300, panda.dof))
+    hand = HandCells(panda, grid, first_link=2)
+    mask = np.zeros(grid.n_cells, dtype=bool)
+    mask[hand.cells(Q[:1])[0]] = True
+    want = [bool(mask[c].any()) for c in hand.cells(R)]
+    posed: list[int] = []
+    real = panda.batch_link_poses
+    monkeypatch.setattr(panda, "batch_link_poses", lambda q: posed.append(len(q)) or real(q))
+    got = hand.blocked(R, mask).tolist()
+    assert got == want and 0 < sum(got)
+    centres = grid.origin + (np.stack(np.unravel_index(np.flatnonzero(mask), (grid.n,) * 3),
+                                      axis=1) + 0.5) * grid.leaf
+    tcp = panda.batch_fk(R).positions
+    d = np.linalg.norm(tcp[:, None] - centres[None], axis=2).min(axis=1)
+    assert posed == [int((d <= 0.25 + grid.leaf * np.sqrt(3) / 2 + 1e-6).sum())] and \
+        posed[0] < len(R)
