@@ -3,8 +3,6 @@ what it says about a target (how far beyond)."""
 
 from __future__ import annotations
 
-import time
-
 import numpy as np
 import pytest
 
@@ -24,10 +22,8 @@ def test_rv2aj_reach_is_the_stretched_arm() -> None:
     # triangle inequality along the links bounds every other configuration by it).
     stretched = float(np.linalg.norm(robot.fk(np.zeros(robot.dof))[:3, 3] - [0, 0, 0.3]))
     assert abs(reach.radius - stretched) < TOL
-    # Remembered: the second call costs nothing.
-    t0 = time.perf_counter()
+    # Remembered: the second call returns the same object (nothing computed again).
     assert arm_reach(robot) is reach
-    assert time.perf_counter() - t0 < 0.01
 
 
 def test_a_longer_tool_reaches_farther() -> None:

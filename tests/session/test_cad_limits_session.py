@@ -7,8 +7,10 @@ reason instead of waiting), reports progress and can be cancelled without a trac
 
 from __future__ import annotations
 
+import queue
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
@@ -75,28 +77,60 @@ def test_a_huge_primitive_is_refused_and_the_session_goes_on(empty_session):
     assert s.add_primitive("sphere", (0.05,)).name in s.cell.objects
 
 
+class _ProgressGate:
+    """Holds the import's worker inside its progress reports, one report at a time.
+
+    While the worker is held the import is provably mid-way, so a probe that returns then was
+    not queued behind it - no clock involved, so a busy machine cannot fail the test.
+    """
+
+    def __init__(self, bus, task: str, reports: int):
+        self._task, self._left = task, reports
+        self.held: queue.Queue[ProgressChanged] = queue.Queue()
+        self._go: queue.Queue[None] = queue.Queue()
+        bus.subscribe(self._on)
+
+    def _on(self, ev) -> None:
+        if (isinstance(ev, ProgressChanged) and ev.task == self._task and not ev.done
+                and self._left > 0):
+            self._left -= 1
+            self.held.put(ev)
+            self._go.get(timeout=120)  # never for ever: a failed test must not hang the run
+
+    def release(self) -> None:
+        self._go.put(None)
+
+
+def _answers(fn, deadline_s: float = 30.0):
+    """fn() run in a thread: its result, or a failure if it waits `deadline_s` (queued)."""
+    with ThreadPoolExecutor(1) as pool:
+        return pool.submit(fn).result(timeout=deadline_s)
+
+
+def _refused_while(s, task: str) -> bool:
+    assert s.transitions() and s.document() is not None and s.scene_objects() is not None
+    with pytest.raises(TransitionRefused, match=f"Wait for '{task}'"):
+        s.add_primitive("box", (0.1, 0.1, 0.1))
+    return True
+
+
 def test_a_big_import_does_not_block_the_session_and_can_be_cancelled(empty_session,
                                                                         tmp_path):
     s = _at_cad(empty_session)
     data = make_stl("surface", 200_000, tmp_path).read_bytes()
-    progress: list[ProgressChanged] = []
-    s.bus.subscribe(lambda ev: progress.append(ev) if isinstance(ev, ProgressChanged) else None)
+    gate = _ProgressGate(s.bus, "import big.stl", reports=1)
 
     fut = s.start_import_cad(data, "big.stl")
-    deadline = time.monotonic() + 20
-    while not progress and time.monotonic() < deadline:
-        time.sleep(0.02)
-    assert progress and not fut.done()
-    # A second command is answered at once, not queued behind the import.
+    gate.held.get(timeout=60)  # the import is held inside a progress report
+    assert not fut.done()
+
+    # A second command is answered while the import cannot move on: not queued behind it.
     for _ in range(3):
-        t0 = time.perf_counter()
-        assert s.transitions() and s.document() is not None
-        with pytest.raises(TransitionRefused, match="Wait for 'import big.stl'"):
-            s.add_primitive("box", (0.1, 0.1, 0.1))
-        assert time.perf_counter() - t0 < 0.5
-        time.sleep(0.2)
+        assert _answers(lambda: _refused_while(s, "import big.stl"))
+    assert not fut.done()
     # Cancel: the import stops, nothing is added, the session is idle and usable.
     s.cancel()
+    gate.release()
     with pytest.raises(Cancelled):
         fut.result(timeout=60)
     assert not s.cell.objects and s.machine.mode.value == "idle"
@@ -107,15 +141,21 @@ def test_a_big_import_finishes_with_a_report_while_the_session_answers(empty_ses
                                                                         tmp_path):
     s = _at_cad(empty_session)
     data = make_stl("surface", 120_000, tmp_path).read_bytes()
+    gate = _ProgressGate(s.bus, "import ring.stl", reports=6)
     fut = s.start_import_cad(data, "ring.stl")
-    latencies = []
+    probed = 0
     while not fut.done():
-        t0 = time.perf_counter()
-        s.scene_objects()
-        latencies.append(time.perf_counter() - t0)
-        time.sleep(0.1)
+        try:
+            gate.held.get(timeout=0.5)
+        except queue.Empty:
+            continue
+        # Held at each of its first progress reports, the import holds no session lock there:
+        # an edit (a locked action) is refused with the reason instead of waiting.
+        assert _answers(lambda: _refused_while(s, "import ring.stl"))
+        probed += 1
+        gate.release()
     obj, cad = fut.result()
-    assert max(latencies) < 0.5  # the lock was never held for the heavy part
+    assert probed >= 2  # more than one stage of the import was probed
     assert obj.name == "ring" and s.machine.mode.value == "idle"
     assert len(cad.display_mesh.faces) <= 100_000 < len(cad.mesh.faces)  # drawn decimated
     assert obj.full_mesh is cad.mesh and obj.display_mesh is cad.display_mesh
