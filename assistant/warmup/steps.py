@@ -5,7 +5,7 @@ The kernels (`broad_phase`, `segment_box`, `dh`, `rv2aj_fk_batch`, `rv2aj_positi
 `trajectory.net_forces`, `trajectory.net_kernel`, `trajectory.joint_steps`,
 `roadmap.brushfire`, `roadmap.voronoi_update`, `roadmap.graph_kernel`,
 `roadmap.astar_kernel`, `roadmap.search_masks`, `world.leaf_lookup`, `shape_poses`,
-`face_planes`)
+`face_planes`, `chain_kernel`)
 compile on their first call and cache the result on disk;
 only the first run after an install pays, ~2 minutes of one core for all of them. The CLI
 runs these steps in a background process (`lazy.start`, `compile`) while the kernels run
@@ -57,6 +57,7 @@ from assistant.roadmap.graph_kernel import (
 )
 from assistant.roadmap.search_masks import search_masks
 from assistant.roadmap.voronoi_update import terminal_round, update_rounds
+from assistant.robots.chain_kernel import chain_link_frames
 from assistant.robots.dh import _chain_frames_kernel
 from assistant.robots.rv2aj_fk_batch import tcp_poses
 from assistant.robots.rv2aj_pose_batch import _candidates
@@ -84,7 +85,7 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            successors_into, neighbour_cells_into, predecessor_cells_into, search,
            select_nodes, shape_poses,
            terminal_round, base_nodes, path_samples, joint_steps, margin_rows,
-           search_masks, leaf_indices, vertices_beyond)
+           search_masks, leaf_indices, vertices_beyond, chain_link_frames)
 
 
 def warm_up(*, reverse: bool = False) -> float:
@@ -159,6 +160,9 @@ def _world_checks(c: _Context) -> None:
     checker.is_valid_batch(np.vstack([q, q + 0.3]))  # the plain batch (and its pruning)
     checker.min_clearance_along([q[0], q[0] + 0.3])
     tcp = c.robot.batch_fk(q).positions
+    # a URDF arm's link frames (`chain_kernel`), with the types `BatchChain` passes
+    chain_link_frames(np.zeros((1, 1)), np.eye(4)[None], np.eye(3)[2:], np.zeros(1, dtype=bool),
+                      np.empty((1, 2, 4, 4)))
     leaf_flags(np.ascontiguousarray(tcp, dtype=float), np.full(3, -1.0), 0.0625, 32,
                np.ones(32 ** 3, dtype=bool))
     leaf_indices(np.ascontiguousarray(tcp, dtype=float), np.full(3, -1.0), 0.0625, 32)
