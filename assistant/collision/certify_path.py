@@ -112,7 +112,7 @@ def first_contact(checker, path: Array, max_step: float | None = None) -> int | 
         w = R[:, int(s)]  # the joints that move it, by its reach from their axes
         es = checker._env[int(e)]
         rows = np.flatnonzero(env_c[:, s, e])
-        rows = rows[~_beyond_a_face(checker, frames, rows, int(s), int(e))]
+        rows = rows[~beyond_a_face(checker, frames, rows, int(s), int(e))]
         hit = _advance(rows, np.r_[0.0, np.cumsum(dq @ w)], first,
                        lambda k, s=int(s), es=es: _env_distance(checker, pose, k, s, es),
                        lambda k, s=int(s), es=es: _env_touches(checker, pose, k, s, es))
@@ -265,9 +265,11 @@ def _quaternions(R: Array) -> Array:
 FACE_SLACK = 1e-6
 
 
-def _beyond_a_face(checker, frames: Array, rows: Array, s: int, e: int) -> Array:
+def beyond_a_face(checker, frames: Array, rows: Array, s: int, e: int,
+                   slack: float = FACE_SLACK) -> Array:
     """Of `rows`, those where robot shape s lies wholly beyond one face plane of obstacle
-    shape e (a box without a margin): no FCL test is needed there (`_outside_box`).
+    shape e (a box without a margin), every vertex more than `slack` beyond it - so the
+    shape is more than `slack` from the box: no FCL test is needed there (`_outside_box`).
 
     Why: a UR5's upper arm passes 30 mm above the table in every posture of a transfer,
     and the broad phase's capsule around it overlaps the table: that pair cost one FCL
@@ -279,7 +281,7 @@ def _beyond_a_face(checker, frames: Array, rows: Array, s: int, e: int) -> Array
     T = frames[rows, rs.link] @ rs.shape.T_link_shape
     n = len(rows)
     return _outside_box(V, T, np.broadcast_to(checker._env_R[e], (n, 3, 3)),
-                        np.broadcast_to(checker._env_c[e], (n, 3)), checker._env_h[e])
+                        np.broadcast_to(checker._env_c[e], (n, 3)), checker._env_h[e], slack)
 
 
 def _pair_apart(checker, frames: Array, rows: Array, a: int, b: int) -> Array:
@@ -302,9 +304,10 @@ def _pair_apart(checker, frames: Array, rows: Array, a: int, b: int) -> Array:
     return out
 
 
-def _outside_box(V: Array, T: Array, Rb: Array, cb: Array, h: Array) -> Array:
+def _outside_box(V: Array, T: Array, Rb: Array, cb: Array, h: Array,
+                 slack: float = FACE_SLACK) -> Array:
     """Per row: whether every point V (the vertex set of a shape, in its frame) posed by
-    T (n, 4, 4) lies more than `FACE_SLACK` beyond one face plane of the box (n rows of
+    T (n, 4, 4) lies more than `slack` beyond one face plane of the box (n rows of
     rotation Rb, centre cb; half extents h along Rb's columns; `face_planes`).
 
     Why exact: a mesh is its triangles, each the convex hull of three of its vertices (a
@@ -316,7 +319,7 @@ def _outside_box(V: Array, T: Array, Rb: Array, cb: Array, h: Array) -> Array:
     if len(T):
         c = np.ascontiguousarray
         vertices_beyond(c(T, dtype=float), c(Rb, dtype=float), c(cb, dtype=float),
-                        c(h, dtype=float), c(V, dtype=float), FACE_SLACK, out)
+                        c(h, dtype=float), c(V, dtype=float), slack, out)
     return out
 
 

@@ -91,10 +91,10 @@ def test_a_face_plane_clears_a_row_only_where_fcl_finds_the_pair_apart(exact):
     import fcl
 
     from assistant.collision.certify_path import (
-        _beyond_a_face,
         _corners,
         _pair_apart,
         _Poser,
+        beyond_a_face,
     )
 
     robot = exact.robot
@@ -109,7 +109,7 @@ def test_a_face_plane_clears_a_row_only_where_fcl_finds_the_pair_apart(exact):
         if _corners(exact)[s] is None or exact._rshapes[s].link == 0:
             continue
         for e, es in enumerate(exact._env):
-            free = _beyond_a_face(exact, frames, rows, s, e)
+            free = beyond_a_face(exact, frames, rows, s, e)
             assert not free.any() or exact._env_exact[e]  # boxes without a margin only
             for k in np.flatnonzero(free):
                 d = fcl.distance(pose(s, int(k)), es.obj, exact._dreq, fcl.DistanceResult())

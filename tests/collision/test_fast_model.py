@@ -205,6 +205,41 @@ def test_the_fast_clearance_is_a_lower_bound_of_the_exact_one(arm, checkers):
         assert lb <= true + 1e-6, (lb, true)
 
 
+def test_keeps_clearance_is_the_exact_clearance_decision(arm, checkers):
+    """`keeps_clearance` (face planes, capsule bounds, then FCL) decides as the exact
+    clearance of the real shapes does, for targets on either side of it - so the face-plane
+    shortcut never passes a pair that is nearer than the target. Above the proven floor of
+    the links the model leaves out of its obstacle checks it refuses, and an arm of round
+    shapes is decided by its capsules' lower bound (both conservative: never a pass)."""
+    exact, fast = checkers
+    rng = np.random.default_rng(11)
+    lim = arm.limits
+    Q = rng.uniform(lim.lower, lim.upper, size=(2000, arm.dof))
+    Q = Q[exact.is_valid_batch(Q)][:80]
+    assert len(Q) >= 20
+    trues = np.array([exact.min_clearance_along(q[None]) for q in Q])
+    order = np.argsort(trues)  # the 12 nearest (refusals below the floor) and 8 others
+    decided = []
+    for i in np.concatenate([order[:12], order[12::9][:8]]).tolist():
+        q, true = Q[i], float(trues[i])
+        # FCL's mesh-box distances are exact to its GJK tolerance (1e-6 m): targets 1 mm
+        # either side of the true clearance are decided the same by any exact method
+        for target in (true - 1e-3, true + 1e-3, 0.01, 0.05):
+            if target <= 0.0 or abs(target - true) < 1e-5:
+                continue
+            got = fast.keeps_clearance(q[None], target)
+            if target > fast._env_floor:
+                assert not got, (q, true, target)
+                continue
+            if not fast.exact._has_mesh:  # round shapes: the capsules' own lower bound
+                assert not got or true >= target, (q, true, target)
+                decided.append(true >= target)
+                continue
+            assert got == (true >= target), (q, true, target)
+            decided.append(got)
+    assert any(decided) and not all(decided)  # both answers were asked for
+
+
 def test_the_exact_view_never_asks_the_fast_model(arm, checkers, monkeypatch):
     """What certifies a path (`CollisionChecker.exact_only`) answers by FCL on the robot's
     own kinematics even when the fast model is wrong."""
