@@ -5,7 +5,7 @@ The kernels (`broad_phase`, `segment_box`, `dh`, `rv2aj_fk_batch`, `rv2aj_positi
 `trajectory.net_forces`, `trajectory.net_kernel`, `trajectory.joint_steps`,
 `roadmap.brushfire`, `roadmap.voronoi_update`, `roadmap.graph_kernel`,
 `roadmap.astar_kernel`, `roadmap.search_masks`, `world.leaf_lookup`, `shape_poses`,
-`face_planes`, `chain_kernel`)
+`face_planes`, `chain_kernel`, `capsule_phase`)
 compile on their first call and cache the result on disk;
 only the first run after an install pays, ~2 minutes of one core for all of them. The CLI
 runs these steps in a background process (`lazy.start`, `compile`) while the kernels run
@@ -30,6 +30,7 @@ from assistant.collision.broad_phase import (
     prune_round_pairs,
     sphere_broad_phase,
 )
+from assistant.collision.capsule_phase import capsule_rows, capsule_samples
 from assistant.collision.clearance_scan import pruned_clearance
 from assistant.collision.face_planes import vertices_beyond
 from assistant.collision.motion_rows import (
@@ -85,7 +86,8 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            successors_into, neighbour_cells_into, predecessor_cells_into, search,
            select_nodes, shape_poses,
            terminal_round, base_nodes, path_samples, joint_steps, margin_rows,
-           search_masks, leaf_indices, vertices_beyond, chain_link_frames)
+           search_masks, leaf_indices, vertices_beyond, chain_link_frames, capsule_rows,
+           capsule_samples)
 
 
 def warm_up(*, reverse: bool = False) -> float:
@@ -174,6 +176,15 @@ def _motion_checks(c: _Context) -> None:
     checker.check_motion(q[0], q[0] + 0.3)
     checker.check_path([q[0], q[0] + 0.3], trusted=np.zeros(1, dtype=bool))
     checker.check_path([q[0], q[0] + 0.3])
+    # the fast model's capsule pass (`capsule_phase`), through the fast checker's own calls
+    fast = checker.fast
+    two = np.vstack([q, q + 0.3])
+    fast.is_valid_samples(two, np.zeros(2, dtype=np.int64), first_only=True)
+    fast.is_valid_batch_margin(two)
+    fast.min_clearance_along([q[0], q[0] + 0.3])
+    fast.keeps_clearance([q[0], q[0] + 0.3], 0.01)
+    # called per table node from Python (`pair_tables`), not only inside other kernels
+    _segment_segment_distance(np.zeros(3), np.ones(3), np.zeros(3), np.ones(3))
     # the certificate's face-plane test (`certify_path`), with the types it is called with
     vertices_beyond(np.eye(4)[None], np.eye(3)[None], np.zeros((1, 3)), np.ones(3),
                     np.zeros((1, 3)), 1e-6, np.zeros(1, dtype=bool))
