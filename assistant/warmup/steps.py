@@ -5,7 +5,7 @@ The kernels (`broad_phase`, `segment_box`, `dh`, `rv2aj_fk_batch`, `rv2aj_positi
 `trajectory.net_forces`, `trajectory.net_kernel`, `trajectory.joint_steps`,
 `roadmap.brushfire`, `roadmap.voronoi_update`, `roadmap.graph_kernel`,
 `roadmap.astar_kernel`, `roadmap.search_masks`, `world.leaf_lookup`, `shape_poses`,
-`face_planes`, `chain_kernel`, `capsule_phase`)
+`face_planes`, `chain_kernel`, `capsule_phase`, `hand_kernel`)
 compile on their first call and cache the result on disk;
 only the first run after an install pays, ~2 minutes of one core for all of them. The CLI
 runs these steps in a background process (`lazy.start`, `compile`) while the kernels run
@@ -73,6 +73,7 @@ from assistant.trajectory.fit_kernels import (
 from assistant.trajectory.joint_steps import joint_steps
 from assistant.trajectory.net_forces import propose_moves
 from assistant.trajectory.net_kernel import apply_moves, check_moves
+from assistant.world.hand_kernel import hand_blocked
 from assistant.world.leaf_lookup import leaf_flags, leaf_indices
 
 #: Every compiled entry point (the test checks `warm_up` compiles each of them).
@@ -87,7 +88,7 @@ KERNELS = (sphere_broad_phase, prune_round_pairs, segment_box_distance_one,
            select_nodes, shape_poses,
            terminal_round, base_nodes, path_samples, joint_steps, margin_rows,
            search_masks, leaf_indices, vertices_beyond, chain_link_frames, capsule_rows,
-           capsule_samples)
+           capsule_samples, hand_blocked)
 
 
 def warm_up(*, reverse: bool = False) -> float:
@@ -168,6 +169,10 @@ def _world_checks(c: _Context) -> None:
     leaf_flags(np.ascontiguousarray(tcp, dtype=float), np.full(3, -1.0), 0.0625, 32,
                np.ones(32 ** 3, dtype=bool))
     leaf_indices(np.ascontiguousarray(tcp, dtype=float), np.full(3, -1.0), 0.0625, 32)
+    # a 6/7-axis arm's hand against the recorded leaves (`hand_kernel`), as `HandCells` calls it
+    hand_blocked(np.tile(np.eye(4), (1, 2, 1, 1)), np.zeros(1, dtype=np.int64), np.zeros((1, 3)),
+                 np.zeros((1, 3)), 0.0625, np.full(3, -1.0), 0.0625, 32,
+                 np.zeros(32 ** 3, dtype=bool), np.zeros(1, dtype=bool))
 
 
 def _motion_checks(c: _Context) -> None:

@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from assistant.robots.model import CollisionShape, Robot, ShapeKind
+from assistant.world.hand_kernel import hand_blocked
 from assistant.world.octree import OctreeGrid
 
 Array = np.ndarray
@@ -78,8 +79,9 @@ class HandCells:
                 P = _shape_points(s, grid.leaf / 2.0, self.config.mesh_points)
                 pts.append(P)
                 link.append(np.full(len(P), k))
-        self._local = np.concatenate(pts) if pts else np.zeros((0, 3))
-        self._link = np.concatenate(link) if link else np.zeros(0, dtype=np.int64)
+        self._local = np.ascontiguousarray(np.concatenate(pts) if pts else np.zeros((0, 3)),
+                                           dtype=float)
+        self._link = np.concatenate(link).astype(np.int64) if link else np.zeros(0, np.int64)
         self._by_link = [(int(k), np.flatnonzero(self._link == k)) for k in np.unique(self._link)]
 
     def _points(self, Q: Array, tcp: Array | None = None) -> tuple[Array, Array, Array]:
@@ -120,7 +122,8 @@ class HandCells:
         from every set leaf's centre fills none of them. The answer is the same; a batch far
         from the recorded hand skips the arm's link poses (about two thirds of its cost).
         Few do in a re-plan: on the Panda sample 19 of the joint RRT's 299 hand tests (it
-        searches next to the hand)."""
+        searches next to the hand). The rows that do are tested in one compiled pass
+        (`hand_kernel`), each up to its first hand point in a set leaf."""
         Q = np.atleast_2d(np.asarray(Q, dtype=float))
         out = np.zeros(len(Q), dtype=bool)
         if not len(Q):
@@ -133,8 +136,11 @@ class HandCells:
         rows = (np.einsum("nki,nki->nk", d, d) <= within ** 2).any(axis=1)
         if not rows.any():
             return out
-        flat, near, tcp_flat = self._points(Q[rows], tcp[rows])
-        hit = near & (flat >= 0)
-        hit[hit] = mask[flat[hit]]
-        out[rows] = hit.any(axis=1) | ((tcp_flat >= 0) & mask[np.maximum(tcp_flat, 0)])
+        sub = np.flatnonzero(rows)
+        hits = np.zeros(len(sub), dtype=bool)
+        hand_blocked(self.robot.batch_link_poses(Q[sub]), self._link, self._local,
+                     np.ascontiguousarray(tcp[sub]), float(self.config.reach) ** 2,
+                     np.asarray(g.origin, dtype=float), float(g.leaf), int(g.n),
+                     np.ascontiguousarray(mask, dtype=bool), hits)
+        out[sub] = hits
         return out

@@ -15,6 +15,7 @@ import pytest
 from assistant.robots.catalog import installed_robot_urdf
 from assistant.robots.urdf_robot import URDFRobot
 from assistant.world.hand_cells import HandCells, HandConfig
+from assistant.world.hand_kernel import hand_blocked, hand_blocked_numpy
 from assistant.world.octree import OctreeGrid
 
 PANDA_URDF = "example-robot-data/robots/panda_description/urdf/panda.urdf"
@@ -88,10 +89,53 @@ def test_blocked_poses_the_hand_only_where_the_tcp_comes_within_reach(panda, gri
     real = panda.batch_link_poses
     monkeypatch.setattr(panda, "batch_link_poses", lambda q: posed.append(len(q)) or real(q))
     got = hand.blocked(R, mask).tolist()
-    assert got == want and 0 < sum(got)
+    monkeypatch.undo()
+    clear = _clear_rows(panda, hand, grid, R)  # the compiled test against numpy's points
+    assert [g for g, c in zip(got, clear, strict=True) if c] == \
+        [w for w, c in zip(want, clear, strict=True) if c] and 0 < sum(got)
+    assert clear.mean() > 0.9
     centres = grid.origin + (np.stack(np.unravel_index(np.flatnonzero(mask), (grid.n,) * 3),
                                       axis=1) + 0.5) * grid.leaf
     tcp = panda.batch_fk(R).positions
     d = np.linalg.norm(tcp[:, None] - centres[None], axis=2).min(axis=1)
     assert posed == [int((d <= 0.25 + grid.leaf * np.sqrt(3) / 2 + 1e-6).sum())] and \
         posed[0] < len(R)
+
+
+def _clear_rows(panda, hand: HandCells, grid: OctreeGrid, R: np.ndarray,
+                tol: float = 1e-9) -> np.ndarray:
+    """Rows none of whose hand points (nor its TCP) lies within `tol` of a leaf boundary or
+    of the reach: there compiled and numpy arithmetic (~1e-15 m apart) decide alike."""
+    F = panda.batch_link_poses(R)[:, hand._link]
+    P = np.einsum("nmij,mj->nmi", F[..., :3, :3], hand._local) + F[..., :3, 3]
+    tcp = np.asarray(panda.batch_fk(R).positions)
+    pts = np.concatenate([P, tcp[:, None]], axis=1)
+    f = (pts - grid.origin) / grid.leaf
+    off_faces = (np.abs(f - np.rint(f)) * grid.leaf > tol).all(axis=(1, 2))
+    d = np.linalg.norm(P - tcp[:, None], axis=2)
+    off_reach = (np.abs(d - hand.config.reach) > tol).all(axis=1)
+    return off_faces & off_reach
+
+
+def test_the_compiled_hand_test_is_its_numpy_form(panda, grid):
+    """`hand_kernel.hand_blocked` and its numpy fallback give the same answer on random
+    postures and masks (where no point lies within rounding of a leaf face or the reach)."""
+    rng = np.random.default_rng(8)
+    R = rng.uniform(panda.limits.lower, panda.limits.upper, (400, panda.dof))
+    hand = HandCells(panda, grid, first_link=2)
+    frames = panda.batch_link_poses(R)
+    tcp = np.ascontiguousarray(panda.batch_fk(R).positions)
+    clear = _clear_rows(panda, hand, grid, R)
+    assert clear.mean() > 0.9
+    answers = []
+    for density in (0.001, 0.01, 0.1):
+        mask = rng.random(grid.n_cells) < density
+        a = np.zeros(len(R), dtype=bool)
+        b = np.zeros(len(R), dtype=bool)
+        args = (frames, hand._link, hand._local, tcp, hand.config.reach ** 2,
+                np.asarray(grid.origin, dtype=float), float(grid.leaf), int(grid.n), mask)
+        hand_blocked(*args, a)
+        hand_blocked_numpy(*args, b)
+        assert (a[clear] == b[clear]).all()
+        answers.append(a.mean())
+    assert 0.0 < min(answers) and max(answers) < 1.0  # both answers are asked for
