@@ -191,6 +191,8 @@ def summarise(cases: list[dict], budget_s: float) -> dict:
             "indications_median": statistics.median([c.get("indications", 0) for c in valid])
             if valid else None,
             "replan_median_s": statistics.median(replans) if replans else None,
+            "replan_max_s": max(replans) if replans else None,
+            "replans": len(replans),
             "wall_max_s": max((c.get("wall_s", 0.0) for c in valid), default=None),
             "failures": [f"seed {c['seed']}: {c['outcome']} - {c['why']}" for c in valid
                          if c["outcome"] != "goal"],

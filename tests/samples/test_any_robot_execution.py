@@ -80,7 +80,7 @@ def test_plan_execute_with_a_hidden_obstacle_and_export(name, tmp_path):
     s.set_hidden_obstacles([HiddenObstacle("hidden", "box", tuple(v / 1000 for v in size),
                                            pose_from_mm_deg(pose))])
     rep = s.execute()
-    print(name, rep)
+    print(name, rep, "re-plans (s):", list(s.counters.replan_times_s))
     assert rep["ok"] and rep["collision_indications"] >= 1, rep
     assert "not driven" in rep["reason"] and s.final_driven() is False, rep
     # the operator drives the final program once (again if it met something new)
