@@ -326,9 +326,10 @@ def test_certified_rows_skip_the_exact_check_but_not_the_limits(checker, rv2aj):
     assert not ok[0] and np.isnan(margin[0])
 
 
-def _reference_certified(checker: CollisionChecker, Q: np.ndarray, g: np.ndarray) -> np.ndarray:
-    """Rows of motions' samples that a checked neighbour's margin proves free, as numpy
-    array expressions (the code before `broad_phase.certify_samples`)."""
+def _reference_certified(checker: CollisionChecker, Q: np.ndarray, g: np.ndarray,
+                         slack: float = 1e-9) -> np.ndarray:
+    """Rows of motions' samples that a checked neighbour's margin proves free (by more than
+    `slack`, m), as numpy array expressions (the code before `broad_phase.certify_samples`)."""
     n, k = len(Q), np.arange(len(Q))
     first, last = np.r_[True, g[1:] != g[:-1]], np.r_[g[1:] != g[:-1], True]
     start = np.maximum.accumulate(np.where(first, k, 0))
@@ -341,8 +342,8 @@ def _reference_certified(checker: CollisionChecker, Q: np.ndarray, g: np.ndarray
     nxt = np.minimum(prev + 1, len(ci) - 1)
     rest = np.flatnonzero(~coarse & inside)
     p, q = prev[rest], nxt[rest]
-    free = ((margin_c[p] > checker.travel(Q[ci[p]], Q[rest]) + 1e-9)
-            | (margin_c[q] > checker.travel(Q[ci[q]], Q[rest]) + 1e-9))
+    free = ((margin_c[p] > checker.travel(Q[ci[p]], Q[rest]) + slack)
+            | (margin_c[q] > checker.travel(Q[ci[q]], Q[rest]) + slack))
     out = np.zeros(n, dtype=bool)
     out[rest[free]] = True
     return out
@@ -363,8 +364,15 @@ def test_certified_motion_samples_answer_like_the_plain_batch(checker, rv2aj):
     # its last always do); without the certificates every row inside the limits would (82 %).
     checked = (status == FREE) | (status == ASK_FCL)
     assert checked.mean() < 0.55
-    # The certified rows are exactly those of the numpy formulation before the kernel.
-    assert np.array_equal(status == CERTIFIED, _reference_certified(checker, Q, G))
+    # The certified rows are those of the numpy formulation before the kernel, where that is
+    # clear of its threshold (margin > travel + 1e-9 m): the kernel computes margins and
+    # travels in its own order (margins of the two passes agree within 1e-12 m, above), so
+    # rows whose answer changes when the slack moves 1e-10 m either way are left out.
+    ref = _reference_certified(checker, Q, G)
+    clear = (_reference_certified(checker, Q, G, 1e-9 - 1e-10)
+             == _reference_certified(checker, Q, G, 1e-9 + 1e-10))
+    assert clear.mean() > 0.99  # nearly every row is compared
+    assert np.array_equal((status == CERTIFIED)[clear], ref[clear])
     assert (status == CERTIFIED).any() and (status == ASK_FCL).any()
     assert np.array_equal(status == OUTSIDE_LIMITS,
                           ~rv2aj.limits.contains_batch(Q))

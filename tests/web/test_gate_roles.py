@@ -23,6 +23,13 @@ from web.gate import AccessTokens
 from web.gate.messages import CHANGING
 
 
+def _refusals(page: Page) -> int:
+    """How many messages to `page` say its motion was refused (authority with another page).
+    A refusal shown means the action was turned down: waiting for it replaces a sleep after
+    which "nothing moved" could pass only because the click had not been handled yet."""
+    return sum(b"Motion authority is with" in m for m in page.received)
+
+
 def _viewer_messages(app: Any) -> list[bytes]:
     """One message of every changing kind viser's client sends, aimed at real controls."""
     tb = app.toolbar
@@ -131,9 +138,10 @@ def test_only_the_holder_of_motion_authority_moves_the_robot(gated):
             start = j1()
             # B may edit (an operator) but not move: refused, the robot stays.
             await set_j1(b, 120.0)
+            n = _refusals(b)
             await b.send(click(uuid_of(jog.move)))
-            await asyncio.sleep(1.0)
-            assert session.machine.mode.value == "idle" and abs(j1() - start) < 1e-6
+            assert await wait_for(lambda: _refusals(b) > n)  # turned down, shown to B ...
+            assert session.machine.mode.value == "idle" and abs(j1() - start) < 1e-6  # ... still
             # B asks, A hands over; now B moves it.
             auth.request(b.client_id)
             assert auth.hand_over(a.client_id) == b.client_id
@@ -159,8 +167,9 @@ def test_only_the_holder_of_motion_authority_moves_the_robot(gated):
             assert await wait_for(lambda: session.machine.mode.value == "idle")
             assert j1() > -119.0
             # A cannot move while B holds it; B leaves: authority lapses, nobody gets it.
+            n = _refusals(a)
             await a.send(click(uuid_of(jog.move)))
-            await asyncio.sleep(0.5)
+            assert await wait_for(lambda: _refusals(a) > n)  # turned down, shown to A
             assert session.machine.mode.value == "idle"
         assert await wait_for(lambda: auth.state.holder is None)
 
@@ -189,8 +198,12 @@ def test_the_jog_gizmo_needs_motion_authority_too(gated):
             assert await wait_for(lambda: jog._gizmo is not None)
             q0 = session.current_joints().copy()
             target = [float(v) for v in np.asarray(jog._gizmo.position) + [0.0, 0.0, -0.03]]
+            n = _refusals(b)
             for m in drag(target):
                 await b.send(m)
+            assert await wait_for(lambda: _refusals(b) > n)  # turned down, shown to B
+            # The drag is three messages: a second more shows no later one moved it either
+            # (an absence, so a deliberate wait: a slow machine only makes it pass later).
             await asyncio.sleep(1.0)
             assert session.machine.mode.value == "idle"
             assert np.allclose(session.current_joints(), q0, atol=1e-9)

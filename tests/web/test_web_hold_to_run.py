@@ -106,7 +106,7 @@ def test_the_arm_stops_when_the_holders_page_closes(serve_session, open_ui):
     n = len(poses.times)
     b.page.keyboard.press("Space")
     b.page.keyboard.press("Escape")
-    b.page.wait_for_timeout(1500)
+    b.page.wait_for_timeout(1500)  # watch (an absence: a busy machine only makes it weaker)
     assert len(poses.times) == n
     # Moving needs authority: refused with the way to get it, then allowed once taken.
     b.expand("Jog the robot", b.button("Move to the slider values"))
@@ -179,7 +179,7 @@ def test_a_silent_holder_page_stops_the_arm_and_nothing_starts_when_it_answers(
         while not session.hold.state.present:
             assert time.monotonic() < end, "the page never counted as answering again"
             time.sleep(0.01)
-        time.sleep(1.0)
+        time.sleep(1.0)  # watch (an absence: nothing may start by itself once it answers)
         assert len(poses.times) == n  # ... and nothing started by itself
     finally:
         os.kill(page.pid, signal.SIGCONT)

@@ -53,7 +53,7 @@ def test_view_switches_labels_and_the_waiting_spot(serve_session, open_ui, tmp_p
     assert "O1/label" in app.scene_layers.objects._nodes  # noqa: SLF001
     # Hiding the labels hides the scene group they live in.
     _view_switch(ui, "Labels").uncheck()
-    deadline = time.monotonic() + 10
+    deadline = time.monotonic() + 60  # a wait for the server to hear it, never a timing
     while app.scene_layers.groups["labels"].visible and time.monotonic() < deadline:
         ui.page.wait_for_timeout(100)
     assert app.scene_layers.groups["labels"].visible is False

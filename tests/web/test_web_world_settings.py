@@ -25,7 +25,7 @@ def test_advanced_world_settings_apply_and_refuse(serve_session, open_ui, tmp_pa
     ui.fill("Clearance (mm)", 15)
     ui.click("Apply settings")
     ui.page.wait_for_function("() => true")
-    for _ in range(40):
+    for _ in range(240):  # up to 60 s for the server to apply it, never a timing
         if session.world_settings.memory_mb == 1024:
             break
         ui.page.wait_for_timeout(250)
