@@ -67,6 +67,8 @@ class DLSInverseKinematics:
         while k < len(starts):
             q, ok, err = self._dls(T_root_target, starts[k], position_only, clamp=True)
             k += 1
+            if ok:
+                q = self._nearest_turns(q, first)
             if err < best_err:
                 best_q, best_err = q, err
             if ok and all(np.linalg.norm(q - s) > st.distinct for s in sols):
@@ -135,6 +137,24 @@ class DLSInverseKinematics:
                 if outside is None:
                     outside = q
         return None, outside
+
+    def _nearest_turns(self, q: Array, ref: Array) -> Array:
+        """q with each revolute joint turned by whole turns (within its limits) to the value
+        nearest `ref`: the same pose. Why: a UR joint spans two turns, and a solution the
+        search reached from a random start could sit a turn away from the seed - a taught
+        location the arm then winds 240 degrees round to reach from where it stands."""
+        q = q.copy()
+        lo, hi = self.limits.lower, self.limits.upper
+        for k, j in enumerate(self._chain_joints):
+            if j.type == "prismatic":
+                continue
+            turns = np.round((ref[k] - q[k]) / (2 * np.pi))
+            for t in (turns, turns - np.sign(turns)):
+                v = q[k] + 2 * np.pi * t
+                if t != 0 and lo[k] - 1e-9 <= v <= hi[k] + 1e-9:
+                    q[k] = min(max(v, lo[k]), hi[k])
+                    break
+        return q
 
     def _wrap_into_limits(self, q: Array) -> Array:
         q = q.copy()

@@ -65,6 +65,29 @@ def test_ik_with_seed_returns_the_nearby_solution_first(panda):
     assert len(one.solutions) == 1
 
 
+def test_every_ik_solution_is_the_turn_of_each_joint_nearest_the_seed(ur5):
+    """A UR joint spans two turns: each solution's joints are the whole-turn equivalents
+    nearest the seed that the limits allow (a location is never reached a turn away)."""
+    rng = np.random.default_rng(21)
+    lo, hi = ur5.limits.lower, ur5.limits.upper
+    seen = 0
+    for _ in range(6):
+        T = ur5.fk(rng.uniform(lo, hi))
+        seed = rng.uniform(-1.0, 1.0, ur5.dof)
+        res = ur5.ik(T, seed=seed)
+        assert res.ok
+        for q in res.solutions:
+            seen += 1
+            assert np.abs(ur5.fk(q) - T).max() < 1e-3  # still the pose
+            for k in range(ur5.dof):
+                # a turn nearer the seed would be within the limits: not the nearest
+                for t in (-2 * np.pi, 2 * np.pi):
+                    v = q[k] + t
+                    if lo[k] <= v <= hi[k]:
+                        assert abs(q[k] - seed[k]) <= abs(v - seed[k]) + 1e-9, (k, q, seed)
+    assert seen >= 6
+
+
 def test_ik_is_deterministic(ur5):
     T = ur5.fk(_random_q(ur5, 1, seed=11)[0])
     a, b = ur5.ik(T), ur5.ik(T)
