@@ -4,8 +4,10 @@ For each arm (the UR3/5/10, the Panda and Unitree Z1 of example-robot-data at th
 limits; the KUKA, ABB and FANUC arms of the robot catalogue), `--cells` seeded cells: a
 table, a wall between two taught poses left and right of the arm, the poses tool-down at
 45-65 % of the reach. The session plans the mission (start -> goal); a box of 30-80 mm is
-then hidden where the planned transfer's TCP runs farthest from both ends (only the
-simulated robot knows it), and the mission is executed headless: the simulated robot meets
+then hidden where the planned transfer's TCP runs farthest from both ends, among the points
+where it does not touch the arm where it stands (only the simulated robot knows it; if the
+start posture touches the wall the arm first moves to a free posture, as the operator
+would), and the mission is executed headless: the simulated robot meets
 the box, reports the contact (the self-reporting robot of scripts, standing in for the
 operator's Collision!), the session learns and re-plans, until the goal or a reason. Every
 run is bounded by the session's budgets and by `--budget-s` of wall time (a run over it
@@ -70,6 +72,7 @@ def _reach(robot: Any) -> float:
 
 def _cell(s: Any, seed: int) -> bool:
     """Table, wall, start and goal for seed; False if the arm cannot hold both poses."""
+    from assistant.robots.model import UnreachableError
     from assistant.session.types import SessionError
 
     rng = np.random.default_rng(seed)
@@ -92,7 +95,7 @@ def _cell(s: Any, seed: int) -> bool:
             s.teach(name, T)
         s.set_start("A")
         s.set_goal("B")
-    except SessionError:
+    except (SessionError, UnreachableError):
         return False
     return True
 
@@ -103,10 +106,17 @@ def _T(p: tuple[float, float, float]) -> np.ndarray:
     return T
 
 
-def _hidden_at(s: Any) -> np.ndarray | None:
-    """World TCP of the transfer farthest from its two ends (middle half)."""
+def _hidden_at(s: Any, size: float) -> np.ndarray | None:
+    """World TCP of the transfer farthest from its two ends (middle half) where a box of
+    `size` does not touch the arm where it stands: a box the arm already stands in is no
+    hidden obstacle on the transfer (the operator would see the contact before the run)."""
+    from assistant.collision.checker import CollisionChecker
+    from assistant.collision.reports import Obstacle
+    from assistant.robots.model import CollisionShape, ShapeKind
+    from assistant.transforms import inv_T
+
     Tw = s.T_world_base()
-    best, where = -1.0, None
+    cands: list[tuple[float, np.ndarray]] = []
     for m in s.trajectory.motions:
         if "->" not in m.label or m.joint_path is None or len(m.joint_path) < 3:
             continue
@@ -114,9 +124,15 @@ def _hidden_at(s: Any) -> np.ndarray | None:
         ends = P[[0, -1]]
         mid = P[len(P) // 4: 3 * len(P) // 4 + 1]
         d = np.linalg.norm(mid[:, None] - ends[None], axis=2).min(axis=1)
-        if d.max() > best:
-            best, where = float(d.max()), mid[int(np.argmax(d))]
-    return where
+        cands += [(float(d[i]), mid[i]) for i in np.argsort(-d)[:40]]
+    q_now = s.current_joints()
+    for _, p in sorted(cands, key=lambda c: -c[0]):
+        T = np.eye(4)
+        T[:3, 3] = p
+        box = Obstacle("hidden", inv_T(Tw) @ T, (CollisionShape(ShapeKind.BOX, (size,) * 3),))
+        if CollisionChecker(s.robot, [box]).check(q_now).valid:
+            return p
+    return None
 
 
 def run_case(arm: str, seed: int) -> dict:
@@ -135,15 +151,17 @@ def run_case(arm: str, seed: int) -> dict:
             s.goto("explore")
             s.build_world()
             s.goto("plan")
+            if s.start_posture_links():  # as the operator does: Move to a free posture
+                s.move_to_free_posture()
             first = s.plan()
             if not first.get("ok"):
                 return {"arm": arm, "seed": seed, "outcome": "unplannable",
                         "why": first.get("reason", "")[:120]}
-            p = _hidden_at(s)
+            size = float(np.random.default_rng(seed + 1).uniform(0.03, 0.08))
+            p = _hidden_at(s, size)
             if p is None:
                 return {"arm": arm, "seed": seed, "outcome": "unplannable",
                         "why": "no transfer"}
-            size = float(np.random.default_rng(seed + 1).uniform(0.03, 0.08))
             s.set_hidden_obstacles([HiddenObstacle(
                 "hidden", "box", (size,) * 3, pose_from_mm_deg([*(p * 1000.0), 0, 0, 0]))])
             try:
