@@ -86,18 +86,39 @@ def _cell(s: Any, seed: int) -> bool:
     wall_h = z * rng.uniform(0.6, 1.1)
     s.add_primitive("box", (reach * 0.3, 0.02, wall_h), name="wall",
                     T_world_object=_T((r, 0.0, wall_h / 2.0)))
-    down = np.diag([1.0, -1.0, -1.0])
     s.goto("teach.locations")
     try:
         for name, sign in (("A", 1.0), ("B", -1.0)):
-            T = _T((r * np.cos(half), sign * r * np.sin(half), z))
-            T[:3, :3] = down
-            s.teach(name, T)
+            a = sign * half
+            T = _T((r * np.cos(a), r * np.sin(a), z))
+            for R in _orientations(a):  # tool down, else tilted out, else level: what the
+                T[:3, :3] = R           # operator would teach where the wrist allows it
+                try:
+                    s.teach(name, T)
+                    break
+                except UnreachableError:
+                    continue
+            else:
+                return False
         s.set_start("A")
         s.set_goal("B")
     except (SessionError, UnreachableError):
         return False
     return True
+
+
+def _orientations(azimuth: float) -> list[np.ndarray]:
+    """Tool z pointing down, then 45 deg out from the arm's base, then level and out (a
+    smaller arm's wrist - the Z1's joint 4 spans +-87 deg - reaches no tool-down pose at
+    half its reach)."""
+    out = [np.diag([1.0, -1.0, -1.0])]
+    for tilt in (np.pi / 4, np.pi / 2):
+        z = np.array([np.sin(tilt) * np.cos(azimuth), np.sin(tilt) * np.sin(azimuth),
+                      -np.cos(tilt)])
+        y = np.array([-np.sin(azimuth), np.cos(azimuth), 0.0])
+        x = np.cross(y, z)
+        out.append(np.column_stack([x, y, z]))
+    return out
 
 
 def _T(p: tuple[float, float, float]) -> np.ndarray:
@@ -153,7 +174,10 @@ def run_case(arm: str, seed: int) -> dict:
             s.goto("plan")
             if s.start_posture_links():  # as the operator does: Move to a free posture
                 s.move_to_free_posture()
-            first = s.plan()
+            try:
+                first = s.plan()
+            except SessionError as exc:  # e.g. a pose whose every posture touches the table
+                first = {"ok": False, "reason": str(exc)}
             if not first.get("ok"):
                 return {"arm": arm, "seed": seed, "outcome": "unplannable",
                         "why": first.get("reason", "")[:120]}
