@@ -130,12 +130,16 @@ def via_move(robot: Robot, world: WorldModel, q_s: Array, q_g: Array, *,
     while lo < len(cand):
         V = Q[cand[lo:lo + size]]
         lo, size = lo + len(V), 2 * size
-        A = np.repeat(q_s[None], len(V), axis=0)
-        B = np.repeat(q_g[None], len(V), axis=0)
-        # a coarse screen of the batch's moves in one call drops most
-        free = motions_free(screen, np.concatenate([A, V]), np.concatenate([V, B]), exempt,
+        # a coarse screen of the batch's first moves in one call drops most; only their
+        # survivors' second moves are screened (a via whose first move is in the way costs
+        # no second screen)
+        free = motions_free(screen, np.repeat(q_s[None], len(V), axis=0), V, exempt,
                             max_step=VIA_SCREEN_STEP)
-        for v in V[free[:len(V)] & free[len(V):]]:  # in order of duration
+        on = np.flatnonzero(free)
+        if len(on):
+            free[on] = motions_free(screen, V[on], np.repeat(q_g[None], len(on), axis=0),
+                                    exempt, max_step=VIA_SCREEN_STEP)
+        for v in V[free]:  # in order of duration
             if screen.min_clearance_along([q_s, v, q_g], max_step=step) < clearance:
                 near.append(v)
                 continue
