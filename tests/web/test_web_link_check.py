@@ -51,7 +51,11 @@ def _run(serve_session, open_ui, tmp_path, emulators) -> None:  # noqa: ANN001
     shot = ui.shot("link-check-local")
     emu.set_remote_control(True)  # the operator's toggle on the pendant
     ui.click("Test connection")
-    ui.wait_text("Connection test: all checks passed")
+    try:
+        ui.wait_text("Connection test: all checks passed")
+    except Exception as exc:  # name the item that failed (a screenshot may cut it off)
+        items = [ln for ln in ui.page.inner_text("body").splitlines() if "[" in ln]
+        raise AssertionError(f"the second check did not pass: {items}") from exc
     ui.wait_text("[ok  ] calibration: calibrated UR5")
     ui.page.get_by_text("[ok  ] calibration").first.scroll_into_view_if_needed()
     shot2 = ui.shot("link-check-remote")
