@@ -112,7 +112,7 @@ class BatchChain:
                            np.array([j.axis for j in self.joints], dtype=float),
                            np.array([j.kind == JointKind.PRISMATIC for j in self.joints]))
 
-    def _small(self, Q: Array) -> Array:
+    def _compiled_frames(self, Q: Array) -> Array:
         """Link frames of a float64 batch by the compiled loop, (N, n+1, 4, 4)."""
         Q = np.ascontiguousarray(Q, dtype=np.float64)
         out = np.empty((len(Q), self.dof + 1, 4, 4))
@@ -130,7 +130,7 @@ class BatchChain:
                   chunk: int | None = None) -> BatchPoses:
         """Tip poses of Q (N, n): positions (N, 3), rotations (N, 3, 3) (strided views)."""
         if self._compiled(Q, dtype, SMALL_BATCH):
-            T = self._small(Q)[:, -1] @ self.T_last_tip
+            T = self._compiled_frames(Q)[:, -1] @ self.T_last_tip
             return BatchPoses(T[:, :3, 3], T[:, :3, :3])
         QT = self._check(Q, dtype)
         n = QT.shape[1]
@@ -153,7 +153,7 @@ class BatchChain:
                    chunk: int | None = None) -> Array:
         """T_base_link for base + every moving link of Q (N, n): shape (N, n+1, 4, 4)."""
         if self._compiled(Q, dtype):
-            return self._small(Q)
+            return self._compiled_frames(Q)
         QT = self._check(Q, dtype)
         n = QT.shape[1]
         chunk = chunk or CHUNK_BYTES // QT.itemsize

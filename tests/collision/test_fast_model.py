@@ -190,14 +190,18 @@ def test_every_posture_the_fast_model_calls_free_is_free_for_fcl(arm, checkers):
     assert (~said_free & ~truth).sum() <= (~truth).sum()
 
 
+def _free_postures(arm, exact, *, seed: int, most: int, least: int) -> np.ndarray:
+    """Up to `most` free postures among 2000 uniform ones (at least `least`)."""
+    lim = arm.limits
+    Q = np.random.default_rng(seed).uniform(lim.lower, lim.upper, size=(2000, arm.dof))
+    Q = Q[exact.is_valid_batch(Q)][:most]
+    assert len(Q) >= least
+    return Q
+
+
 def test_the_fast_clearance_is_a_lower_bound_of_the_exact_one(arm, checkers):
     exact, fast = checkers
-    rng = np.random.default_rng(9)
-    lim = arm.limits
-    Q = rng.uniform(lim.lower, lim.upper, size=(2000, arm.dof))
-    Q = Q[exact.is_valid_batch(Q)][:25]
-    assert len(Q) >= 10
-    for q in Q:
+    for q in _free_postures(arm, exact, seed=9, most=25, least=10):
         lb = fast.min_clearance_along(q[None])
         true = exact.min_clearance_along(q[None])
         # FCL's distances between a mesh and a box are exact up to its GJK tolerance,
@@ -212,11 +216,7 @@ def test_keeps_clearance_is_the_exact_clearance_decision(arm, checkers):
     the links the model leaves out of its obstacle checks it refuses, and an arm of round
     shapes is decided by its capsules' lower bound (both conservative: never a pass)."""
     exact, fast = checkers
-    rng = np.random.default_rng(11)
-    lim = arm.limits
-    Q = rng.uniform(lim.lower, lim.upper, size=(2000, arm.dof))
-    Q = Q[exact.is_valid_batch(Q)][:80]
-    assert len(Q) >= 20
+    Q = _free_postures(arm, exact, seed=11, most=80, least=20)
     trues = np.array([exact.min_clearance_along(q[None]) for q in Q])
     order = np.argsort(trues)  # the 12 nearest (refusals below the floor) and 8 others
     decided = []
