@@ -8,7 +8,7 @@ from dataclasses import replace
 import numpy as np
 
 from assistant.robots.rv2aj import RV2AJ, RV2AJConfig
-from assistant.world.model import _REACH, tcp_reach
+from assistant.world.model_types import _REACH, tcp_reach
 
 
 def test_reach_is_remembered_per_robot_and_limits():
