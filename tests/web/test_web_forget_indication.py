@@ -32,8 +32,11 @@ def test_a_learnt_indication_is_listed_and_forgotten_from_the_page(serve_session
     ui.wait_text(learnt[0])
     ui.shot("learnt-collisions")
     ui.click("Forget this indication")
+    # the page's click runs as a session action in the server's thread: wait for all of it
+    # (the world model forgets first, then the record, then the save), not its first part
     deadline = time.monotonic() + 30
-    while session.learnt_indications():
+    while session.learnt_indications() or session.recorded_collisions or \
+            Session.load(tmp_path / "s", autosave=False).recorded_collisions:
         assert time.monotonic() < deadline, "the indication was not forgotten"
         time.sleep(0.1)
     assert session.recorded_collisions == []  # the saved record too: a rebuild keeps it gone
