@@ -88,13 +88,15 @@ class SearchResult:
 def lazy_astar(graph: JointGraph, start: int, goal: int, checker: EdgeChecker,
                budget: SearchBudget | None = None, progress: Progress | None = None, *,
                heuristic_weight: float = 1.0,
-               known: dict[tuple[int, int], float | None] | None = None) -> SearchResult:
+               known: dict[tuple[int, int], float | None] | None = None,
+               dead: Array | None = None) -> SearchResult:
     """Cheapest path start -> goal whose edges all pass `checker` (see module docstring).
 
     `heuristic_weight` > 1 turns it into weighted A*: far fewer expansions (and edge checks),
     cost at most that factor above the optimum. `known` holds edges (u, v) already checked
     (their first invalid fraction, None = valid), e.g. by a path-first search handing over;
-    it is updated with the edges this search checks.
+    it is updated with the edges this search checks. `dead` marks nodes whose posture is
+    known to be invalid (never entered).
     """
     budget = budget or SearchBudget()
     t0 = time.monotonic()
@@ -103,7 +105,8 @@ def lazy_astar(graph: JointGraph, start: int, goal: int, checker: EdgeChecker,
     g = np.full(n, np.inf)
     parent = np.full(n, -1, dtype=np.int64)
     closed = np.zeros(n, dtype=bool)
-    dead = np.zeros(n, dtype=bool)  # the posture itself is invalid
+    # the posture itself is invalid
+    dead = np.zeros(n, dtype=bool) if dead is None else np.array(dead, dtype=bool)
     h = np.full(n, np.nan)
     invalid: set[tuple[int, int]] = set()
     known = {} if known is None else known

@@ -42,8 +42,12 @@ Array = np.ndarray
 
 def lazy_path_search(graph: JointGraph, start: int, goal: int, checker: EdgeChecker,
                      budget: SearchBudget | None = None, progress: Progress | None = None, *,
-                     heuristic_weight: float = 1.0) -> SearchResult:
+                     heuristic_weight: float = 1.0, dead: Array | None = None,
+                     ) -> SearchResult:
     """A path start -> goal whose edges all pass `checker` (see module docstring).
+
+    `dead` marks nodes whose posture is known to be invalid before the search (e.g. next
+    to a recorded collision): they are never entered, and no edge into them is checked.
 
     With `heuristic_weight` 1 the path is the cheapest over the edges that pass, as
     `lazy_astar`'s; above 1 it is weighted A*'s, within that factor of the optimum.
@@ -51,7 +55,7 @@ def lazy_path_search(graph: JointGraph, start: int, goal: int, checker: EdgeChec
     budget = budget or SearchBudget()
     t0 = time.monotonic()
     n = graph.n_nodes
-    dead = np.zeros(n, dtype=bool)
+    dead = np.zeros(n, dtype=bool) if dead is None else np.array(dead, dtype=bool)
     h = np.full(n, np.nan)
     bad: list[int] = []
     known: dict[tuple[int, int], float | None] = {}
@@ -102,7 +106,7 @@ def lazy_path_search(graph: JointGraph, start: int, goal: int, checker: EdgeChec
                         max_seconds=budget.max_seconds - (time.monotonic() - t0),
                         edge_batch=budget.edge_batch)
     res = lazy_astar(graph, start, goal, checker, rest, progress,
-                     heuristic_weight=heuristic_weight, known=known)
+                     heuristic_weight=heuristic_weight, known=known, dead=dead)
     return SearchResult(res.found, res.reason, res.nodes, res.cost,
                         expansions + res.expansions, checks + res.edge_checks,
                         rejected + res.rejected_edges, time.monotonic() - t0,

@@ -312,7 +312,8 @@ class WorldModel:
             i = same[0]
             old = self.collisions[i]
             assert old.region is not None
-            promote = bool(old.region.cut_for or region.cut_for)
+            promote = bool(old.region.cut_for or region.cut_for) and \
+                old.region.hits + 1 >= rcfg.hold_after
             region = grown(old.region, region, rcfg, promote=promote)
             region = carve(arm, region, rcfg, start, withhold=False)
             if not promote:
