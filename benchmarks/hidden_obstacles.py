@@ -5,9 +5,10 @@ limits; the KUKA, ABB and FANUC arms of the robot catalogue), `--cells` seeded c
 table, a wall between two taught poses left and right of the arm, the poses tool-down at
 45-65 % of the reach. The session plans the mission (start -> goal); a box of 30-80 mm is
 then hidden where the planned transfer's TCP runs farthest from both ends, among the points
-where it does not touch the arm where it stands (only the simulated robot knows it; if the
-start posture touches the wall the arm first moves to a free posture, as the operator
-would), and the mission is executed headless: the simulated robot meets
+where it does not touch the arm where it stands or at a taught pose (only the simulated
+robot knows it; if the start posture touches the wall the arm first moves to a free
+posture, as the operator would; a pose whose every posture puts the arm in the table is
+taught 50 or 100 mm higher), and the mission is executed headless: the simulated robot meets
 the box, reports the contact (the self-reporting robot of scripts, standing in for the
 operator's Collision!), the session learns and re-plans, until the goal or a reason. Every
 run is bounded by the session's budgets and by `--budget-s` of wall time (a run over it
@@ -70,27 +71,38 @@ def _reach(robot: Any) -> float:
     return float(max(np.linalg.norm(robot.fk(q)[:2, 3]) for q in Q))
 
 
-def _cell(s: Any, seed: int) -> bool:
-    """Table, wall, start and goal for seed; False if the arm cannot hold both poses."""
-    from assistant.robots.model import UnreachableError
-    from assistant.session.types import SessionError
-
+def _layout(seed: int, reach: float) -> tuple[float, float, float, float]:
+    """Seed's (pose radius, pose height, half the angle between the poses, wall height)."""
     rng = np.random.default_rng(seed)
-    reach = _reach(s.robot)
     r = reach * rng.uniform(0.45, 0.65)
     z = reach * rng.uniform(0.12, 0.25)
     half = rng.uniform(0.35, 0.6)  # half the angle between the poses (rad)
+    return r, z, half, z * rng.uniform(0.6, 1.1)
+
+
+def _cell(s: Any, seed: int) -> bool:
+    """Table, wall, start and goal for seed; False if the arm cannot hold both poses."""
+    reach = _reach(s.robot)
+    r, z, half, wall_h = _layout(seed, reach)
     s.next()  # set up -> import CAD
     s.add_primitive("box", (2.0 * reach, 2.0 * reach, 0.02), name="table",
                     T_world_object=_T((0.0, 0.0, -0.011)))
-    wall_h = z * rng.uniform(0.6, 1.1)
     s.add_primitive("box", (reach * 0.3, 0.02, wall_h), name="wall",
                     T_world_object=_T((r, 0.0, wall_h / 2.0)))
     s.goto("teach.locations")
+    return _teach_poses(s, seed, 0.0)
+
+
+def _teach_poses(s: Any, seed: int, lift: float) -> bool:
+    """Teach A and B (`lift` m above the seed's height); False if the arm cannot hold one."""
+    from assistant.robots.model import UnreachableError
+    from assistant.session.types import SessionError
+
+    r, z, half, _ = _layout(seed, _reach(s.robot))
     try:
         for name, sign in (("A", 1.0), ("B", -1.0)):
             a = sign * half
-            T = _T((r * np.cos(a), r * np.sin(a), z))
+            T = _T((r * np.cos(a), r * np.sin(a), z + lift))
             for R in _orientations(a):  # tool down, else tilted out, else level: what the
                 T[:3, :3] = R           # operator would teach where the wrist allows it
                 try:
@@ -105,6 +117,12 @@ def _cell(s: Any, seed: int) -> bool:
     except (SessionError, UnreachableError):
         return False
     return True
+
+
+#: Heights (m) a pose is raised by, in turn, when every posture that holds it puts the arm
+#: in the table (the Z1's level wrist at 0.1 m: its flange housing reaches below the TCP);
+#: the operator would teach it higher.
+LIFTS = (0.05, 0.10)
 
 
 def _orientations(azimuth: float) -> list[np.ndarray]:
@@ -129,8 +147,9 @@ def _T(p: tuple[float, float, float]) -> np.ndarray:
 
 def _hidden_at(s: Any, size: float) -> np.ndarray | None:
     """World TCP of the transfer farthest from its two ends (middle half) where a box of
-    `size` does not touch the arm where it stands: a box the arm already stands in is no
-    hidden obstacle on the transfer (the operator would see the contact before the run)."""
+    `size` does not touch the arm where it stands nor at the plan's taught postures: a box
+    the arm already stands in is no hidden obstacle on the transfer (the operator would see
+    the contact before the run, or when teaching)."""
     from assistant.collision.checker import CollisionChecker
     from assistant.collision.reports import Obstacle
     from assistant.robots.model import CollisionShape, ShapeKind
@@ -146,12 +165,18 @@ def _hidden_at(s: Any, size: float) -> np.ndarray | None:
         mid = P[len(P) // 4: 3 * len(P) // 4 + 1]
         d = np.linalg.norm(mid[:, None] - ends[None], axis=2).min(axis=1)
         cands += [(float(d[i]), mid[i]) for i in np.argsort(-d)[:40]]
-    q_now = s.current_joints()
+    # where the arm stands, and the taught postures (a box the arm touches at A or B would
+    # have been seen when they were taught; no run could reach such a goal)
+    moves = [m for m in s.trajectory.motions if "->" in m.label and m.joint_path is not None
+             and len(m.joint_path)]
+    stands = [s.current_joints()] + ([moves[0].joint_path[0], moves[-1].joint_path[-1]]
+                                     if moves else [])
     for _, p in sorted(cands, key=lambda c: -c[0]):
         T = np.eye(4)
         T[:3, 3] = p
         box = Obstacle("hidden", inv_T(Tw) @ T, (CollisionShape(ShapeKind.BOX, (size,) * 3),))
-        if CollisionChecker(s.robot, [box]).check(q_now).valid:
+        checker = CollisionChecker(s.robot, [box])
+        if all(checker.check(q).valid for q in stands):
             return p
     return None
 
@@ -169,15 +194,15 @@ def run_case(arm: str, seed: int) -> dict:
             if not _cell(s, seed):
                 return {"arm": arm, "seed": seed, "outcome": "unplannable",
                         "why": "a pose out of reach"}
-            s.goto("explore")
-            s.build_world()
-            s.goto("plan")
-            if s.start_posture_links():  # as the operator does: Move to a free posture
-                s.move_to_free_posture()
-            try:
-                first = s.plan()
-            except SessionError as exc:  # e.g. a pose whose every posture touches the table
-                first = {"ok": False, "reason": str(exc)}
+            first = _world_and_plan(s)
+            for lift in LIFTS:
+                if first.get("ok") or "every arm configuration collides" not in \
+                        first.get("reason", ""):
+                    break
+                s.goto("teach.locations")
+                if not _teach_poses(s, seed, lift):
+                    break
+                first = _world_and_plan(s)
             if not first.get("ok"):
                 return {"arm": arm, "seed": seed, "outcome": "unplannable",
                         "why": first.get("reason", "")[:120]}
@@ -203,6 +228,21 @@ def run_case(arm: str, seed: int) -> dict:
                     "wall_s": time.perf_counter() - t0}
         finally:
             s.close()
+
+
+def _world_and_plan(s: Any) -> dict:
+    """Build the world and plan the mission, as the operator's explore and plan steps."""
+    from assistant.session import SessionError
+
+    s.goto("explore")
+    s.build_world()
+    s.goto("plan")
+    if s.start_posture_links():  # as the operator does: Move to a free posture
+        s.move_to_free_posture()
+    try:
+        return s.plan()
+    except SessionError as exc:  # e.g. a pose whose every posture touches the table
+        return {"ok": False, "reason": str(exc)}
 
 
 def _case_in_child(arm: str, seed: int, budget_s: float) -> dict:

@@ -73,6 +73,11 @@ class EndReason(str, Enum):
     CANCELLED = "cancelled"
 
 
+#: Two stops this close in every joint (rad) are the same posture: the arm driven back over
+#: the same path stops at the same check sample (1e-3 rad is ~1 mm at a 1 m reach, far
+#: below the 5 mm motion samples; a stop elsewhere differs by a sample or more).
+_SAME_STOP_RAD = 1e-3
+
 #: Ends after which `resume()` may continue.
 RESUMABLE = frozenset({EndReason.LINK_LOST, EndReason.STOPPED, EndReason.CANCELLED})
 
@@ -189,6 +194,8 @@ class MissionExecutor:
         self._running = False
         self._given_plan: MissionPlan | None = None
         self._last_indication_s = 0.0
+        #: Where this run's indications stopped the arm (`_record`).
+        self._stops: list[Array] = []
         self.bounds = self._new_bounds()
         link.subscribe(self._on_event)
 
@@ -208,6 +215,7 @@ class MissionExecutor:
                 to the operator first); planned here if None.
         """
         self.report = ExecutionReport()
+        self._stops = []
         self.bounds = self._new_bounds()
         self._mission, self._T_wb = mission, np.asarray(T_world_base, dtype=float)
         self._phase, self._queue, self._index, self._final = _Phase.EXPLORE, None, 0, None
@@ -667,7 +675,28 @@ class MissionExecutor:
             raise _End(EndReason.INDICATION_BUDGET,
                        f"more than {cfg.max_indications} collision indications; the last at "
                        f"{piece.label}")
+        self._same_stop_again(q, piece)
         return q
+
+    def _same_stop_again(self, q: Array, piece: PlanPiece) -> None:
+        """End the run when the arm was stopped again where it was stopped before and what
+        was learnt still lets it stand there: the evidence had to be left out next to a
+        protected posture (`contact_region`: never where a goal or taught location has the
+        arm), so every re-plan would lead back into the same contact until the indication
+        budget is spent. Something is where the mission itself puts the arm."""
+        w = self.planner.world
+        again = any(np.abs(q - s).max() <= _SAME_STOP_RAD for s in self._stops)
+        self._stops.append(q.copy())
+        if not again or w.near_recorded_collision(q[None])[0]:
+            return
+        near = sorted({name for rc in w.collisions if rc.region is not None
+                       for name in rc.region.cut_for})
+        where = ", ".join(near) if near else "a posture of the mission"
+        raise _End(EndReason.NO_PATH,
+                   f"{piece.label}: stopped again at the same posture, and nothing can be "
+                   f"learnt there without making {where} unreachable - something is where "
+                   f"the arm must pass next to {where}: remove it, or re-teach {where} away "
+                   "from it")
 
     def _protected(self) -> list[tuple[str, Array]]:
         """What an inference must never make unreachable: the ends of every piece of the

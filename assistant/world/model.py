@@ -257,13 +257,13 @@ class WorldModel:
                            protected: Sequence[tuple[str, Array]] = ()) -> WorldChange:
         """The operator pressed the collision button with the arm at q (see `indications`).
 
-        With `approach` (the postures the arm went through, ending at q) on a sampled store
-        (6- and 7-axis arms) the indication teaches the swept region of the last check step
+        With `approach` (the postures the arm went through, ending at q) on a 6- or 7-axis
+        arm (either store) the indication teaches the swept region of the last check step
         (`contact_region`), without the arm at `protected` postures (label, q); else the
         posture box and the arm's leaves. `last_learnt` says what was learnt."""
         table, positions = self._need()
         q = np.asarray(q, dtype=float)
-        if approach is not None and self.sampled and len(approach) >= 2 and \
+        if approach is not None and self.robot.dof >= 6 and len(approach) >= 2 and \
                 self.config.indication.learn_regions:
             change = self._learn_region(q, np.asarray(approach, dtype=float), list(protected))
             if change is not None:

@@ -105,3 +105,34 @@ def test_a_goal_the_old_rule_lost_is_named_and_freed_by_forgetting(cell):
     assert world.near_recorded_collision(Q_G[None])[0]
     planner.roadmap.forget_collision(0)
     assert not world.collisions and not world.near_recorded_collision(Q_G[None])[0]
+
+
+def test_stopped_again_where_nothing_could_be_learnt_ends_the_run_with_a_reason(cell):
+    """The same stop twice, while what was learnt still lets the arm stand there (all of it
+    withheld next to a protected posture), ends the run at once with a sentence naming
+    what the operator can change - not 20 contacts at the same place until the budget."""
+    from assistant.planning.execution import _End
+
+    robot, planner, piece, _ = cell
+    link = SimulatedRobot(robot, clock=VirtualClock(), start_q=Q_S)
+    link.connect()
+    ex = MissionExecutor(planner, link, ExecutionConfig(plan_final=False))
+    try:
+        q = piece.dense()[len(piece.dense()) // 2]
+        assert not planner.world.near_recorded_collision(q[None])[0]
+        ex._same_stop_again(q, piece)  # the first stop there: the run goes on
+        ex._same_stop_again(q + 0.01, piece)  # elsewhere (0.01 rad): goes on
+        with pytest.raises(_End) as end:
+            ex._same_stop_again(q + 1e-4, piece)  # the same stop (a reading apart)
+        assert end.value.reason == EndReason.NO_PATH
+        assert "stopped again at the same posture" in end.value.message
+        # where the record keeps the arm away, a stop there again is left to the re-plan
+        world = planner.world
+        world.indicate_collision(q)
+        try:
+            assert world.near_recorded_collision(q[None])[0]
+            ex._same_stop_again(q, piece)
+        finally:
+            planner.roadmap.forget_collision(len(world.collisions) - 1)
+    finally:
+        ex.detach()

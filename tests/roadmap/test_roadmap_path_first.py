@@ -336,3 +336,35 @@ def test_a_goal_cut_off_from_the_start_side_is_known_after_its_own_pocket():
     status, _, _, expansions = _search(graph, s, g)
     assert status == NO_PATH and expansions == 0
     assert lazy_astar(graph, s, g, AlwaysValid()).expansions > 40
+
+
+class Recording(AlwaysValid):
+    """Every motion valid; remembers each motion's end posture."""
+
+    def __init__(self):
+        super().__init__()
+        self.ends: list[np.ndarray] = []
+
+    def first_invalid_fraction(self, q0, q1):
+        self.ends.append(np.asarray(q1))
+        return super().first_invalid_fraction(q0, q1)
+
+
+@pytest.mark.parametrize("rounds", [8, 0])
+def test_nodes_known_dead_are_never_entered_nor_checked(rounds):
+    """`dead` (postures known invalid, e.g. next to a recorded collision) leaves nodes out
+    before the search: the path avoids them and no edge into them is checked, in the
+    path-first rounds and in the pop-checking A* they hand over to."""
+    rng = np.random.default_rng(3)
+    graph, (s, g) = toy_graph(rng, shape=(6, 6, 1), per_cell=2, penalty=False)
+    free = lazy_path_search(graph, s, g, AlwaysValid())
+    inner = free.nodes[1:-1]
+    assert inner, "the toy query must pass some node"
+    dead = np.zeros(graph.n_nodes, dtype=bool)
+    dead[inner[len(inner) // 2]] = True
+    checker = Recording()
+    res = lazy_path_search(graph, s, g, checker, SearchBudget(path_rounds=rounds), dead=dead)
+    assert res.found and not dead[res.nodes].any()
+    q_dead = graph.node_q[dead]
+    assert not any(np.array_equal(e, qd) for e in checker.ends for qd in q_dead)
+    assert dead.sum() == 1  # the caller's array is left as it was
