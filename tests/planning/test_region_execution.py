@@ -136,3 +136,41 @@ def test_stopped_again_where_nothing_could_be_learnt_ends_the_run_with_a_reason(
             planner.roadmap.forget_collision(len(world.collisions) - 1)
     finally:
         ex.detach()
+
+
+def test_positions_next_to_a_learnt_region_are_dead_before_the_search(cell):
+    """After a region is learnt the search leaves out, before it starts, the positions
+    next to it (`RoadmapPlanner._known_dead`): each one it marks is next to the record, and
+    none is missed among those whose TCP leaf is near the region; the start and goal are
+    never marked."""
+    from types import SimpleNamespace
+
+    from assistant.roadmap.planner import DEAD_REACH
+
+    robot, planner, piece, hidden = cell
+    world, roadmap = planner.world, planner.roadmap
+    rep, _ = drive(planner, robot, piece, hidden)
+    try:
+        regions = [rc.region for rc in world.collisions if rc.region is not None
+                   and len(rc.region.centres)]
+        assert regions, rep.describe()
+        base = roadmap._graph_base()
+        n = int(base.cell_start[-1])
+        graph = SimpleNamespace(node_q=base.node_q[:n + 2], n_nodes=n + 2)
+        roadmap._edge.exempt = frozenset()
+        dead = roadmap._known_dead(graph, base, (n, n + 1))
+        assert dead is not None and not dead[n:].any()
+        near = world.near_recorded_collision(base.node_q[:n])
+        assert dead[:n].any() and not (dead[:n] & ~near).any()
+        # the cut only leaves out positions whose TCP is far from every region
+        C = np.concatenate([r.centres for r in regions])
+        tcp = robot.batch_fk(base.node_q[:n][near & ~dead[:n]]).positions
+        if len(tcp):  # a TCP leaf outside the box of centres +- (reach + half a diagonal)
+            far = np.linalg.norm(tcp[:, None] - C[None], axis=2).min(axis=1)
+            assert far.min() > DEAD_REACH - world.grid.leaf, far.min()
+        memo = roadmap._dead  # the next query in the same world state poses nothing again
+        again = roadmap._known_dead(graph, base, (n, n + 1))
+        assert roadmap._dead is memo and np.array_equal(again, dead)
+    finally:
+        while world.collisions:
+            roadmap.forget_collision(0)
