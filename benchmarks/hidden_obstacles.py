@@ -21,7 +21,9 @@ criterion ("nothing is no pass").
     python benchmarks/hidden_obstacles.py [--cells 10] [--arms ur5,kuka] [--budget-s 120]
 
 Criteria (issue 56): >= 95 % of plannable cases reach the goal, every case ends within
-`--budget-s`, median re-plan inside a run <= 1 s. The last line is one JSON object.
+`--budget-s`, median re-plan inside a run <= 1 s - over all cases (`all`, the issue's
+wording) and, stricter, for every arm on its own (`..._every_arm_...`). The last line is
+one JSON object.
 """
 
 from __future__ import annotations
@@ -280,12 +282,23 @@ def summarise(cases: list[dict], budget_s: float) -> dict:
                          if c["outcome"] != "goal"],
         }
     arms = list(out.values())
+    valid = [c for c in cases if c["outcome"] != "unplannable"]
+    replans = [t for c in valid for t in c.get("replans_s", [])]
+    out["all"] = {
+        "plannable": len(valid), "reached": sum(c["outcome"] == "goal" for c in valid),
+        "success": sum(c["outcome"] == "goal" for c in valid) / len(valid) if valid else None,
+        "replan_median_s": statistics.median(replans) if replans else None,
+    }
     out["criteria"] = {
-        "success_ge_95pct": bool(arms) and all(a["success"] is not None and
-                                               a["success"] >= 0.95 for a in arms),
+        # the issue's wording: of all cases; and the stricter reading, every arm on its own
+        "success_ge_95pct": bool(valid) and out["all"]["success"] >= 0.95 and
+        all(a["success"] is not None for a in arms),
+        "success_every_arm_ge_95pct": bool(arms) and all(a["success"] is not None and
+                                                         a["success"] >= 0.95 for a in arms),
         "every_case_ends": bool(arms) and all(a["ended_in_budget"] for a in arms),
-        "replan_median_le_1s": bool(arms) and all(a["replan_median_s"] is not None and
-                                                  a["replan_median_s"] <= 1.0 for a in arms),
+        "replan_median_le_1s": bool(replans) and out["all"]["replan_median_s"] <= 1.0,
+        "replan_median_every_arm_le_1s": bool(arms) and all(
+            a["replan_median_s"] is not None and a["replan_median_s"] <= 1.0 for a in arms),
         "budget_s": budget_s,
     }
     return out
