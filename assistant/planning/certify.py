@@ -59,7 +59,7 @@ def all_exact(planner: MissionPlanner) -> Iterator[None]:
     """Every check of the planner and its roadmap on the exact view of its checker
     (`CollisionChecker.exact_only`) while the block runs: the repair of a refused
     certificate. Restored afterwards."""
-    from assistant.roadmap.planner import _EdgeCheck
+    from assistant.roadmap.edge_check import EdgeCheck
 
     exact = planner.checker.exact_only()
     rm = planner.roadmap
@@ -70,7 +70,7 @@ def all_exact(planner: MissionPlanner) -> Iterator[None]:
     planner.verifier = planner.screen = KnownVerifier(exact, world)
     planner.app_verifier = KnownVerifier(exact, world, hand=False)
     rm.checker = exact
-    rm._exact_edge = rm._edge = _EdgeCheck(exact, world)
+    rm._exact_edge = rm._edge = EdgeCheck(exact, world)
     rm._fast_edge = None
     try:
         yield

@@ -1,6 +1,6 @@
 """The samples of a batch of roadmap edges and each edge's first invalid one.
 
-The lazy search checks its path's edges in one batched call (`planner._EdgeCheck`); these
+The lazy search checks its path's edges in one batched call (`edge_check.EdgeCheck`); these
 lay out every edge's samples a + (k / n) (b - a), k = 0..n, and find each edge's first
 invalid sample (a few numpy calls, ~0.03 ms a call).
 """

@@ -48,7 +48,7 @@ from assistant.roadmap.astar import (
     SearchBudget,
     SearchResult,
 )
-from assistant.roadmap.edge_samples import edge_samples, first_invalid
+from assistant.roadmap.edge_check import DEAD_REACH, EdgeCheck, near_learnt
 from assistant.roadmap.free_joints import ramp_free_joints
 from assistant.roadmap.graph import GraphBase, JointGraph
 from assistant.roadmap.grid_ops import connected26
@@ -67,6 +67,8 @@ from assistant.world.fusion import Source
 from assistant.world.model import WorldBuildReport, WorldChange, WorldModel
 
 Array = np.ndarray
+
+__all__ = ["DEAD_REACH"]  # re-exported: its home is `edge_check`
 
 
 class PlanFailure(str, Enum):
@@ -167,60 +169,6 @@ class CollisionUpdate:
     seconds: float
 
 
-#: How far (m) from a learnt region a position's TCP may be for `_known_dead` to ask about it.
-DEAD_REACH = 0.3
-
-
-class _EdgeCheck:
-    """The checker's continuous check plus "not near a recorded collision posture"."""
-
-    def __init__(self, checker: ValidityChecker, world: WorldModel):
-        self.checker = checker
-        self.world = world
-        #: Recorded collisions whose box holds the query's start: the robot stands there and
-        #: must be allowed to move out.
-        self.exempt: frozenset[int] = frozenset()
-
-    def first_invalid_fraction(self, q0: Array, q1: Array) -> float | None:
-        if self.world.collisions:
-            table = self.world.table
-            assert table is not None
-            varying = table.counts > 1
-            # half a grid step per sample: no posture box is jumped over
-            steps = np.abs(q1 - q0)[varying] / (0.5 * table.step[varying])
-            n = max(1, int(np.ceil(steps.max(initial=0.0))))
-            f = np.arange(n + 1) / n
-            near = self.world.near_recorded_collision(q0 + f[:, None] * (q1 - q0), self.exempt)
-            if near.any():
-                return float(f[int(np.argmax(near))])
-        return self.checker.first_invalid_fraction(q0, q1)
-
-    def first_invalid_fractions(self, Q0: Array, Q1: Array) -> list[float | None]:
-        """Several edges in one batched validity call, sampled exactly as the checker's own
-        motion check (`motion_samples_between`, certified by margins with `is_valid_samples` where
-        the checker offers it); falls back to one call per edge otherwise."""
-        samples = getattr(self.checker, "motion_samples_between", None)
-        if samples is None:
-            return [self.first_invalid_fraction(a, b) for a, b in zip(Q0, Q1, strict=True)]
-        Q0 = np.ascontiguousarray(Q0, dtype=float)
-        Q1 = np.ascontiguousarray(Q1, dtype=float)
-        ns = np.ascontiguousarray(samples(Q0, Q1), dtype=np.int64)
-        # every edge's samples a + (k / n) (b - a), k = 0..n, all at once (the same
-        # operations on the same numbers as edge by edge)
-        Q, edge, F = edge_samples(Q0, Q1, ns)
-        near = (self.world.near_recorded_collision(Q, self.exempt)
-                if self.world.collisions else None)
-        along = getattr(self.checker, "is_valid_samples", None)
-        if along is not None:  # only each edge's first invalid sample matters
-            ok = along(Q, None if len(ns) == 1 else edge, first_only=True, known_invalid=near)
-        else:
-            ok = self.checker.is_valid_batch(Q)
-            if near is not None:
-                ok &= ~near
-        first = first_invalid(np.ascontiguousarray(ok, dtype=bool), edge, F, len(ns))
-        return [None if f != f else f for f in first.tolist()]  # NaN: no invalid sample
-
-
 @dataclass(frozen=True)
 class _SearchGrids:
     """Flat grids of the world that every query reads (`RoadmapPlanner._search_grids`)."""
@@ -248,13 +196,13 @@ class RoadmapPlanner:
         self.config = config or RoadmapConfig()
         self.labels: SourceLabels | None = None
         self.voronoi: VoronoiMap | None = None
-        self._exact_edge = _EdgeCheck(checker, world)
+        self._exact_edge = EdgeCheck(checker, world)
         #: Edges are checked on the fast conservative model when the checker has one
         #: (`CollisionChecker.fast`): what it calls free is free, so the path found needs
         #: no other check; the exact checker takes over where it calls a terminal a
         #: collision or finds no path (a gap only the real shapes pass).
         fast = getattr(checker, "fast", None)
-        self._fast_edge = _EdgeCheck(fast, world) if fast is not None else None
+        self._fast_edge = EdgeCheck(fast, world) if fast is not None else None
         self._edge = self._exact_edge
         #: The search graphs' nodes (`GraphBase`) and the positions array they were made of.
         self._base: tuple[Array, GraphBase] | None = None
@@ -557,10 +505,10 @@ class RoadmapPlanner:
     def _known_dead(self, graph: JointGraph, base: GraphBase, terminals: Sequence[int],
                     ) -> Array | None:
         """Nodes whose posture lies next to a recorded collision (not the query's start's
-        own, `_EdgeCheck.exempt`): the search never enters them. Without this the lazy
+        own, `EdgeCheck.exempt`): the search never enters them. Without this the lazy
         search finds them one rejected edge at a time - round a learnt region on a UR5,
         20 000 edge checks (~40 s) before it gave up. One batched check of the base
-        positions near what was learnt (`_near_learnt`) per world state, remembered; the
+        positions near what was learnt (`edge_check.near_learnt`) per world state, remembered; the
         terminals are never dead (the search starts and ends there, `_check_terminals`
         judged them)."""
         w = self.world
@@ -577,7 +525,7 @@ class RoadmapPlanner:
             if memo is None or memo[0] is not base.node_q or memo[2] != exempt or \
                     len(memo[1]) != len(records) or \
                     any(a is not b for a, b in zip(memo[1], records, strict=True)):
-                ask = self._near_learnt(base, n_base, exempt)
+                ask = near_learnt(w, base, n_base, exempt)
                 found = np.zeros(n_base, dtype=bool)
                 found[ask] = w.near_recorded_collision(base.node_q[ask], exempt)
                 memo = self._dead = (base.node_q, records, exempt, found)
@@ -585,25 +533,6 @@ class RoadmapPlanner:
             dead[:n_base] = memo[3]
         dead[list(terminals)] = False
         return dead
-
-    def _near_learnt(self, base: GraphBase, n_base: int, exempt: frozenset[int]) -> Array:
-        """Base positions worth asking `_known_dead` about: with learnt regions only, those
-        whose TCP leaf lies within `DEAD_REACH` of one (the arm touches a region with the
-        links near its TCP; a position the cut leaves unmarked is still refused by the edge
-        checks, only later). Halves a UR10's first re-plan (70 000 positions posed: 0.35 s
-        of the 0.5 s). Posture boxes: every position (their test needs no pose)."""
-        w = self.world
-        if any(rc.region is None for i, rc in enumerate(w.collisions) if i not in exempt):
-            return np.arange(n_base)
-        centres = [rc.region.centres for i, rc in enumerate(w.collisions)
-                   if i not in exempt and rc.region is not None and len(rc.region.centres)]
-        if not centres:
-            return np.zeros(0, dtype=np.int64)
-        C = np.concatenate(centres)
-        pad = DEAD_REACH + w.grid.leaf * np.sqrt(3.0) / 2.0
-        lo, hi = C.min(axis=0) - pad, C.max(axis=0) + pad
-        P = w.grid.centres_of_ijk(w.grid.ijk_of_flat(base.node_cell[:n_base]))
-        return np.flatnonzero(np.all((P >= lo) & (P <= hi), axis=1))
 
     def _search_grids(self) -> _SearchGrids:
         """The world's flat grids a query reads (`_SearchGrids`). Remembered while the

@@ -219,7 +219,7 @@ def _search(c: _Context) -> None:
     graph.distance(graph.node_q[0], graph.node_q)  # the A*'s repair of a rejected edge
     lazy_astar(graph, 0, 7, _AllFree())  # its expansion kernel
     lazy_path_search(graph, 0, 7, _AllFree())  # the compiled search
-    # the roadmap's batched edge check (`planner._EdgeCheck`): its samples' validity
+    # the roadmap's batched edge check (`edge_check.EdgeCheck`): its samples' validity
     checker.is_valid_samples(np.vstack([q, q + 0.3]), first_only=True)
     # a query's searchable cells (`planner`): labels, free / offering / CAD leaves
     source = _roads_source()

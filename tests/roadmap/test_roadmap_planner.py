@@ -64,7 +64,7 @@ def test_thesis_query_gives_a_collision_free_joint_path(planner, rv2aj):
 
 
 def test_batched_edge_check_answers_as_one_check_per_edge(planner, rv2aj):
-    """The search's batched edge check (`_EdgeCheck.first_invalid_fractions`) against the
+    """The search's batched edge check (`EdgeCheck.first_invalid_fractions`) against the
     checker's own motion check edge by edge: free edges, edges into the parts (the first
     invalid fraction), an edge of one step, one batch of a single edge; and its samples
     are laid out edge after edge, k / n of the way."""
