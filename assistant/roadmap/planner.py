@@ -48,7 +48,7 @@ from assistant.roadmap.astar import (
     SearchBudget,
     SearchResult,
 )
-from assistant.roadmap.edge_check import DEAD_REACH, EdgeCheck, near_learnt
+from assistant.roadmap.edge_check import EdgeCheck, near_learnt
 from assistant.roadmap.free_joints import ramp_free_joints
 from assistant.roadmap.graph import GraphBase, JointGraph
 from assistant.roadmap.grid_ops import connected26
@@ -67,8 +67,6 @@ from assistant.world.fusion import Source
 from assistant.world.model import WorldBuildReport, WorldChange, WorldModel
 
 Array = np.ndarray
-
-__all__ = ["DEAD_REACH"]  # re-exported: its home is `edge_check`
 
 
 class PlanFailure(str, Enum):

@@ -145,7 +145,7 @@ def test_positions_next_to_a_learnt_region_are_dead_before_the_search(cell):
     never marked."""
     from types import SimpleNamespace
 
-    from assistant.roadmap.planner import DEAD_REACH
+    from assistant.roadmap.edge_check import DEAD_REACH
 
     robot, planner, piece, hidden = cell
     world, roadmap = planner.world, planner.roadmap
